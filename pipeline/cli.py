@@ -1,0 +1,45 @@
+"""The ``thermal`` command: one sub-command per DVC stage and tool.
+
+``thermal <command> [options]`` (or ``python -m pipeline <command>``) imports the command's
+module and calls its ``main(argv)``; ``thermal <command> --help`` lists that command's options.
+"""
+
+from __future__ import annotations
+
+import importlib
+import logging
+import sys
+
+COMMANDS = {
+    "simulate": ("pipeline.twin.cli", "write synthetic campaigns from the physical twin"),
+    "ingest": ("pipeline.ingest", "raw campaign folders -> tidy parquet tables"),
+    "validate": ("pipeline.validate", "Pandera checks; quarantine bad campaigns"),
+    "separate": ("pipeline.separate", "geometric / thermal error separation"),
+    "evaluate": ("pipeline.evaluate", "fit models, score every campaign against every other"),
+    "track": ("pipeline.track", "log the scores to MLflow"),
+    "summary": ("pipeline.summary", "print where the results are and how to open MLflow"),
+    "bench": ("pipeline.bench", "time each stage of the default dvc repro"),
+}
+
+
+def _usage() -> str:
+    lines = ["usage: thermal <command> [options]", "", "commands:"]
+    lines += [f"  {name:<10} {text}" for name, (_, text) in COMMANDS.items()]
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Dispatch ``argv[0]`` to its command module; return the process exit code."""
+    args = list(sys.argv[1:] if argv is None else argv)
+    if not args or args[0] in {"-h", "--help"}:
+        sys.stdout.write(_usage() + "\n")
+        return 0 if args else 2
+    name, rest = args[0], args[1:]
+    if name not in COMMANDS:
+        sys.stderr.write(f"thermal: unknown command '{name}'\n\n{_usage()}\n")
+        return 2
+    logging.basicConfig(
+        level=logging.INFO, format="%(levelname)s %(name)s: %(message)s", stream=sys.stderr
+    )
+    module = importlib.import_module(COMMANDS[name][0])
+    return int(module.main(rest) or 0)
