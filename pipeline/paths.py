@@ -28,7 +28,7 @@ AXIS_SLOPES = SEPARATED / "axis_slopes.parquet"
 
 REPORTS = Path("reports")
 VALIDATION_REPORT = REPORTS / "validation.json"
-AXIS_SEPARATION_PLOT = REPORTS / "separation" / "axis_separation.png"
+SEPARATION_PLOTS = REPORTS / "separation"
 SCORES_LONG = REPORTS / "cross_season_scores.csv"
 MATRIX_CSV = REPORTS / "cross_season_matrix.csv"
 MATRIX_PNG = REPORTS / "cross_season_matrix.png"
@@ -39,3 +39,4 @@ TRACKING_RECORD = REPORTS / "mlflow_run.json"
 
 METRICS = Path("metrics")
 CROSS_SEASON_METRICS = METRICS / "cross_season.json"
+FITTED_MODELS = REPORTS / "fitted_models.json"

@@ -1,0 +1,42 @@
+# Two commands set up a fresh machine (Python 3.11 and the package registries only):
+#   make run    create .venv, install the pinned lock and the package, run `dvc repro`
+#   make test   the test suite (end-to-end tests included; `make test-fast` skips them)
+PYTHON ?= $(shell command -v python3.11 || command -v python3)
+VENV := .venv
+BIN := $(VENV)/bin
+STAMP := $(VENV)/.installed
+
+.PHONY: install run test test-fast bench lint simulate clean
+
+install: $(STAMP)
+
+$(STAMP): requirements.lock pyproject.toml
+	$(PYTHON) -c 'import sys; assert sys.version_info[:2] == (3, 11), "Python 3.11 is required"'
+	$(PYTHON) -m venv $(VENV)
+	$(BIN)/python -m pip install --quiet --disable-pip-version-check "pip==26.3"
+	$(BIN)/python -m pip install --quiet --disable-pip-version-check -r requirements.lock
+	$(BIN)/python -m pip install --quiet --disable-pip-version-check --no-deps -e .
+	touch $(STAMP)
+
+run: install
+	PATH="$(CURDIR)/$(BIN):$$PATH" $(BIN)/dvc repro
+	$(BIN)/thermal summary
+
+test: install
+	PATH="$(CURDIR)/$(BIN):$$PATH" $(BIN)/python -m pytest
+
+test-fast: install
+	PATH="$(CURDIR)/$(BIN):$$PATH" $(BIN)/python -m pytest -m "not slow"
+
+bench: install
+	PATH="$(CURDIR)/$(BIN):$$PATH" $(BIN)/thermal bench
+
+lint: install
+	$(BIN)/ruff check .
+	$(BIN)/ruff format --check .
+
+simulate: install
+	$(BIN)/thermal simulate --preset demo --out data/raw
+
+clean:
+	rm -rf data/ingested data/validated data/separated reports metrics mlflow.db mlartifacts mlruns

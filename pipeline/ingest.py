@@ -1,0 +1,110 @@
+"""DVC stage ``ingest``: every campaign folder under ``data/raw/`` -> tidy parquet tables.
+
+Writes ``data/ingested/{campaigns,samples,laser,problems}.parquet`` (columns in
+``schemas.ingested``). Bad content does not stop the stage: it is recorded in the problems table
+and the validation stage quarantines the campaign. Raw files are only read.
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+from pathlib import Path
+
+import pandas as pd
+
+from pipeline import paths
+from pipeline.config import load_section
+from pipeline.raw_reader import Problem, RawCampaign, problems_frame, read_campaign
+
+LOGGER = logging.getLogger(__name__)
+
+
+def campaign_folders(raw_dir: Path) -> list[Path]:
+    """Campaign folders under ``raw_dir``, sorted by name (hidden entries ignored)."""
+    if not raw_dir.is_dir():
+        raise FileNotFoundError(
+            f"raw campaign folder {raw_dir} does not exist; put one folder per campaign there "
+            "(see data-contract.md) or generate the demo set with "
+            "'thermal simulate --preset demo --out data/raw'"
+        )
+    return sorted(p for p in raw_dir.iterdir() if p.is_dir() and not p.name.startswith("."))
+
+
+def ingest(raw_dir: Path, max_alignment_gap_s: float) -> dict[str, pd.DataFrame]:
+    """Read every campaign folder into the four ingested tables.
+
+    Parameters
+    ----------
+    raw_dir : Path
+        Folder holding one sub-folder per campaign.
+    max_alignment_gap_s : float
+        Seconds; see :func:`pipeline.raw_reader.read_campaign`.
+
+    Returns
+    -------
+    dict of str to DataFrame
+        ``campaigns``, ``samples``, ``laser`` and ``problems``.
+    """
+    campaigns = [read_campaign(folder, max_alignment_gap_s) for folder in campaign_folders(raw_dir)]
+    return tabulate(campaigns)
+
+
+def tabulate(campaigns: list[RawCampaign]) -> dict[str, pd.DataFrame]:
+    """Concatenate per-campaign reads into the ingested tables."""
+    problems: list[Problem] = [p for c in campaigns for p in c.problems]
+    metadata = pd.DataFrame([c.metadata for c in campaigns if c.metadata is not None])
+    samples = [c.samples for c in campaigns if c.samples is not None and len(c.samples)]
+    laser = [c.laser for c in campaigns if c.laser is not None]
+    return {
+        "campaigns": metadata,
+        "samples": _concat_samples(samples),
+        "laser": pd.concat(laser, ignore_index=True) if laser else _empty_laser(),
+        "problems": problems_frame(problems),
+    }
+
+
+def _concat_samples(frames: list[pd.DataFrame]) -> pd.DataFrame:
+    """Union of the per-campaign columns: fixed columns first, then sensors, then displacement."""
+    if not frames:
+        return pd.DataFrame(
+            {"campaign_id": pd.Series(dtype="str"), "source_row": pd.Series(dtype="int64"),
+             "elapsed_s": pd.Series(dtype="float64"), "rpm": pd.Series(dtype="float64")}
+        )  # fmt: skip
+    combined = pd.concat(frames, ignore_index=True, sort=False)
+    fixed = ["campaign_id", "source_row", "elapsed_s", "rpm"]
+    displacement = sorted(c for c in combined.columns if c.startswith("disp_"))
+    sensors = [c for c in combined.columns if c not in fixed and c not in displacement]
+    combined = combined[fixed + sensors + displacement]
+    for column in displacement:
+        if column.endswith("_source_row"):
+            combined[column] = combined[column].astype("Int64")
+    return combined
+
+
+def _empty_laser() -> pd.DataFrame:
+    return pd.DataFrame(
+        {"campaign_id": pd.Series(dtype="str"), "source_row": pd.Series(dtype="int64"),
+         "elapsed_min": pd.Series(dtype="float64"), "run": pd.Series(dtype="int64"),
+         "direction": pd.Series(dtype="str"), "target_mm": pd.Series(dtype="float64"),
+         "deviation_um": pd.Series(dtype="float64")}
+    )  # fmt: skip
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the stage: read ``data/raw``, write ``data/ingested/*.parquet``."""
+    parser = argparse.ArgumentParser(prog="thermal ingest", description=__doc__.splitlines()[0])
+    parser.add_argument("--raw", type=Path, default=paths.RAW, help="raw campaign folder")
+    parser.add_argument("--out", type=Path, default=paths.INGESTED, help="output folder")
+    args = parser.parse_args(argv)
+    params = load_section("ingest")
+    tables = ingest(args.raw, float(params["max_alignment_gap_s"]))
+    args.out.mkdir(parents=True, exist_ok=True)
+    for name, table in tables.items():
+        table.to_parquet(args.out / f"{name}.parquet", engine="pyarrow", index=False)
+    LOGGER.info(
+        "ingested %d campaign folders (%d samples, %d laser rows, %d problems) into %s",
+        len(tables["campaigns"]), len(tables["samples"]), len(tables["laser"]),
+        len(tables["problems"]), args.out,
+    )  # fmt: skip
+    return 0

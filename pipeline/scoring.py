@@ -1,0 +1,121 @@
+"""Scores of the cross-season protocol (the PCDL paper, Miao et al. 2016, eq. 8 and tables 6-7).
+
+A model built on training campaign Ki is applied to every campaign Kj. For each pair the residual
+e = measured - predicted (um) gives
+
+- the residual standard deviation S = sqrt(sum((e - mean(e))^2) / (n - 1)) (the paper's eq. 8;
+  blind to a constant offset), and
+- the root mean square RMS = sqrt(mean(e^2)) (not in the paper; it penalises offsets, which a
+  compensation applied in another season does suffer).
+
+Per training campaign: S on its own campaign (fit accuracy), Mn and Sd the mean and standard
+deviation (ddof=1) of the scores on the *other* training campaigns (prediction accuracy and its
+spread, the paper's 11 values per model), and Mn_val, Sd_val the same over the validation
+campaigns. Overall: S is the mean of the per-campaign S, Mn and Sd the mean and standard
+deviation of all pooled prediction scores (Mn_val, Sd_val likewise).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+
+SCORE_COLUMNS = {"resid_std_um": "", "rmse_um": "_rms"}
+
+
+def residual_std(residual: np.ndarray) -> float:
+    """Residual standard deviation, um (ddof=1); NaN with fewer than two finite residuals.
+
+    Parameters
+    ----------
+    residual : ndarray of shape (n,)
+        Measured minus predicted, um; NaN entries are ignored.
+    """
+    finite = residual[np.isfinite(residual)]
+    return float(np.std(finite, ddof=1)) if finite.size >= 2 else float("nan")
+
+
+def root_mean_square(residual: np.ndarray) -> float:
+    """Root mean square of the residual, um; NaN when no residual is finite.
+
+    Parameters
+    ----------
+    residual : ndarray of shape (n,)
+        Measured minus predicted, um; NaN entries are ignored.
+    """
+    finite = residual[np.isfinite(residual)]
+    return float(np.sqrt(np.mean(finite**2))) if finite.size else float("nan")
+
+
+def _mean_sd(values: pd.Series) -> tuple[float, float]:
+    finite = values.dropna()
+    mean = float(finite.mean()) if len(finite) else float("nan")
+    spread = float(finite.std(ddof=1)) if len(finite) >= 2 else float("nan")
+    return mean, spread
+
+
+def summarise(scores: pd.DataFrame) -> dict[str, float]:
+    """S, Mn, Sd, Mn_val, Sd_val (residual std) and their ``_rms`` twins for a set of score rows.
+
+    Parameters
+    ----------
+    scores : DataFrame
+        Rows of the long score table (columns ``train_campaign``, ``role`` in
+        {"fit", "prediction", "validation"}, ``resid_std_um``, ``rmse_um``) for one model and
+        selection; one or many training campaigns.
+
+    Returns
+    -------
+    dict of str to float
+        Keys ``S_um``, ``Mn_um``, ``Sd_um``, ``Mn_val_um``, ``Sd_val_um`` and the same with
+        ``_rms`` before ``_um``; all in um.
+    """
+    summary: dict[str, float] = {}
+    for column, suffix in SCORE_COLUMNS.items():
+        by_role = {role: group[column] for role, group in scores.groupby("role")}
+        empty = pd.Series(dtype=float)
+        fit = by_role.get("fit", empty).dropna()
+        summary[f"S{suffix}_um"] = float(fit.mean()) if len(fit) else float("nan")
+        mn, sd = _mean_sd(by_role.get("prediction", empty))
+        summary[f"Mn{suffix}_um"], summary[f"Sd{suffix}_um"] = mn, sd
+        mn_val, sd_val = _mean_sd(by_role.get("validation", empty))
+        summary[f"Mn_val{suffix}_um"], summary[f"Sd_val{suffix}_um"] = mn_val, sd_val
+    return summary
+
+
+def metrics_tree(scores: pd.DataFrame) -> dict:
+    """Nest summaries as ``{model: {selection: {"overall": {...}, "by_train_campaign": {...}}}}``.
+
+    Parameters
+    ----------
+    scores : DataFrame
+        The whole long score table.
+    """
+    tree: dict = {}
+    for (model, selection), group in scores.groupby(["model", "selection"], sort=True):
+        tree.setdefault(model, {})[selection] = {
+            "overall": summarise(group),
+            "by_train_campaign": {
+                str(train): summarise(rows)
+                for train, rows in group.groupby("train_campaign", sort=True)
+            },
+        }
+    return tree
+
+
+def score_matrix(scores: pd.DataFrame, column: str) -> pd.DataFrame:
+    """Train campaign x test campaign matrix of one score column (um).
+
+    Rows are training campaigns, columns the training campaigns then the validation ones, in the
+    order they appear in ``scores``.
+    """
+    order = list(dict.fromkeys(scores.sort_values(["test_split", "test_campaign"],
+                                                  key=_split_order)["test_campaign"]))  # fmt: skip
+    matrix = scores.pivot_table(
+        index="train_campaign", columns="test_campaign", values=column, aggfunc="first"
+    )
+    return matrix.reindex(columns=order)
+
+
+def _split_order(column: pd.Series) -> pd.Series:
+    return column.map({"train": 0, "validation": 1}) if column.name == "test_split" else column

@@ -1,0 +1,209 @@
+"""Write run records to an MLflow tracking store in batches.
+
+The only module of the package that imports :mod:`mlflow`. Every run gets its tags at
+creation, then its parameters and metrics in ``MlflowClient.log_batch`` calls (at most
+``batch_size`` metrics, 100 parameters, 100 tags and 1000 entities per call, MLflow's limits),
+then its end status: about three store round trips per run whatever the number of metrics.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from collections.abc import Iterator, Mapping, Sequence
+from pathlib import Path
+
+from mlflow.entities import Metric, Param, Run, RunStatus, RunTag
+from mlflow.tracking import MlflowClient
+
+from pipeline.tracking.records import IDENTITY_TAG, PARENT_RUN_TAG, RunRecord
+
+logger = logging.getLogger(__name__)
+
+MAX_METRICS_PER_BATCH = 1000
+MAX_PARAMS_TAGS_PER_BATCH = 100
+MAX_ENTITIES_PER_BATCH = 1000
+
+
+def batches(
+    metrics: Mapping[str, float],
+    params: Mapping[str, str],
+    tags: Mapping[str, str],
+    batch_size: int = MAX_METRICS_PER_BATCH,
+) -> Iterator[tuple[list[tuple[str, float]], list[tuple[str, str]], list[tuple[str, str]]]]:
+    """Split metrics, params and tags into chunks that one ``log_batch`` call accepts.
+
+    Parameters
+    ----------
+    metrics, params, tags : mapping
+        What to log.
+    batch_size : int
+        Most metrics per call, 1..1000.
+
+    Yields
+    ------
+    tuple of three lists
+        ``(metrics, params, tags)`` items of one call: at most ``batch_size`` metrics, 100
+        params, 100 tags, 1000 items in all; nothing is yielded when all three are empty.
+
+    Raises
+    ------
+    ValueError
+        If ``batch_size`` is outside 1..1000.
+    """
+    if not 1 <= int(batch_size) <= MAX_METRICS_PER_BATCH:
+        raise ValueError(
+            f"params.yaml track.batch_size = {batch_size}: MLflow accepts 1 to "
+            f"{MAX_METRICS_PER_BATCH} metrics per log_batch call; set a value in that range"
+        )
+    metric_items, param_items, tag_items = list(metrics.items()), list(params.items()), []
+    tag_items = list(tags.items())
+    while metric_items or param_items or tag_items:
+        param_chunk = param_items[:MAX_PARAMS_TAGS_PER_BATCH]
+        tag_chunk = tag_items[:MAX_PARAMS_TAGS_PER_BATCH]
+        room = min(int(batch_size), MAX_ENTITIES_PER_BATCH - len(param_chunk) - len(tag_chunk))
+        metric_chunk = metric_items[:room]
+        yield metric_chunk, param_chunk, tag_chunk
+        metric_items = metric_items[len(metric_chunk) :]
+        param_items = param_items[len(param_chunk) :]
+        tag_items = tag_items[len(tag_chunk) :]
+
+
+def make_client(tracking_uri: str) -> MlflowClient:
+    """Return a client of the store at ``tracking_uri`` (e.g. ``sqlite:///mlflow.db``)."""
+    return MlflowClient(tracking_uri=tracking_uri)
+
+
+def ensure_experiment(client: MlflowClient, name: str, artifact_location: str | None) -> str:
+    """Return the id of experiment ``name``, creating it if needed.
+
+    Parameters
+    ----------
+    client : MlflowClient
+        Client of the store.
+    name : str
+        Experiment name (``params.yaml`` ``track.experiment``).
+    artifact_location : str or None
+        Artifact root of a new experiment (a ``file://`` URI for the local store); ``None``
+        lets the store choose (a tracking server's ``--default-artifact-root``).
+
+    Raises
+    ------
+    RuntimeError
+        If the experiment exists but is deleted: MLflow keeps the name reserved.
+    """
+    experiment = client.get_experiment_by_name(name)
+    if experiment is None:
+        experiment_id = client.create_experiment(name, artifact_location=artifact_location)
+        logger.info("created MLflow experiment '%s' (id %s)", name, experiment_id)
+        return experiment_id
+    if experiment.lifecycle_stage != "active":
+        raise RuntimeError(
+            f"MLflow experiment '{name}' (id {experiment.experiment_id}) is deleted; restore it "
+            f"(mlflow experiments restore --experiment-id {experiment.experiment_id}), delete it "
+            "for good (mlflow gc), or set another params.yaml track.experiment"
+        )
+    return experiment.experiment_id
+
+
+def find_parent(client: MlflowClient, experiment_id: str, identity: str) -> Run | None:
+    """Return the finished, active parent run tagged with ``identity``, if any."""
+    runs = client.search_runs(
+        [experiment_id],
+        filter_string=f"tags.{IDENTITY_TAG} = '{identity}' and attributes.status = 'FINISHED'",
+        max_results=1,
+        order_by=["attributes.start_time DESC"],
+    )
+    return runs[0] if runs else None
+
+
+def log_record(client: MlflowClient, run_id: str, record: RunRecord, batch_size: int) -> int:
+    """Log a record's params and metrics (tags are set at run creation) in batches.
+
+    Returns
+    -------
+    int
+        Number of ``log_batch`` calls made.
+    """
+    timestamp = int(time.time() * 1000)
+    calls = 0
+    for metric_chunk, param_chunk, _ in batches(record.metrics, record.params, {}, batch_size):
+        client.log_batch(
+            run_id,
+            metrics=[Metric(key, value, timestamp, 0) for key, value in metric_chunk],
+            params=[Param(key, value) for key, value in param_chunk],
+            tags=[],
+        )
+        calls += 1
+    return calls
+
+
+def _create_run(
+    client: MlflowClient, experiment_id: str, record: RunRecord, batch_size: int, extra: dict
+) -> str:
+    tags = {**record.tags, **extra}
+    first = dict(list(tags.items())[:MAX_PARAMS_TAGS_PER_BATCH])
+    run = client.create_run(experiment_id, tags=first, run_name=record.name)
+    rest = dict(list(tags.items())[MAX_PARAMS_TAGS_PER_BATCH:])
+    for _, _, tag_chunk in batches({}, {}, rest, batch_size):
+        client.log_batch(run.info.run_id, tags=[RunTag(key, value) for key, value in tag_chunk])
+    return run.info.run_id
+
+
+def _log_one(
+    client: MlflowClient, experiment_id: str, record: RunRecord, batch_size: int, extra: dict
+) -> str:
+    run_id = _create_run(client, experiment_id, record, batch_size, extra)
+    try:
+        log_record(client, run_id, record, batch_size)
+    except BaseException:
+        client.set_terminated(run_id, RunStatus.to_string(RunStatus.FAILED))
+        raise
+    return run_id
+
+
+def log_pipeline(
+    client: MlflowClient,
+    experiment_id: str,
+    parent: RunRecord,
+    children: Sequence[RunRecord],
+    artifacts: Sequence[tuple[Path, str]],
+    batch_size: int,
+) -> str:
+    """Log the parent run, its child runs and the parent's artifacts.
+
+    The parent is marked ``FINISHED`` only after everything is logged, and ``FAILED`` if
+    anything raises, so :func:`find_parent` never reuses an incomplete record.
+
+    Parameters
+    ----------
+    client : MlflowClient
+        Client of the store.
+    experiment_id : str
+        Target experiment.
+    parent : RunRecord
+        The pipeline execution (its tags carry the run identity).
+    children : sequence of RunRecord
+        One per (model, selection, train campaign); linked with ``mlflow.parentRunId``.
+    artifacts : sequence of (Path, str)
+        Local file and the artifact folder it goes to on the parent (e.g. ``"reports"``).
+    batch_size : int
+        Most metrics per ``log_batch`` call.
+
+    Returns
+    -------
+    str
+        The parent run id.
+    """
+    parent_id = _log_one(client, experiment_id, parent, batch_size, {})
+    try:
+        for child in children:
+            child_id = _log_one(client, experiment_id, child, batch_size, {PARENT_RUN_TAG: parent_id})
+            client.set_terminated(child_id)
+        for path, folder in artifacts:
+            client.log_artifact(parent_id, str(path), artifact_path=folder or None)
+    except BaseException:
+        client.set_terminated(parent_id, RunStatus.to_string(RunStatus.FAILED))
+        raise
+    client.set_terminated(parent_id)
+    return parent_id

@@ -1,0 +1,97 @@
+"""Closed vocabularies and column names of the raw campaign contract (``data-contract.md``).
+
+Every model in :mod:`schemas` and every stage that builds or reads these tables uses these
+names, so a change to the contract is made here once.
+"""
+
+from __future__ import annotations
+
+import re
+
+KINDS = ("spindle_drift", "axis_positioning")
+"""Known campaign kinds (``kind:`` in campaign.yaml)."""
+
+SPINDLE_KIND, AXIS_KIND = KINDS
+
+SPLITS = ("train", "validation")
+"""Known values of ``split:`` in campaign.yaml."""
+
+SEASONS = ("spring", "summer", "autumn", "winter")
+"""Known values of ``season:`` in campaign.yaml (or derived from ``start``)."""
+
+SENSOR_ROLES = (
+    "spindle_front_bearing",
+    "spindle_rear_bearing",
+    "spindle_motor",
+    "headstock",
+    "column_front",
+    "column_rear",
+    "bed",
+    "ball_screw",
+    "nut",
+    "coolant",
+    "ambient",
+    "other",
+)
+"""Closed vocabulary of sensor roles; at most one sensor per campaign is ``ambient``."""
+
+AMBIENT_ROLE = "ambient"
+
+DIRECTIONS = ("+", "-")
+"""Laser run directions."""
+
+DISPLACEMENT_AXES = ("X", "Y", "Z")
+"""Axes a displacement probe may measure along."""
+
+DS18B20_TYPE = "DS18B20"
+"""Sensor type whose fault codes (85.0 power-on, -127 disconnected) are checked."""
+
+SAMPLE_BASE_COLUMNS = ("campaign_id", "source_row", "elapsed_s", "rpm")
+"""Columns every samples table starts with; the rest are temperatures and displacements."""
+
+DISPLACEMENT_COLUMN_RE = re.compile(r"^disp_([XYZ])$")
+DISPLACEMENT_ROW_COLUMN_RE = re.compile(r"^disp_([XYZ])_source_row$")
+
+
+def displacement_column(axis: str) -> str:
+    """Return the samples column holding the displacement along ``axis`` (um)."""
+    return f"disp_{axis}"
+
+
+def displacement_row_column(axis: str) -> str:
+    """Return the samples column holding the displacement.csv data row of ``disp_<axis>``."""
+    return f"disp_{axis}_source_row"
+
+
+def is_displacement_column(column: str) -> bool:
+    """Return True for ``disp_<A>`` and ``disp_<A>_source_row`` columns."""
+    return bool(DISPLACEMENT_COLUMN_RE.match(column) or DISPLACEMENT_ROW_COLUMN_RE.match(column))
+
+
+def temperature_columns(columns) -> list[str]:
+    """Return the temperature columns of a samples table, in table order.
+
+    Parameters
+    ----------
+    columns : iterable of str
+        Column names of a samples table (``campaign_id, source_row, elapsed_s, rpm``, one column
+        per temperature sensor, then ``disp_<A>`` / ``disp_<A>_source_row`` per axis).
+
+    Returns
+    -------
+    list of str
+        Every column that is neither a base column nor a displacement column.
+    """
+    return [
+        str(c) for c in columns if c not in SAMPLE_BASE_COLUMNS and not is_displacement_column(c)
+    ]
+
+
+def uses_ds18b20_codes(sensor_type: object) -> bool:
+    """Return True when the DS18B20 fault codes apply to a sensor of this ``type:``.
+
+    They apply to DS18B20 sensors and, conservatively, to sensors whose type is not given.
+    """
+    if sensor_type is None or (isinstance(sensor_type, float) and sensor_type != sensor_type):
+        return True
+    return str(sensor_type).strip().upper() == DS18B20_TYPE

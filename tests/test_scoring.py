@@ -1,0 +1,61 @@
+import numpy as np
+import pandas as pd
+import pytest
+
+from pipeline.scoring import (
+    metrics_tree,
+    residual_std,
+    root_mean_square,
+    score_matrix,
+    summarise,
+)
+
+
+def test_residual_std_is_blind_to_offset_rms_is_not():
+    residual = np.array([4.0, 4.0, 4.0, 4.0])
+    assert residual_std(residual) == 0.0
+    assert root_mean_square(residual) == 4.0
+
+
+def test_residual_std_matches_eq_8_and_ignores_nan():
+    e = np.array([1.0, 2.0, 4.0, np.nan])
+    expected = np.sqrt(((1 - 7 / 3) ** 2 + (2 - 7 / 3) ** 2 + (4 - 7 / 3) ** 2) / 2)
+    assert residual_std(e) == pytest.approx(expected)
+    assert np.isnan(residual_std(np.array([1.0])))
+
+
+def _rows(train, values):
+    return [
+        {"model": "mlr", "selection": "all", "train_campaign": train, "test_campaign": test,
+         "test_split": split, "role": role, "resid_std_um": v, "rmse_um": 2 * v}
+        for test, split, role, v in values
+    ]  # fmt: skip
+
+
+def test_summary_uses_other_training_campaigns_for_mn_and_validation_separately():
+    scores = pd.DataFrame(
+        _rows("K1", [("K1", "train", "fit", 1.0), ("K2", "train", "prediction", 3.0),
+                     ("K3", "train", "prediction", 5.0), ("V1", "validation", "validation", 8.0)])
+    )  # fmt: skip
+    summary = summarise(scores)
+    assert summary["S_um"] == 1.0
+    assert summary["Mn_um"] == 4.0
+    assert summary["Sd_um"] == pytest.approx(np.sqrt(2.0))
+    assert summary["Mn_val_um"] == 8.0 and np.isnan(summary["Sd_val_um"])
+    assert summary["Mn_rms_um"] == 8.0
+
+
+def test_metrics_tree_and_matrix_layout():
+    scores = pd.DataFrame(
+        _rows("K1", [("K1", "train", "fit", 1.0), ("K2", "train", "prediction", 3.0),
+                     ("V1", "validation", "validation", 6.0)])
+        + _rows("K2", [("K1", "train", "prediction", 2.0), ("K2", "train", "fit", 0.5),
+                       ("V1", "validation", "validation", 4.0)])
+    )  # fmt: skip
+    tree = metrics_tree(scores)["mlr"]["all"]
+    assert set(tree["by_train_campaign"]) == {"K1", "K2"}
+    assert tree["overall"]["S_um"] == pytest.approx(0.75)
+    assert tree["overall"]["Mn_um"] == pytest.approx(2.5)
+    matrix = score_matrix(scores, "resid_std_um")
+    assert list(matrix.columns) == ["K1", "K2", "V1"]
+    assert matrix.loc["K2", "K1"] == 2.0 and matrix.loc["K1", "V1"] == 6.0
