@@ -33,9 +33,11 @@ def score_heatmaps(matrices: dict[str, pd.DataFrame], title: str, out: Path) -> 
         ax.set_xlabel("applied to campaign")
         ax.set_ylabel("built on campaign")
         ax.set_title(name)
+        middle = np.nanmean([np.nanmin(values), np.nanmax(values)])
         for (i, j), value in np.ndenumerate(values):
             if np.isfinite(value):
-                ax.text(j, i, f"{value:.1f}", ha="center", va="center", fontsize=5, color="w")
+                colour = "w" if value > middle else "k"
+                ax.text(j, i, f"{value:.1f}", ha="center", va="center", fontsize=5, color=colour)
         fig.colorbar(image, ax=ax, label="um")
     fig.suptitle(title)
     fig.tight_layout()

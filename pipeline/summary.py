@@ -23,7 +23,8 @@ def summary_lines(root: Path) -> list[str]:
         validation = json.loads(report.read_text())["summary"]
         lines.append(
             f"  validation       {paths.VALIDATION_REPORT}: {len(validation['valid'])} valid, "
-            f"{len(validation['quarantined'])} quarantined {validation['quarantined'] or ''}"
+            f"{len(validation['quarantined'])} quarantined "
+            f"{', '.join(validation['quarantined'])}"
         )
     metrics = root / paths.CROSS_SEASON_METRICS
     if metrics.is_file():

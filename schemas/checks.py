@@ -50,7 +50,8 @@ def interval_consistent(elapsed_s: pd.Series, tolerance: float) -> pd.Series:
     -------
     Series of bool, shape (n,)
         False at a row whose preceding interval ``dt`` satisfies ``|dt - median| > tolerance *
-        median``. Non-positive intervals pass here (:func:`increasing_within` reports them).
+        median``. Non-positive intervals, and intervals next to a missing time, pass here
+        (:func:`increasing_within` and the not-null check report those).
     """
     step = elapsed_s.diff()
     positive = step[step > 0]
@@ -225,8 +226,9 @@ def unmatched(targets: np.ndarray, reference: np.ndarray, tolerance: float) -> n
 
 def missing_targets(laser: pd.DataFrame, run: int, tolerance: float) -> list[float]:
     """Return the reference-run targets (mm) that ``run`` of one campaign does not measure."""
-    reference = laser.loc[laser["run"] == reference_run(laser), "target_mm"].to_numpy(float)
-    targets = laser.loc[laser["run"] == run, "target_mm"].to_numpy(float)
+    reference = laser.loc[laser["run"] == reference_run(laser), "target_mm"].dropna()
+    targets = laser.loc[laser["run"] == run, "target_mm"].dropna().to_numpy(float)
+    reference = reference.to_numpy(float)
     return [float(t) for t in reference[unmatched(reference, targets, tolerance)]]
 
 
@@ -244,13 +246,15 @@ def targets_in_reference(laser: pd.DataFrame, tolerance: float) -> pd.Series:
     Returns
     -------
     Series of bool, one per row
+        Missing targets pass (reported as missing values).
     """
     ok = pd.Series(True, index=laser.index)
     for _, one in laser.groupby("campaign_id", sort=False):
         if one.empty:
             continue
-        reference = one.loc[one["run"] == reference_run(one), "target_mm"].to_numpy(float)
-        bad = unmatched(one["target_mm"].to_numpy(float), reference, tolerance)
+        reference = one.loc[one["run"] == reference_run(one), "target_mm"].dropna()
+        targets = one["target_mm"].to_numpy(float)
+        bad = unmatched(targets, reference.to_numpy(float), tolerance) & ~np.isnan(targets)
         ok.loc[one.index[bad]] = False
     return ok
 

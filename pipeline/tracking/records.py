@@ -97,15 +97,18 @@ def _as_metric(value: Any) -> float | None:
         return None
 
 
-def parse_score(text: str, source: str, row: int, column: str) -> float:
-    """Parse one score cell; an empty cell or ``nan`` is NaN.
+def parse_score(value: Any, source: str, row: int, column: str) -> float:
+    """Parse one score cell: a number as is, text as Python ``float`` (empty or ``nan`` is NaN).
 
     Raises
     ------
     ValueError
         Naming the file, data row and column when the cell is not a number.
     """
-    stripped = (text or "").strip()
+    if isinstance(value, int | float) and not isinstance(value, bool):
+        return float(value)
+    text = "" if value is None else str(value)
+    stripped = text.strip()
     if stripped == "":
         return math.nan
     try:
@@ -118,15 +121,15 @@ def parse_score(text: str, source: str, row: int, column: str) -> float:
 
 
 def scores_by_child(
-    rows: Sequence[Mapping[str, str]], source: str = "cross_season_scores.csv"
+    rows: Sequence[Mapping[str, Any]], source: str = "cross_season_scores.csv"
 ) -> dict[ChildKey, dict[str, float]]:
     """Group the long score table into child metrics.
 
     Parameters
     ----------
     rows : sequence of mapping
-        Rows of ``reports/cross_season_scores.csv`` as read by :class:`csv.DictReader`
-        (strings), in file order; row ``i`` is data row ``i + 1``.
+        Rows of ``reports/cross_season_scores.csv`` (scores as numbers or text), in file
+        order; row ``i`` is data row ``i + 1``.
     source : str
         File name used in error messages.
 
@@ -204,7 +207,7 @@ def _fitted_by_key(fitted: Mapping[str, Any]) -> dict[ChildKey, Mapping[str, Any
 
 def child_records(
     fitted: Mapping[str, Any],
-    score_rows: Sequence[Mapping[str, str]],
+    score_rows: Sequence[Mapping[str, Any]],
     cross_season: Mapping[str, Any],
     tags: Mapping[str, str] | None = None,
 ) -> list[RunRecord]:
@@ -216,7 +219,7 @@ def child_records(
         ``reports/fitted_models.json``: ``{"<model>/<selection>/<train>": {"model",
         "selection", "train_campaign", "sensors": [...], "params": {...}}}``.
     score_rows : sequence of mapping
-        Rows of ``reports/cross_season_scores.csv`` (strings).
+        Rows of ``reports/cross_season_scores.csv``.
     cross_season : mapping
         ``metrics/cross_season.json``.
     tags : mapping, optional
@@ -255,7 +258,12 @@ def child_records(
         for param, value in flatten(entry.get("params") or {}).items():
             params[safe_key("params", param)] = _text(value, MAX_PARAM_LENGTH, f"{name} {param}")
         metrics = {**scores.get(key, {}), **_entry_metrics(summaries.get(key, {}))}
-        child_tags = {**(tags or {}), "model": model, "selection": selection, "train_campaign": train}
+        child_tags = {
+            **(tags or {}),
+            "model": model,
+            "selection": selection,
+            "train_campaign": train,
+        }
         records.append(RunRecord(name=name, params=params, metrics=metrics, tags=child_tags))
     return records
 

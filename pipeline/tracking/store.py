@@ -56,7 +56,7 @@ def batches(
             f"params.yaml track.batch_size = {batch_size}: MLflow accepts 1 to "
             f"{MAX_METRICS_PER_BATCH} metrics per log_batch call; set a value in that range"
         )
-    metric_items, param_items, tag_items = list(metrics.items()), list(params.items()), []
+    metric_items, param_items = list(metrics.items()), list(params.items())
     tag_items = list(tags.items())
     while metric_items or param_items or tag_items:
         param_chunk = param_items[:MAX_PARAMS_TAGS_PER_BATCH]
@@ -198,7 +198,9 @@ def log_pipeline(
     parent_id = _log_one(client, experiment_id, parent, batch_size, {})
     try:
         for child in children:
-            child_id = _log_one(client, experiment_id, child, batch_size, {PARENT_RUN_TAG: parent_id})
+            child_id = _log_one(
+                client, experiment_id, child, batch_size, {PARENT_RUN_TAG: parent_id}
+            )
             client.set_terminated(child_id)
         for path, folder in artifacts:
             client.log_artifact(parent_id, str(path), artifact_path=folder or None)

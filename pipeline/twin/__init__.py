@@ -1,0 +1,58 @@
+"""Physical twin of a machining centre's thermal behaviour (synthetic demo data).
+
+A lumped-parameter thermal network of a vertical machining centre (spindle Z drift) and of a
+linear axis (positioning error), driven by the operating program and the workshop air, with a
+library of named, switchable physical effects. Modules:
+
+``params``     every parameter, as frozen dataclasses (units in the docstrings)
+``network``    thermal network, exact (matrix exponential) and ``solve_ivp`` integration
+``effects``    named terms and the registry of the six switchable effects
+``spindle``    :func:`simulate_spindle`
+``axis``       :func:`simulate_axis`, :class:`AxisTruth`
+``campaigns``  plans, measurement chain (sensors, probe, laser), demo set
+``writer``     :func:`write_campaign` in the raw campaign contract
+``cli``        ``thermal simulate``
+"""
+
+from pipeline.twin.ambient import AmbientProfile, AmbientSeries, Climate
+from pipeline.twin.axis import AxisTruth, simulate_axis
+from pipeline.twin.campaigns import (
+    AxisCampaign,
+    AxisPlan,
+    SpindleCampaign,
+    SpindlePlan,
+    demo_campaigns,
+    demo_plans,
+    simulate_axis_campaign,
+    simulate_spindle_campaign,
+)
+from pipeline.twin.effects import DEMO_EFFECTS, EFFECTS, model_terms
+from pipeline.twin.params import AxisParams, SensorSpec, SpindleParams
+from pipeline.twin.program import Program
+from pipeline.twin.spindle import simulate_spindle
+from pipeline.twin.writer import write_campaign
+
+__all__ = [
+    "DEMO_EFFECTS",
+    "EFFECTS",
+    "AmbientProfile",
+    "AmbientSeries",
+    "AxisCampaign",
+    "AxisParams",
+    "AxisPlan",
+    "AxisTruth",
+    "Climate",
+    "Program",
+    "SensorSpec",
+    "SpindleCampaign",
+    "SpindleParams",
+    "SpindlePlan",
+    "demo_campaigns",
+    "demo_plans",
+    "model_terms",
+    "simulate_axis",
+    "simulate_axis_campaign",
+    "simulate_spindle",
+    "simulate_spindle_campaign",
+    "write_campaign",
+]

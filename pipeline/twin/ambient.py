@@ -45,29 +45,29 @@ class AmbientProfile:
 
     Attributes
     ----------
-    mean_degC : float
+    mean_degc : float
         Daily mean of the workshop air, degC (season dependent).
-    daily_amplitude_K : float
+    daily_amplitude_k : float
         Half peak-to-peak of the daily cycle, K.
     start_hour : float
         Local time of day of the campaign start, hours (8.5 = 08:30).
     peak_hour : float
         Local time of the daily maximum, hours (mid-afternoon in an unconditioned workshop).
-    drift_K_per_h : float
+    drift_k_per_h : float
         Slow linear drift of the daily mean (weather change), K/h.
     """
 
-    mean_degC: float
-    daily_amplitude_K: float = 0.0
+    mean_degc: float
+    daily_amplitude_k: float = 0.0
     start_hour: float = 8.5
     peak_hour: float = 15.0
-    drift_K_per_h: float = 0.0
+    drift_k_per_h: float = 0.0
 
     def at(self, t_s: np.ndarray | float) -> np.ndarray:
         """Air temperature, degC, same shape as ``t_s`` (s since the campaign start)."""
         t_h = np.asarray(t_s, dtype=float) / 3600.0
         phase = 2.0 * math.pi * (self.start_hour + t_h - self.peak_hour) / 24.0
-        return self.mean_degC + self.drift_K_per_h * t_h + self.daily_amplitude_K * np.cos(phase)
+        return self.mean_degc + self.drift_k_per_h * t_h + self.daily_amplitude_k * np.cos(phase)
 
 
 @dataclass(frozen=True)
@@ -78,16 +78,16 @@ class AmbientSeries:
     ----------
     elapsed_s : tuple of float
         Sample instants, s since the campaign start, increasing.
-    values_degC : tuple of float
+    values_degc : tuple of float
         Air temperature at those instants, degC.
     """
 
     elapsed_s: tuple[float, ...]
-    values_degC: tuple[float, ...]
+    values_degc: tuple[float, ...]
 
     def at(self, t_s: np.ndarray | float) -> np.ndarray:
         """Air temperature, degC, same shape as ``t_s``."""
-        return np.interp(np.asarray(t_s, dtype=float), self.elapsed_s, self.values_degC)
+        return np.interp(np.asarray(t_s, dtype=float), self.elapsed_s, self.values_degc)
 
 
 @dataclass(frozen=True)
@@ -99,33 +99,33 @@ class Climate:
 
     Attributes
     ----------
-    monthly_mean_degC : tuple of 12 float
+    monthly_mean_degc : tuple of 12 float
         Mean workshop air per month (January first), degC.
-    monthly_amplitude_K : tuple of 12 float
+    monthly_amplitude_k : tuple of 12 float
         Daily half-amplitude per month, K.
     peak_hour : float
         Local time of the daily maximum, hours.
-    mean_jitter_K : float
+    mean_jitter_k : float
         Standard deviation of a campaign day's mean around the month mean, K.
     amplitude_jitter_rel : float
         Relative standard deviation of a day's amplitude.
     peak_jitter_h : float
         Standard deviation of the peak hour, hours.
-    drift_sd_K_per_h : float
+    drift_sd_k_per_h : float
         Standard deviation of the day's slow drift, K/h.
     """
 
-    monthly_mean_degC: tuple[float, ...] = (
+    monthly_mean_degc: tuple[float, ...] = (
         8.0, 10.0, 14.0, 19.0, 23.0, 27.0, 30.0, 29.5, 26.0, 21.0, 15.0, 10.0,
     )  # fmt: skip
-    monthly_amplitude_K: tuple[float, ...] = (
+    monthly_amplitude_k: tuple[float, ...] = (
         1.8, 2.0, 2.5, 3.0, 3.0, 3.0, 3.2, 3.2, 3.0, 2.6, 2.2, 1.8,
     )  # fmt: skip
     peak_hour: float = 15.0
-    mean_jitter_K: float = 1.0
+    mean_jitter_k: float = 1.0
     amplitude_jitter_rel: float = 0.1
     peak_jitter_h: float = 0.5
-    drift_sd_K_per_h: float = 0.1
+    drift_sd_k_per_h: float = 0.1
 
     def profile(self, start: datetime, rng: np.random.Generator) -> AmbientProfile:
         """Draw the ambient of a campaign starting at ``start`` (local time).
@@ -139,12 +139,12 @@ class Climate:
         """
         m = start.month - 1
         return AmbientProfile(
-            mean_degC=self.monthly_mean_degC[m] + self.mean_jitter_K * rng.standard_normal(),
-            daily_amplitude_K=self.monthly_amplitude_K[m]
+            mean_degc=self.monthly_mean_degc[m] + self.mean_jitter_k * rng.standard_normal(),
+            daily_amplitude_k=self.monthly_amplitude_k[m]
             * (1.0 + self.amplitude_jitter_rel * rng.standard_normal()),
             start_hour=start.hour + start.minute / 60.0,
             peak_hour=self.peak_hour + self.peak_jitter_h * rng.standard_normal(),
-            drift_K_per_h=self.drift_sd_K_per_h * rng.standard_normal(),
+            drift_k_per_h=self.drift_sd_k_per_h * rng.standard_normal(),
         )
 
 

@@ -33,18 +33,18 @@ class ThermalNetwork:
     ----------
     nodes : tuple of str
         Node names, e.g. ``("front_bearing", "headstock", ...)``.
-    capacity_J_per_K : tuple of float
+    capacity_j_per_k : tuple of float
         Heat capacity C_i of each node, J/K (mass times specific heat; steel ~460, cast iron
         ~500 J/(kg K)).
-    convection_W_per_K : tuple of float
+    convection_w_per_k : tuple of float
         Convection conductance h_i = h A to the ambient air of each node, W/K.
     links : tuple of (str, str, float)
         Conduction links ``(node_a, node_b, G_ab)``, G in W/K.
     """
 
     nodes: tuple[str, ...]
-    capacity_J_per_K: tuple[float, ...]
-    convection_W_per_K: tuple[float, ...]
+    capacity_j_per_k: tuple[float, ...]
+    convection_w_per_k: tuple[float, ...]
     links: tuple[tuple[str, str, float], ...]
 
     def __post_init__(self) -> None:
@@ -52,12 +52,12 @@ class ThermalNetwork:
         n = len(self.nodes)
         if len(set(self.nodes)) != n:
             raise ValueError(f"ThermalNetwork: duplicate node names in {self.nodes}")
-        if len(self.capacity_J_per_K) != n or len(self.convection_W_per_K) != n:
+        if len(self.capacity_j_per_k) != n or len(self.convection_w_per_k) != n:
             raise ValueError(
-                f"ThermalNetwork: {n} nodes but {len(self.capacity_J_per_K)} capacities and "
-                f"{len(self.convection_W_per_K)} convection conductances; give one per node"
+                f"ThermalNetwork: {n} nodes but {len(self.capacity_j_per_k)} capacities and "
+                f"{len(self.convection_w_per_k)} convection conductances; give one per node"
             )
-        if min(self.capacity_J_per_K) <= 0:
+        if min(self.capacity_j_per_k) <= 0:
             raise ValueError("ThermalNetwork: every heat capacity must be > 0 J/K")
         for a, b, g in self.links:
             for name in (a, b):
@@ -79,12 +79,12 @@ class ThermalNetwork:
     @property
     def capacities(self) -> np.ndarray:
         """Heat capacities, ndarray of shape (n,), J/K."""
-        return np.asarray(self.capacity_J_per_K, dtype=float)
+        return np.asarray(self.capacity_j_per_k, dtype=float)
 
     @property
     def convection(self) -> np.ndarray:
         """Convection conductances to ambient, ndarray of shape (n,), W/K."""
-        return np.asarray(self.convection_W_per_K, dtype=float)
+        return np.asarray(self.convection_w_per_k, dtype=float)
 
     def conductance_matrix(self) -> np.ndarray:
         """Return K, ndarray of shape (n, n), W/K: link Laplacian plus diag(convection)."""
@@ -105,15 +105,15 @@ class ThermalNetwork:
 
     def with_capacity(self, node: str, value_J_per_K: float) -> ThermalNetwork:
         """Return a copy with the heat capacity of ``node`` set to ``value_J_per_K``."""
-        caps = list(self.capacity_J_per_K)
+        caps = list(self.capacity_j_per_k)
         caps[self.index(node)] = float(value_J_per_K)
-        return replace(self, capacity_J_per_K=tuple(caps))
+        return replace(self, capacity_j_per_k=tuple(caps))
 
     def with_convection(self, node: str, value_W_per_K: float) -> ThermalNetwork:
         """Return a copy with the convection conductance of ``node`` set, W/K."""
-        conv = list(self.convection_W_per_K)
+        conv = list(self.convection_w_per_k)
         conv[self.index(node)] = float(value_W_per_K)
-        return replace(self, convection_W_per_K=tuple(conv))
+        return replace(self, convection_w_per_k=tuple(conv))
 
     def with_link(self, node_a: str, node_b: str, value_W_per_K: float) -> ThermalNetwork:
         """Return a copy with the conductance between two nodes set (added if absent), W/K."""

@@ -35,8 +35,9 @@ class Segment:
 
 @dataclass(frozen=True)
 class Program:
-    """A piecewise-constant program; the value is 0 before the first and after a closed last
-    segment.
+    """A piecewise-constant program.
+
+    The value is 0 before the first segment and after a closed last segment.
 
     Attributes
     ----------
@@ -91,7 +92,9 @@ class Program:
                 )
             to_min = e.get("to_min")
             segments.append(
-                Segment(float(e["from_min"]), None if to_min is None else float(to_min), float(e[key]))
+                Segment(
+                    float(e["from_min"]), None if to_min is None else float(to_min), float(e[key])
+                )
             )
         return cls(tuple(sorted(segments, key=lambda s: s.from_min)), key=key)
 

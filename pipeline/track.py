@@ -1,0 +1,322 @@
+"""The ``track`` stage: log the cross-season scores of one pipeline execution to MLflow.
+
+``thermal track`` (run from the repository root) reads the evaluate outputs
+(``reports/fitted_models.json``, ``reports/cross_season_scores.csv``,
+``metrics/cross_season.json``) and logs
+
+- one parent run per pipeline execution: overall scores ``<model>.<selection>.<key>`` (um), the
+  whole ``params.yaml`` as parameters, tags ``run_identity``, ``git_commit``, ``synthetic``,
+  ``dvc.*`` (md5 hashes from ``dvc.lock``), and the report files as artifacts;
+- one child run per (model, selection, train campaign) with parameters ``model``, ``selection``,
+  ``train_campaign``, ``sensors``, ``params`` and metrics ``rmse_um.<test campaign>``,
+  ``resid_std_um.<test campaign>`` for every scored campaign plus ``S_um``, ``Mn_um``, ``Sd_um``...
+
+The store is ``$MLFLOW_TRACKING_URI`` when set, else ``track.default_tracking_uri``
+(``sqlite:///mlflow.db`` in the working directory, artifacts in ``mlartifacts/`` beside it).
+When the store already holds a finished parent with the same run identity (see
+:mod:`pipeline.tracking.identity`) nothing is logged. ``reports/mlflow_run.json`` records
+where the run is.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib.util
+import json
+import logging
+import os
+import time
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+from urllib.parse import unquote, urlsplit, urlunsplit
+
+import pandas as pd
+import pandera.pandas as pa
+import yaml
+
+from pipeline.config import DEFAULT_PARAMS, load_section
+from pipeline.paths import (
+    CROSS_SEASON_METRICS,
+    FITTED_MODELS,
+    MATRIX_CSV,
+    MATRIX_PNG,
+    RAW,
+    SCORES_LONG,
+    SEPARATION_PLOTS,
+    TRACKING_RECORD,
+    VALIDATION_REPORT,
+)
+from pipeline.tracking import identity as ident
+from pipeline.tracking import records
+from schemas.evaluated import CrossSeasonScoresModel
+
+logger = logging.getLogger(__name__)
+
+DVC_LOCK = Path("dvc.lock")
+ENV_TRACKING_URI = "MLFLOW_TRACKING_URI"
+DEFAULT_TRACKING_URI = "sqlite:///mlflow.db"
+DEFAULT_ARTIFACT_DIR = "mlartifacts"
+SCORE_FILES = (SCORES_LONG, CROSS_SEASON_METRICS, FITTED_MODELS)
+
+
+def resolve_tracking_uri(settings: Mapping[str, Any]) -> str:
+    """Return ``$MLFLOW_TRACKING_URI`` if set and not empty, else the configured default."""
+    return os.environ.get(ENV_TRACKING_URI) or str(
+        settings.get("default_tracking_uri") or DEFAULT_TRACKING_URI
+    )
+
+
+def public_uri(uri: str) -> str:
+    """Return ``uri`` without user name and password, safe to write to a report."""
+    parts = urlsplit(uri)
+    if "@" not in parts.netloc:
+        return uri
+    return urlunsplit(parts._replace(netloc=parts.netloc.rsplit("@", 1)[1]))
+
+
+def _sqlite_path(uri: str) -> str | None:
+    prefix = "sqlite:///"
+    if not uri.startswith(prefix):
+        return None
+    path = unquote(uri[len(prefix) :].split("?", 1)[0])
+    return None if not path or path == ":memory:" else path
+
+
+def absolute_store_uri(uri: str) -> str:
+    """Return ``uri`` with a relative SQLite path made absolute (from the working directory).
+
+    MLflow caches one store per URI string in a process, so a relative ``sqlite:///mlflow.db``
+    would keep pointing at the first working directory's file.
+    """
+    path = _sqlite_path(uri)
+    if path is None or Path(path).is_absolute():
+        return uri
+    query = uri.split("?", 1)[1] if "?" in uri else ""
+    return f"sqlite:///{Path(path).resolve().as_posix()}" + (f"?{query}" if query else "")
+
+
+def local_artifact_location(uri: str, artifact_dir: str, experiment: str) -> str | None:
+    """Artifact root of a new experiment in a local SQLite store, else ``None``.
+
+    Parameters
+    ----------
+    uri : str
+        Tracking URI. For ``sqlite:///<path>`` (relative to the working directory) or
+        ``sqlite:////<absolute path>`` the artifacts go to ``<db folder>/<artifact_dir>/
+        <experiment>/<run id>/artifacts``; other stores (a tracking server) choose themselves.
+    artifact_dir : str
+        Folder name beside the database, e.g. ``mlartifacts``.
+    experiment : str
+        Experiment name, used as sub-folder (unsafe characters replaced by ``_``).
+
+    Returns
+    -------
+    str or None
+        A ``file://`` URI, or ``None`` for non-SQLite or in-memory stores.
+    """
+    db_path = _sqlite_path(uri)
+    if db_path is None:
+        return None
+    folder = records.safe_key(experiment).replace("/", "_").replace(" ", "_")
+    return (Path(db_path).resolve().parent / artifact_dir / folder).as_uri()
+
+
+def read_json(path: Path) -> Any:
+    """Read a JSON file written by an earlier stage.
+
+    Raises
+    ------
+    FileNotFoundError
+        Naming the file and the stage to run.
+    ValueError
+        If the file is not valid JSON, with the line and column.
+    """
+    if not path.is_file():
+        raise FileNotFoundError(
+            f"{path} not found: the track stage logs the evaluate outputs; run `dvc repro "
+            "evaluate` (or `thermal evaluate`) first"
+        )
+    try:
+        return json.loads(path.read_text(encoding="utf-8"))
+    except json.JSONDecodeError as error:
+        raise ValueError(
+            f"{path}: invalid JSON at line {error.lineno}, column {error.colno} ({error.msg}); "
+            "rerun the evaluate stage"
+        ) from None
+
+
+def _schema_problems(path: Path, errors: pa.errors.SchemaErrors, limit: int = 10) -> str:
+    cases = errors.failure_cases
+    lines = []
+    for check, group in cases.groupby("check", sort=False):
+        rows = sorted({int(i) + 1 for i in group["index"].dropna()})
+        if (group["schema_context"] == "Column").all():
+            for _, case in group.head(limit).iterrows():
+                row = "" if pd.isna(case["index"]) else f"data row {int(case['index']) + 1}, "
+                value = case["failure_case"]
+                lines.append(f"{path}, {row}column '{case['column']}': {value!r} fails {check}")
+        else:
+            lines.append(f"{path}, data rows {rows[:limit]}: check {check} failed")
+    more = f" (and {len(lines) - limit} more)" if len(lines) > limit else ""
+    return "; ".join(lines[:limit]) + more
+
+
+def read_scores(path: Path) -> list[dict[str, Any]]:
+    """Read and validate the long score table (``schemas.evaluated.CrossSeasonScoresModel``).
+
+    Returns
+    -------
+    list of dict
+        One dict per data row, in file order: key columns as str, ``n_samples`` int, scores
+        float (um, NaN when empty; pandas' default round-trip parsing, equal to ``float``).
+
+    Raises
+    ------
+    FileNotFoundError
+        If the file is missing, naming the stage to run.
+    ValueError
+        If the table breaks its schema, naming the data rows, columns and checks.
+    """
+    if not path.is_file():
+        raise FileNotFoundError(
+            f"{path} not found: the track stage logs the evaluate outputs; run `dvc repro "
+            "evaluate` (or `thermal evaluate`) first"
+        )
+    text_columns = [*records.KEY_COLUMNS, "test_campaign", "test_split", "role"]
+    nan_text = ["", "nan", "NaN"]
+    table = pd.read_csv(
+        path,
+        dtype=dict.fromkeys(text_columns, "str"),
+        keep_default_na=False,
+        na_values=dict.fromkeys(records.SCORE_COLUMNS, nan_text),
+    )
+    try:
+        table = CrossSeasonScoresModel.validate(table, lazy=True)
+    except pa.errors.SchemaErrors as errors:
+        raise ValueError(
+            f"{_schema_problems(path, errors)}; rerun the evaluate stage (dvc repro evaluate)"
+        ) from None
+    return table.to_dict("records")
+
+
+def artifact_files() -> list[tuple[Path, str]]:
+    """Report files that exist, each with the artifact folder that mirrors its own folder."""
+    candidates = [
+        MATRIX_CSV,
+        MATRIX_PNG,
+        SCORES_LONG,
+        FITTED_MODELS,
+        CROSS_SEASON_METRICS,
+        VALIDATION_REPORT,
+        *sorted(SEPARATION_PLOTS.glob("*.png")),
+    ]
+    return [(path, path.parent.as_posix()) for path in candidates if path.is_file()]
+
+
+def _package_dir(name: str) -> Path:
+    spec = importlib.util.find_spec(name)
+    return Path(next(iter(spec.submodule_search_locations)))
+
+
+def _load_params(path: Path) -> dict[str, Any]:
+    with path.open(encoding="utf-8") as handle:
+        return yaml.safe_load(handle) or {}
+
+
+def _parse_args(argv: list[str]) -> argparse.Namespace:
+    parser = argparse.ArgumentParser(
+        prog="thermal track",
+        description=(
+            "Log the evaluate outputs to MLflow: one parent run per pipeline execution, one "
+            f"child per model/selection/train campaign. Store: ${ENV_TRACKING_URI} or "
+            f"{DEFAULT_TRACKING_URI}; writes {TRACKING_RECORD}."
+        ),
+    )
+    parser.add_argument("--params", default=str(DEFAULT_PARAMS), help="params file (params.yaml)")
+    return parser.parse_args(argv)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the track stage; return the exit code (0 on success)."""
+    args = _parse_args(list(argv or []))
+    started = time.perf_counter()
+    settings = load_section("track", args.params)
+    all_params = _load_params(Path(args.params))
+    experiment = str(settings.get("experiment") or "thermal-error")
+    batch_size = int(settings.get("batch_size", 1000))
+
+    fitted = read_json(FITTED_MODELS)
+    cross_season = read_json(CROSS_SEASON_METRICS)
+    score_rows = read_scores(SCORES_LONG)
+
+    code_dirs = [_package_dir("pipeline"), _package_dir("schemas")]
+    run_identity = ident.compute_identity(code_dirs, all_params, RAW, SCORE_FILES)
+    synthetic = ident.synthetic_flag(RAW)
+    dvc_hashes = ident.dvc_lock_hashes(ident.read_dvc_lock(DVC_LOCK), RAW.as_posix())
+    own = f":{TRACKING_RECORD.as_posix()}"  # the previous run's record: stale, not data
+    dvc_hashes = {key: md5 for key, md5 in dvc_hashes.items() if not key.endswith(own)}
+    tags = records.provenance_tags(
+        run_identity.value, run_identity.parts, ident.git_commit(), dvc_hashes, synthetic
+    )
+    children = records.child_records(fitted, score_rows, cross_season, {"synthetic": synthetic})
+    parent = records.parent_record(
+        f"pipeline-{run_identity.value[:12]}", cross_season, all_params, tags
+    )
+    n_metrics = records.count_metrics([parent, *children])
+    prepared = time.perf_counter()
+
+    from pipeline.tracking import store  # imports mlflow (about 2 s)
+
+    uri = resolve_tracking_uri(settings)
+    client = store.make_client(absolute_store_uri(uri))
+    artifact_dir = str(settings.get("local_artifact_dir") or DEFAULT_ARTIFACT_DIR)
+    experiment_id = store.ensure_experiment(
+        client, experiment, local_artifact_location(uri, artifact_dir, experiment)
+    )
+    existing = store.find_parent(client, experiment_id, run_identity.value)
+    if existing is not None:
+        parent_id = existing.info.run_id
+        logger.info(
+            "run identity %s already logged as parent run %s in experiment '%s' (%s): "
+            "code, params, raw data and scores unchanged, nothing logged",
+            run_identity.value[:12],
+            parent_id,
+            experiment,
+            public_uri(uri),
+        )
+    else:
+        parent_id = store.log_pipeline(
+            client, experiment_id, parent, children, artifact_files(), batch_size
+        )
+        logger.info(
+            "logged parent run %s with %d child runs and %d metrics to experiment '%s' (%s)",
+            parent_id,
+            len(children),
+            n_metrics,
+            experiment,
+            public_uri(uri),
+        )
+    finished = time.perf_counter()
+    logger.info(
+        "track took %.2f s (reading and hashing %.2f s, MLflow %.2f s)",
+        finished - started,
+        prepared - started,
+        finished - prepared,
+    )
+    record = {
+        "tracking_uri": public_uri(uri),
+        "experiment": experiment,
+        "experiment_id": experiment_id,
+        "parent_run_id": parent_id,
+        "run_identity": run_identity.value,
+        "identity_parts": run_identity.parts,
+        "reused": existing is not None,
+        "child_runs": len(children),
+        "metrics": n_metrics,
+        "git_commit": tags["git_commit"],
+        "synthetic": synthetic,
+    }
+    TRACKING_RECORD.parent.mkdir(parents=True, exist_ok=True)
+    TRACKING_RECORD.write_text(json.dumps(record, indent=2) + "\n", encoding="utf-8")
+    return 0

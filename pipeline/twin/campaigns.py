@@ -1,0 +1,488 @@
+"""Synthetic measurement campaigns: the twin plus the measurement chain and a test protocol.
+
+A *plan* says what was run (id, start, speed or warm-up feed, split); simulating it draws the
+day's ambient from the :class:`~pipeline.twin.ambient.Climate`, a small campaign-to-campaign
+scatter of the heat sources, then runs the twin and passes the result through the sensors:
+
+* spindle drift (PCDL paper, seeds/000_...): constant speed 2000/4000/6000 rpm for 4.5 h, then
+  1 h stopped, a sample every 3 min; 10 DS18B20 (per-sensor offset within +-0.2 degC, noise,
+  0.0625 degC quantisation) and an eddy-current probe (+-0.5 um);
+* axis positioning (patent, seeds/002_...): Y axis warmed up by moving it (20 mm/s), laser
+  passes over 0..280 mm every 10 mm in both directions at 0/20/50/110/190/340/390 min, 7 PT100
+  read every 10 min.
+
+Every random draw comes from the campaign's own generator, ``campaign_rng(seed, id)``, in a
+fixed order, so a campaign is reproduced bit for bit from (seed, id, plan, parameters) and
+adding campaigns does not change the others.
+"""
+
+from __future__ import annotations
+
+import logging
+import zlib
+from collections.abc import Iterable
+from dataclasses import dataclass, replace
+from datetime import datetime
+
+import numpy as np
+import pandas as pd
+
+from pipeline.twin.ambient import AmbientProfile, Climate, season_of
+from pipeline.twin.axis import AxisTruth, axis_truth, laser_runs, simulate_axis
+from pipeline.twin.effects import DEMO_EFFECTS, check_effects
+from pipeline.twin.params import (
+    DS18B20,
+    PT100_CLASS_A,
+    AxisParams,
+    SensorNoise,
+    SensorSpec,
+    SpindleParams,
+)
+from pipeline.twin.program import Program, Segment
+from pipeline.twin.spindle import simulate_spindle
+
+logger = logging.getLogger(__name__)
+
+MACHINE = "vmc-450-twin"
+"""Machine name written to every synthetic campaign (a Leaderway-V450-like VMC)."""
+
+SEASON_START = {
+    "winter": datetime(2024, 2, 20, 8, 30),
+    "spring": datetime(2024, 5, 21, 8, 30),
+    "summer": datetime(2024, 8, 20, 8, 30),
+    "autumn": datetime(2024, 11, 20, 8, 30),
+}
+"""Default start of a single campaign of each season (outside the demo's dates)."""
+
+
+@dataclass(frozen=True)
+class SpindlePlan:
+    """A spindle thermal-drift test (PCDL paper protocol).
+
+    Attributes
+    ----------
+    campaign_id : str
+    start : datetime
+        Local time of the first sample.
+    rpm : float
+        Constant spindle speed while running, rpm.
+    split : str
+        ``"train"`` or ``"validation"``.
+    run_min : float
+        Running time, min (then the spindle stops).
+    cooldown_min : float
+        Stopped time recorded after the run, min.
+    sample_min : float
+        Sampling interval of temperatures and displacement, min.
+    season : str or None
+        Written season; derived from ``start`` when None.
+    """
+
+    campaign_id: str
+    start: datetime
+    rpm: float
+    split: str = "train"
+    run_min: float = 270.0
+    cooldown_min: float = 60.0
+    sample_min: float = 3.0
+    season: str | None = None
+
+    def program(self) -> Program:
+        """Speed program: ``rpm`` for ``run_min``, then 0 (open-ended)."""
+        segments = [Segment(0.0, self.run_min, float(self.rpm))]
+        if self.cooldown_min > 0:
+            segments.append(Segment(self.run_min, None, 0.0))
+        return Program(tuple(segments), key="rpm")
+
+    def times_s(self) -> np.ndarray:
+        """Sample instants, s."""
+        end = self.run_min + self.cooldown_min
+        return np.arange(0.0, end * 60.0 + 1e-6, self.sample_min * 60.0)
+
+
+@dataclass(frozen=True)
+class AxisPlan:
+    """A linear-axis positioning test (patent protocol).
+
+    Attributes
+    ----------
+    campaign_id : str
+    start : datetime
+    passes_min : tuple of float
+        Instants of the bidirectional laser passes, min (0 = cold machine).
+    feed_program : tuple of (from_min, to_min or None, feed_mm_s)
+        Warm-up motion of the axis.
+    split : str
+    axis_name : str
+    temperature_every_min : float
+        Temperature sampling interval, min.
+    season : str or None
+    """
+
+    campaign_id: str
+    start: datetime
+    passes_min: tuple[float, ...]
+    feed_program: tuple[tuple[float, float | None, float], ...] = ((0.0, None, 20.0),)
+    split: str = "train"
+    axis_name: str = "Y"
+    temperature_every_min: float = 10.0
+    season: str | None = None
+
+    def program(self) -> Program:
+        """Feed program, mm/s."""
+        return Program(tuple(Segment(a, b, v) for a, b, v in self.feed_program), key="feed_mm_s")
+
+    def temperature_times_s(self) -> np.ndarray:
+        """Temperature sample instants up to the last pass, s."""
+        end = max(self.passes_min)
+        return np.arange(0.0, end * 60.0 + 1e-6, self.temperature_every_min * 60.0)
+
+
+@dataclass(frozen=True)
+class CampaignInfo:
+    """Metadata written to campaign.yaml.
+
+    Attributes
+    ----------
+    campaign_id, kind, machine, season, split : str
+    start : datetime
+    notes : str
+        Free text (provenance); never names the effects used.
+    """
+
+    campaign_id: str
+    kind: str
+    machine: str
+    start: datetime
+    season: str
+    split: str
+    notes: str
+
+
+@dataclass(frozen=True)
+class SpindleCampaign:
+    """A synthetic spindle-drift campaign, as measured plus its truth.
+
+    Attributes
+    ----------
+    info : CampaignInfo
+    program : Program
+        Spindle speed, rpm.
+    sensors : tuple of SensorSpec
+    temperature : pandas.DataFrame
+        temperature.csv content: ``elapsed_s`` and T1..T10 as read (offset, noise, quantised).
+    displacement : pandas.DataFrame
+        displacement.csv content: ``elapsed_s``, ``Z`` (um, probe noise).
+    simulation : pandas.DataFrame
+        Noise-free twin output (:func:`~pipeline.twin.spindle.simulate_spindle`).
+    ambient : AmbientProfile
+    params : SpindleParams
+        Parameters actually used (with this campaign's heat scatter).
+    effects : frozenset of str
+    """
+
+    info: CampaignInfo
+    program: Program
+    sensors: tuple[SensorSpec, ...]
+    temperature: pd.DataFrame
+    displacement: pd.DataFrame
+    simulation: pd.DataFrame
+    ambient: AmbientProfile
+    params: SpindleParams
+    effects: frozenset[str]
+
+
+@dataclass(frozen=True)
+class AxisCampaign:
+    """A synthetic axis-positioning campaign, as measured plus its truth.
+
+    Attributes
+    ----------
+    info : CampaignInfo
+    program : Program
+        Warm-up feed, mm/s.
+    sensors : tuple of SensorSpec
+    axis_name : str
+    stroke_mm : float
+    temperature : pandas.DataFrame
+        ``elapsed_s`` and T1..T7 as read.
+    laser : pandas.DataFrame
+        laser.csv content.
+    truth : AxisTruth
+        Geometric coefficients, periodic error, reversal, true slope/offset per pass.
+    simulation : pandas.DataFrame
+        Noise-free twin output at the temperature and pass instants.
+    ambient : AmbientProfile
+    params : AxisParams
+    effects : frozenset of str
+    """
+
+    info: CampaignInfo
+    program: Program
+    sensors: tuple[SensorSpec, ...]
+    axis_name: str
+    stroke_mm: float
+    temperature: pd.DataFrame
+    laser: pd.DataFrame
+    truth: AxisTruth
+    simulation: pd.DataFrame
+    ambient: AmbientProfile
+    params: AxisParams
+    effects: frozenset[str]
+
+
+def campaign_rng(seed: int, campaign_id: str) -> np.random.Generator:
+    """Return the generator of one campaign: child ``crc32(id)`` of ``SeedSequence(seed)``."""
+    child = np.random.SeedSequence(seed, spawn_key=(zlib.crc32(campaign_id.encode("utf-8")),))
+    return np.random.default_rng(child)
+
+
+def read_sensors(
+    true_degC: np.ndarray,
+    sensors: tuple[SensorSpec, ...],
+    noise: SensorNoise,
+    rng: np.random.Generator,
+) -> np.ndarray:
+    """Pass true temperatures through the sensors: offset + white noise, then quantisation.
+
+    Parameters
+    ----------
+    true_degC : ndarray of shape (n_t, n_sensors)
+    sensors : tuple of SensorSpec
+        Supplies each column's fixed ``offset_degc``.
+    noise : SensorNoise
+    rng : numpy.random.Generator
+        n_t * n_sensors normal draws, row-major.
+
+    Returns
+    -------
+    ndarray of shape (n_t, n_sensors), degC, multiples of ``noise.resolution_degc``.
+    """
+    offsets = np.array([s.offset_degc for s in sensors])
+    value = true_degC + offsets + noise.noise_sd_degc * rng.standard_normal(true_degC.shape)
+    return np.round(value / noise.resolution_degc) * noise.resolution_degc
+
+
+def _scatter(rng: np.random.Generator, rel: float, n: int) -> np.ndarray:
+    return 1.0 + rel * rng.standard_normal(n)
+
+
+def _notes(seed: int, preset: str) -> str:
+    return (
+        "Synthetic campaign written by the physical twin (pipeline.twin, "
+        f"thermal simulate --preset {preset} --seed {seed}); not a measurement."
+    )
+
+
+def simulate_spindle_campaign(
+    plan: SpindlePlan,
+    *,
+    seed: int,
+    params: SpindleParams | None = None,
+    effects: Iterable[str] = DEMO_EFFECTS,
+    climate: Climate | None = None,
+    preset: str = "demo",
+    machine: str = MACHINE,
+) -> SpindleCampaign:
+    """Simulate one spindle-drift campaign.
+
+    Parameters
+    ----------
+    plan : SpindlePlan
+    seed : int
+        Master seed; the campaign uses ``campaign_rng(seed, plan.campaign_id)``.
+    params : SpindleParams, optional
+        Nominal machine parameters (default :class:`SpindleParams`).
+    effects : iterable of str
+        Effects switched on (default: the demo set).
+    climate : Climate, optional
+    preset : str
+        Written in the notes only.
+    machine : str
+
+    Returns
+    -------
+    SpindleCampaign
+    """
+    params = params or SpindleParams()
+    climate = climate or Climate()
+    names = check_effects(effects)
+    rng = campaign_rng(seed, plan.campaign_id)
+    ambient = climate.profile(plan.start, rng)
+    f_front, f_rear, f_motor = _scatter(rng, params.heat_scatter_rel, 3)
+    used = replace(
+        params,
+        front_bearing_heat_w=params.front_bearing_heat_w * f_front,
+        rear_bearing_heat_w=params.rear_bearing_heat_w * f_rear,
+        motor_heat_w=params.motor_heat_w * f_motor,
+    )
+    times = plan.times_s()
+    sim = simulate_spindle(used, names, plan.program(), ambient, times)
+    names_t = [s.name for s in used.sensors]
+    read = read_sensors(sim[names_t].to_numpy(), used.sensors, DS18B20, rng)
+    temperature = pd.DataFrame(read, columns=names_t)
+    temperature.insert(0, "elapsed_s", times)
+    z = sim["z_um"].to_numpy() + used.probe_noise_um * rng.standard_normal(times.size)
+    displacement = pd.DataFrame({"elapsed_s": times, "Z": z})
+    info = CampaignInfo(
+        campaign_id=plan.campaign_id,
+        kind="spindle_drift",
+        machine=machine,
+        start=plan.start,
+        season=plan.season or season_of(plan.start),
+        split=plan.split,
+        notes=_notes(seed, preset),
+    )
+    logger.debug("simulated %s at %s rpm", plan.campaign_id, plan.rpm)
+    return SpindleCampaign(
+        info=info,
+        program=plan.program(),
+        sensors=used.sensors,
+        temperature=temperature,
+        displacement=displacement,
+        simulation=sim,
+        ambient=ambient,
+        params=used,
+        effects=names,
+    )
+
+
+def simulate_axis_campaign(
+    plan: AxisPlan,
+    *,
+    seed: int,
+    params: AxisParams | None = None,
+    effects: Iterable[str] = DEMO_EFFECTS,
+    climate: Climate | None = None,
+    preset: str = "demo",
+    machine: str = MACHINE,
+) -> AxisCampaign:
+    """Simulate one axis-positioning campaign (temperatures, laser runs and truth).
+
+    Parameters
+    ----------
+    plan : AxisPlan
+    seed : int
+        Master seed; the campaign uses ``campaign_rng(seed, plan.campaign_id)``.
+    params : AxisParams, optional
+    effects : iterable of str
+        Only ``ambient_variation`` and ``sensor_lag`` act on the axis.
+    climate : Climate, optional
+    preset : str
+    machine : str
+
+    Returns
+    -------
+    AxisCampaign
+        ``truth`` holds the geometric coefficients (um, x in mm), periodic error, reversal and
+        the true slope (um/mm) and offset (um) of every pass.
+    """
+    params = params or AxisParams()
+    climate = climate or Climate()
+    names = check_effects(effects)
+    rng = campaign_rng(seed, plan.campaign_id)
+    ambient = climate.profile(plan.start, rng)
+    f = _scatter(rng, params.heat_scatter_rel, 4)
+    used = replace(
+        params,
+        nut_heat_w=params.nut_heat_w * f[0],
+        bearing_heat_w=params.bearing_heat_w * f[1],
+        motor_heat_w=params.motor_heat_w * f[2],
+        guideway_heat_w=params.guideway_heat_w * f[3],
+    )
+    t_temp = plan.temperature_times_s()
+    t_all = np.union1d(t_temp, np.asarray(plan.passes_min, dtype=float) * 60.0)
+    sim = simulate_axis(used, names, plan.program(), ambient, t_all)
+    truth = axis_truth(used, sim, plan.passes_min)
+    names_t = [s.name for s in used.sensors]
+    at_temp = sim.set_index("elapsed_s").loc[t_temp, names_t].to_numpy()
+    read = read_sensors(at_temp, used.sensors, PT100_CLASS_A, rng)
+    temperature = pd.DataFrame(read, columns=names_t)
+    temperature.insert(0, "elapsed_s", t_temp)
+    laser = laser_runs(used, truth, rng)
+    info = CampaignInfo(
+        campaign_id=plan.campaign_id,
+        kind="axis_positioning",
+        machine=machine,
+        start=plan.start,
+        season=plan.season or season_of(plan.start),
+        split=plan.split,
+        notes=_notes(seed, preset),
+    )
+    return AxisCampaign(
+        info=info,
+        program=plan.program(),
+        sensors=used.sensors,
+        axis_name=plan.axis_name,
+        stroke_mm=used.stroke_mm,
+        temperature=temperature,
+        laser=laser,
+        truth=truth,
+        simulation=sim,
+        ambient=ambient,
+        params=used,
+        effects=names,
+    )
+
+
+PATENT_PASSES_MIN = (0.0, 20.0, 50.0, 110.0, 190.0, 340.0, 390.0)
+"""Laser passes of the patent's modelling test, min after switching on."""
+
+
+def demo_plans() -> tuple[SpindlePlan | AxisPlan, ...]:
+    """Return the plans of the demo set.
+
+    K01-K12 (3 per season at 2000/4000/6000 rpm), V01-V06 (October and December, validation),
+    Y01 (patent protocol, spring) and Y02 (validation, autumn).
+    """
+    d = datetime
+    speeds = (2000.0, 4000.0, 6000.0)
+    train_starts = (
+        d(2024, 1, 9, 8, 30), d(2024, 1, 16, 9, 0), d(2024, 1, 23, 8, 45),  # winter
+        d(2024, 4, 9, 8, 15), d(2024, 4, 16, 8, 30), d(2024, 4, 23, 9, 0),  # spring
+        d(2024, 7, 9, 8, 0), d(2024, 7, 16, 8, 30), d(2024, 7, 23, 8, 15),  # summer
+        d(2024, 9, 10, 8, 30), d(2024, 9, 24, 9, 0), d(2024, 11, 5, 8, 45),  # autumn
+    )  # fmt: skip
+    validation_starts = (
+        d(2024, 10, 15, 8, 30), d(2024, 10, 22, 8, 45), d(2024, 10, 29, 9, 0),  # October
+        d(2024, 12, 3, 8, 30), d(2024, 12, 10, 9, 0), d(2024, 12, 17, 8, 45),  # December
+    )  # fmt: skip
+    plans: list[SpindlePlan | AxisPlan] = [
+        SpindlePlan(f"K{i + 1:02d}", start, speeds[i % 3]) for i, start in enumerate(train_starts)
+    ]
+    plans += [
+        SpindlePlan(f"V{i + 1:02d}", start, speeds[i % 3], split="validation")
+        for i, start in enumerate(validation_starts)
+    ]
+    plans.append(AxisPlan("Y01", d(2024, 5, 14, 8, 0), PATENT_PASSES_MIN))
+    plans.append(
+        AxisPlan(
+            "Y02",
+            d(2024, 11, 19, 8, 15),
+            (0.0, 40.0, 100.0, 160.0, 220.0, 280.0),
+            feed_program=((0.0, 120.0, 30.0), (120.0, None, 15.0)),
+            split="validation",
+        )
+    )
+    return tuple(plans)
+
+
+def simulate_plan(
+    plan: SpindlePlan | AxisPlan,
+    *,
+    seed: int,
+    effects: Iterable[str] = DEMO_EFFECTS,
+    preset: str = "demo",
+) -> SpindleCampaign | AxisCampaign:
+    """Simulate a spindle or axis plan with the default parameters."""
+    if isinstance(plan, SpindlePlan):
+        return simulate_spindle_campaign(plan, seed=seed, effects=effects, preset=preset)
+    return simulate_axis_campaign(plan, seed=seed, effects=effects, preset=preset)
+
+
+def demo_campaigns(
+    seed: int, effects: Iterable[str] = DEMO_EFFECTS
+) -> list[SpindleCampaign | AxisCampaign]:
+    """Simulate the whole demo set in memory (about a second)."""
+    names = check_effects(effects)
+    return [simulate_plan(p, seed=seed, effects=names) for p in demo_plans()]

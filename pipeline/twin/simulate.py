@@ -1,0 +1,191 @@
+"""Run a thermal network under a program and an ambient: the engine shared by both twins.
+
+The machine stands idle (drive 0) for ``preroll_h`` hours before the start, following the
+ambient law of the model, so that at t = 0 the structure carries the realistic lag of the
+workshop's daily cycle; with a constant ambient it is simply at the air temperature.
+Temperatures are then integrated exactly (first-order-hold matrix exponential, see
+:mod:`pipeline.twin.network`) on a grid made of the requested instants and the program's
+breakpoints; ``method="Radau"`` (or ``"BDF"``, ``"LSODA"``) uses ``scipy.integrate.solve_ivp``.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from pipeline.twin.effects import Term, slot_terms
+from pipeline.twin.network import build_system, integrate_foh, integrate_ivp
+from pipeline.twin.params import SensorSpec
+from pipeline.twin.program import Program
+
+logger = logging.getLogger(__name__)
+
+IVP_METHODS = ("Radau", "BDF", "LSODA")
+
+
+@dataclass(frozen=True)
+class NetworkRun:
+    """Raw result of :func:`run_network` at the requested instants.
+
+    Attributes
+    ----------
+    times_s : ndarray of shape (n_t,), s
+    drive : ndarray of shape (n_t,)
+        Program value at each instant (rpm or mm/s), right-continuous.
+    ambient_degc : ndarray of shape (n_t,)
+        Air temperature the structure sees.
+    nodes_degc : ndarray of shape (n_t, n_nodes)
+    start_degc : ndarray of shape (n_nodes,)
+        Node temperatures at t = 0 (reference for expansion).
+    sensors_degc : ndarray of shape (n_t, n_sensors)
+        Noise-free sensor readings (direct or lagged).
+    """
+
+    times_s: np.ndarray
+    drive: np.ndarray
+    ambient_degc: np.ndarray
+    nodes_degc: np.ndarray
+    start_degc: np.ndarray
+    sensors_degc: np.ndarray
+
+
+def _grid(times: np.ndarray, breaks: np.ndarray, max_step_s: float) -> np.ndarray:
+    t_end = times[-1]
+    pts = np.concatenate([[0.0], times, breaks[(breaks > 0) & (breaks < t_end)]])
+    grid = np.unique(pts)
+    gaps = np.diff(grid)
+    extra = [
+        np.linspace(a, b, int(np.ceil(h / max_step_s)) + 1)[1:-1]
+        for a, b, h in zip(grid[:-1], grid[1:], gaps, strict=True)
+        if h > max_step_s
+    ]
+    return np.unique(np.concatenate([grid, *extra])) if extra else grid
+
+
+def run_network(
+    params: Any,
+    terms: tuple[Term, ...],
+    program: Program,
+    ambient: Any,
+    times_s: np.ndarray,
+    *,
+    method: str = "expm",
+    preroll_h: float = 72.0,
+    max_step_s: float = 600.0,
+    history: Program | None = None,
+) -> NetworkRun:
+    """Integrate ``params.network`` under the heat/ambient/sensor terms of a model.
+
+    Parameters
+    ----------
+    params : SpindleParams or AxisParams
+        Must have ``network`` and ``sensors``.
+    terms : tuple of Term
+        From :func:`pipeline.twin.effects.model_terms`.
+    program : Program
+        Drive (rpm or mm/s) over time.
+    ambient : object with ``at(t_s)``
+        Air temperature law.
+    times_s : array-like of shape (n_t,), s
+        Output instants, >= 0, strictly increasing.
+    method : str
+        ``"expm"`` (exact, default) or a ``solve_ivp`` method in :data:`IVP_METHODS`.
+    preroll_h : float
+        Hours simulated before t = 0, idle unless ``history`` is given (only matters when the
+        ambient varies or the machine ran).
+    max_step_s : float
+        Longest integration step, s (the ambient is linear within a step).
+    history : Program, optional
+        Drive during the pre-roll, minutes relative to the start (negative ``from_min``),
+        e.g. the previous day's work; None = idle.
+
+    Returns
+    -------
+    NetworkRun
+    """
+    times = np.asarray(times_s, dtype=float)
+    if times.ndim != 1 or times.size == 0:
+        raise ValueError("times_s must be a non-empty 1-d array of seconds")
+    if times[0] < 0 or np.any(np.diff(times) <= 0):
+        raise ValueError("times_s must be >= 0 and strictly increasing")
+    if method != "expm" and method not in IVP_METHODS:
+        raise ValueError(f"unknown method '{method}'; use 'expm' or one of {IVP_METHODS}")
+
+    net = params.network
+    n = len(net.nodes)
+    heat_terms = slot_terms(terms, "heat")
+    (ambient_term,) = slot_terms(terms, "ambient")
+    (sensor_term,) = slot_terms(terms, "sensor")
+    sensors: tuple[SensorSpec, ...] = params.sensors
+    sensor_nodes = tuple(-1 if s.node == "ambient" else net.index(s.node) for s in sensors)
+    tau = float(sensor_term.func(params))
+    lagged = tau > 0
+    system = build_system(
+        net,
+        sensor_nodes if lagged else (),
+        tuple(tau for _ in sensor_nodes) if lagged else (),
+    )
+
+    def air(t: np.ndarray) -> np.ndarray:
+        return ambient_term.func(ambient, np.asarray(t, dtype=float))
+
+    def heat(drive: np.ndarray) -> np.ndarray:
+        q = np.zeros((np.size(drive), n))
+        for term in heat_terms:
+            q = q + term.func(params, drive)
+        return q
+
+    def initial(t_first: float) -> np.ndarray:
+        t_air = float(air(np.array([t_first]))[0])
+        return np.full(system.A.shape[0], t_air)
+
+    def integrate(grid: np.ndarray, x0: np.ndarray, drive: np.ndarray) -> np.ndarray:
+        amb = air(grid)
+        q = heat(drive)
+        u_left = np.column_stack([amb[:-1], q])
+        u_right = np.column_stack([amb[1:], q])
+        if method == "expm":
+            return integrate_foh(system, x0, grid, u_left, u_right)
+
+        def inputs(t: float, k: int) -> np.ndarray:
+            return np.concatenate([air(np.array([t])), q[k]])
+
+        return integrate_ivp(system, x0, grid, inputs, method=method)
+
+    # pre-roll: the machine's history before t = 0 (idle unless `history` says otherwise);
+    # only needed if the air the model sees changes before the start or the machine ran
+    n_pre = max(int(np.ceil(preroll_h * 3600.0 / max_step_s)), 1)
+    pre = np.linspace(-preroll_h * 3600.0, 0.0, n_pre + 1)
+    past = history if history is not None else Program(())
+    breaks = past.breakpoints_s()
+    pre = np.unique(np.concatenate([pre, breaks[(breaks > pre[0]) & (breaks < 0)]]))
+    pre_drive = past.value_at(pre[:-1])
+    if preroll_h > 0 and (np.ptp(air(pre)) > 0 or np.any(pre_drive != 0)):
+        x0 = integrate(pre, initial(pre[0]), pre_drive)[-1]
+    else:
+        x0 = initial(0.0)
+
+    grid = _grid(times, program.breakpoints_s(), max_step_s)
+    drive_grid = program.value_at(grid[:-1])
+    x = integrate(grid, x0, drive_grid)
+    idx = np.searchsorted(grid, times)
+    nodes = x[idx, :n]
+    amb = air(times)
+    if lagged:
+        readings = x[idx, n:]
+    else:
+        readings = np.column_stack([amb if j < 0 else nodes[:, j] for j in sensor_nodes]).reshape(
+            times.size, len(sensor_nodes)
+        )
+    logger.debug("run_network: %d grid steps, method %s", grid.size - 1, method)
+    return NetworkRun(
+        times_s=times,
+        drive=program.value_at(times),
+        ambient_degc=amb,
+        nodes_degc=nodes,
+        start_degc=x0[:n].copy(),
+        sensors_degc=readings,
+    )

@@ -1,0 +1,93 @@
+"""Pandera models of the tables written by ``separate`` (``data/separated/``).
+
+Sensor columns (degC, one per temperature sensor, named as in campaign.yaml) vary by campaign:
+the models allow extra columns; add them explicitly with :func:`with_sensor_columns`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+
+import numpy as np
+import pandas as pd
+import pandera.pandas as pa
+from pandera.typing import Series
+
+from schemas import checks
+from schemas.vocabulary import DIRECTIONS, SEASONS, SPLITS
+
+
+class SpindleThermalErrorModel(pa.DataFrameModel):
+    """``spindle_thermal_error.parquet``: one row per aligned sample of a spindle campaign.
+
+    ``thermal_error_um`` = ``displacement_um`` minus its cold value (um); samples in time order.
+    """
+
+    campaign_id: Series[str]
+    elapsed_s: Series[float]
+    source_row: Series[np.int64] = pa.Field(ge=1)
+    rpm: Series[float] = pa.Field(nullable=True)
+    split: Series[str] = pa.Field(isin=SPLITS)
+    season: Series[str] = pa.Field(isin=SEASONS)
+    thermal_error_um: Series[float]
+    displacement_um: Series[float]
+
+    class Config:
+        """Sensor columns vary by campaign."""
+
+        strict = False
+
+    @pa.dataframe_check
+    @classmethod
+    def time_increasing(cls, df: pd.DataFrame) -> Series[bool]:
+        """Check that ``elapsed_s`` strictly increases within each campaign."""
+        return checks.increasing_within(df["elapsed_s"], df["campaign_id"])
+
+
+class AxisSlopesModel(pa.DataFrameModel):
+    """``axis_slopes.parquet``: one row per laser run of an axis campaign.
+
+    After the geometric error (cold run polynomial over position) is removed, the thermal
+    positioning error of a run is fitted by a line over position (the patent's slope method):
+    ``e(x) = intercept_um + slope_um_per_mm * x``. Temperatures at the run (degC) may follow as
+    extra columns.
+    """
+
+    campaign_id: Series[str]
+    run: Series[np.int64]
+    direction: Series[str] = pa.Field(isin=DIRECTIONS)
+    elapsed_min: Series[float] = pa.Field(ge=0)
+    slope_um_per_mm: Series[float]
+    intercept_um: Series[float]
+
+    class Config:
+        """Sensor (and split/season) columns may follow."""
+
+        strict = False
+
+    @pa.dataframe_check
+    @classmethod
+    def one_row_per_run(cls, df: pd.DataFrame) -> Series[bool]:
+        """Check that a run of a campaign has one slope."""
+        return ~df.duplicated(["campaign_id", "run"], keep=False)
+
+
+def with_sensor_columns(
+    schema: pa.DataFrameSchema, sensors: Iterable[str], nullable: bool = True
+) -> pa.DataFrameSchema:
+    """Return ``schema`` with one float64 temperature column (degC) per sensor name added.
+
+    Parameters
+    ----------
+    schema : pandera DataFrameSchema
+        E.g. ``SpindleThermalErrorModel.to_schema()``; not modified.
+    sensors : iterable of str
+        Sensor column names.
+    nullable : bool
+        Whether missing readings are allowed.
+
+    Returns
+    -------
+    pandera DataFrameSchema
+    """
+    return schema.add_columns({str(s): pa.Column(float, nullable=nullable) for s in sensors})

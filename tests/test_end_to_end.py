@@ -1,0 +1,133 @@
+"""End-to-end: the real `dvc repro` on a copy of the repository (demo campaigns), real MLflow."""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pandas as pd
+import pytest
+import yaml
+from mlflow.tracking import MlflowClient
+
+from pipeline.bench import copy_repository
+from tests.mlflow_server import running_mlflow_server
+
+pytestmark = pytest.mark.slow
+
+ROOT = Path(__file__).resolve().parents[1]
+BIN = Path(sys.executable).parent
+
+
+def _env(uri: str) -> dict[str, str]:
+    return {**os.environ, "PATH": f"{BIN}{os.pathsep}{os.environ['PATH']}",
+            "MLFLOW_TRACKING_URI": uri}  # fmt: skip
+
+
+def _run(command: list[str], cwd: Path, env: dict[str, str]) -> str:
+    result = subprocess.run(command, cwd=cwd, env=env, capture_output=True, text=True)
+    assert result.returncode == 0, f"{command} failed:\n{result.stdout}\n{result.stderr}"
+    return result.stdout + result.stderr
+
+
+def _repro(work: Path, env: dict[str, str]) -> str:
+    return _run([str(BIN / "dvc"), "repro"], work, env)
+
+
+def _experiment() -> str:
+    return yaml.safe_load((ROOT / "params.yaml").read_text())["track"]["experiment"]
+
+
+def _scores(work: Path) -> pd.DataFrame:
+    return pd.read_csv(work / "reports" / "cross_season_scores.csv")
+
+
+def test_new_campaign_is_scored_old_scores_kept_unrelated_stages_skipped(tmp_path):
+    work = copy_repository(ROOT, tmp_path / "repo")
+    env = _env(f"sqlite:///{work / 'mlflow.db'}")
+    _repro(work, env)
+    before = _scores(work)
+    assert "K13" not in set(before["test_campaign"])
+
+    _run([str(BIN / "thermal"), "simulate", "--preset", "single", "--id", "K13", "--season",
+          "summer", "--rpm", "4000", "--seed", "13", "--out", "data/raw"], work, env)  # fmt: skip
+    output = _repro(work, env)
+
+    assert "Stage 'separate_axis' didn't change, skipping" in output
+    for stage in ("ingest", "validate", "separate_spindle", "evaluate"):
+        assert f"Running stage '{stage}'" in output
+    after = _scores(work)
+    assert "K13" in set(after["train_campaign"]) and "K13" in set(after["test_campaign"])
+    assert len(after) > len(before)
+    keys = ["model", "selection", "train_campaign", "test_campaign"]
+    merged = before.merge(after, on=keys, suffixes=("_before", "_after"), validate="1:1")
+    assert len(merged) == len(before)
+    for score in ("rmse_um", "resid_std_um"):
+        pd.testing.assert_series_equal(
+            merged[f"{score}_before"], merged[f"{score}_after"], check_names=False
+        )
+    output = _repro(work, env)
+    assert "Running stage 'evaluate'" not in output
+
+
+def test_malformed_campaign_is_quarantined_while_the_others_are_scored(tmp_path):
+    work = copy_repository(ROOT, tmp_path / "repo")
+    raw = work / "data" / "raw"
+    bad = raw / "K99"
+    shutil.copytree(raw / "K01", bad)
+    meta = yaml.safe_load((bad / "campaign.yaml").read_text())
+    meta["campaign_id"] = "K99"
+    (bad / "campaign.yaml").write_text(yaml.safe_dump(meta, sort_keys=False))
+    temperature = pd.read_csv(bad / "temperature.csv", dtype=str)
+    temperature.loc[0, "T3"] = "85.0"  # DS18B20 power-on value in data row 1
+    temperature.to_csv(bad / "temperature.csv", index=False)
+    raw_bytes = {p: p.read_bytes() for p in bad.iterdir()}
+
+    _repro(work, _env(f"sqlite:///{work / 'mlflow.db'}"))
+
+    report = json.loads((work / "reports" / "validation.json").read_text())
+    assert report["summary"]["quarantined"] == ["K99"]
+    problems = [p for p in report["problems"] if p["campaign"] == "K99"]
+    assert any(
+        p["file"] == "temperature.csv" and p["row"] == 1 and p["column"] == "T3" for p in problems
+    ), problems
+    assert all(p["action"] for p in problems)
+    scores = _scores(work)
+    assert "K99" not in set(scores["test_campaign"])
+    assert {f"K{i:02d}" for i in range(1, 13)} <= set(scores["train_campaign"])
+    assert {p: p.read_bytes() for p in bad.iterdir()} == raw_bytes
+
+
+def test_every_score_reaches_a_real_mlflow_server_once(tmp_path):
+    work = copy_repository(ROOT, tmp_path / "repo")
+    with running_mlflow_server(tmp_path / "server") as uri:
+        env = _env(uri)
+        _repro(work, env)
+        client = MlflowClient(tracking_uri=uri)
+        experiment = client.get_experiment_by_name(_experiment())
+        runs = client.search_runs([experiment.experiment_id], max_results=1000)
+        parents = [r for r in runs if "mlflow.parentRunId" not in r.data.tags]
+        children = [r for r in runs if "mlflow.parentRunId" in r.data.tags]
+        scores = _scores(work)
+        assert len(parents) == 1
+        assert len(children) == scores.groupby(["model", "selection", "train_campaign"]).ngroups
+        logged = sum(
+            1
+            for r in children
+            for k in r.data.metrics
+            if k.startswith(("rmse_um.", "resid_std_um."))
+        )
+        assert logged == 2 * len(scores)
+        child = next(r for r in children if r.data.params.get("train_campaign") == "K01")
+        expected = scores.query("train_campaign == 'K01'").set_index("test_campaign")
+        for campaign, row in expected.iterrows():
+            assert child.data.metrics[f"rmse_um.{campaign}"] == pytest.approx(row["rmse_um"])
+        assert parents[0].data.tags.get("git_commit")
+
+        _repro(work, env)
+        again = client.search_runs([experiment.experiment_id], max_results=1000)
+        assert len(again) == len(runs)
