@@ -24,6 +24,7 @@ from pipeline.cross_season import (
 )
 from pipeline.models import make_model
 from pipeline.scoring import metrics_tree, score_matrix
+from schemas import CrossSeasonScoresModel
 
 LOGGER = logging.getLogger(__name__)
 
@@ -69,7 +70,7 @@ def evaluate(
     scores = pd.concat([f.scores for f in fitted], ignore_index=True)
     scores.insert(0, "selection", SELECTION)
     scores.insert(0, "model", model)
-    return scores, fitted
+    return CrossSeasonScoresModel.validate(scores, lazy=True), fitted
 
 
 def fitted_record(model: str, features: str, fitted: list[FittedOnCampaign]) -> dict:

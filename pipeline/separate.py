@@ -20,6 +20,7 @@ from pipeline import paths, plots
 from pipeline.axis_separation import separate_axis
 from pipeline.config import load_section
 from pipeline.spindle_separation import spindle_thermal_error
+from schemas import AxisSlopesModel, SpindleThermalErrorModel
 
 LOGGER = logging.getLogger(__name__)
 
@@ -34,6 +35,7 @@ def run_spindle(params: dict) -> None:
         reference=str(params["cold_reference"]),
         n=int(params["cold_n"]),
     )
+    SpindleThermalErrorModel.validate(table, lazy=True)
     paths.SEPARATED.mkdir(parents=True, exist_ok=True)
     table.to_parquet(paths.SPINDLE_THERMAL_ERROR, index=False)
     LOGGER.info(
@@ -60,6 +62,7 @@ def run_axis(params: dict) -> None:
         pd.read_parquet(folder / paths.LASER_FILE),
         order=int(params["geometric_order"]),
     )
+    AxisSlopesModel.validate(tables["slopes"], lazy=True)
     tables["geometric"].to_parquet(paths.AXIS_GEOMETRIC, index=False)
     tables["thermal"].to_parquet(paths.AXIS_THERMAL_ERROR, index=False)
     tables["slopes"].to_parquet(paths.AXIS_SLOPES, index=False)

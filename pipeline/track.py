@@ -27,6 +27,7 @@ import logging
 import os
 import time
 from collections.abc import Mapping
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 from urllib.parse import unquote, urlsplit, urlunsplit
@@ -237,15 +238,20 @@ def _parse_args(argv: list[str]) -> argparse.Namespace:
     return parser.parse_args(argv)
 
 
-def main(argv: list[str] | None = None) -> int:
-    """Run the track stage; return the exit code (0 on success)."""
-    args = _parse_args(list(argv or []))
-    started = time.perf_counter()
-    settings = load_section("track", args.params)
-    all_params = _load_params(Path(args.params))
-    experiment = str(settings.get("experiment") or "thermal-error")
-    batch_size = int(settings.get("batch_size", 1000))
+@dataclass(frozen=True)
+class Prepared:
+    """Everything to log, computed before MLflow is imported."""
 
+    identity: ident.RunIdentity
+    synthetic: str
+    git_commit: str
+    parent: records.RunRecord
+    children: list[records.RunRecord]
+
+
+def prepare(params_path: Path) -> Prepared:
+    """Read the evaluate outputs and provenance, compute the identity, build the run records."""
+    all_params = _load_params(params_path)
     fitted = read_json(FITTED_MODELS)
     cross_season = read_json(CROSS_SEASON_METRICS)
     score_rows = read_scores(SCORES_LONG)
@@ -253,18 +259,35 @@ def main(argv: list[str] | None = None) -> int:
     code_dirs = [_package_dir("pipeline"), _package_dir("schemas")]
     run_identity = ident.compute_identity(code_dirs, all_params, RAW, SCORE_FILES)
     synthetic = ident.synthetic_flag(RAW)
+    commit = ident.git_commit()
     dvc_hashes = ident.dvc_lock_hashes(ident.read_dvc_lock(DVC_LOCK), RAW.as_posix())
     own = f":{TRACKING_RECORD.as_posix()}"  # the previous run's record: stale, not data
     dvc_hashes = {key: md5 for key, md5 in dvc_hashes.items() if not key.endswith(own)}
     tags = records.provenance_tags(
-        run_identity.value, run_identity.parts, ident.git_commit(), dvc_hashes, synthetic
+        run_identity.value, run_identity.parts, commit, dvc_hashes, synthetic
     )
     children = records.child_records(fitted, score_rows, cross_season, {"synthetic": synthetic})
     parent = records.parent_record(
         f"pipeline-{run_identity.value[:12]}", cross_season, all_params, tags
     )
-    n_metrics = records.count_metrics([parent, *children])
-    prepared = time.perf_counter()
+    return Prepared(run_identity, synthetic, commit, parent, children)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the track stage; return the exit code (0 on success)."""
+    args = _parse_args(list(argv or []))
+    started = time.perf_counter()
+    settings = load_section("track", args.params)
+    experiment = str(settings.get("experiment") or "thermal-error")
+    batch_size = int(settings.get("batch_size", 1000))
+    if not 1 <= batch_size <= 1000:
+        raise ValueError(
+            f"{args.params}: track.batch_size = {batch_size}; MLflow accepts 1 to 1000 metrics "
+            "per log_batch call, set a value in that range"
+        )
+    prepared = prepare(Path(args.params))
+    n_metrics = records.count_metrics([prepared.parent, *prepared.children])
+    ready = time.perf_counter()
 
     from pipeline.tracking import store  # imports mlflow (about 2 s)
 
@@ -274,25 +297,25 @@ def main(argv: list[str] | None = None) -> int:
     experiment_id = store.ensure_experiment(
         client, experiment, local_artifact_location(uri, artifact_dir, experiment)
     )
-    existing = store.find_parent(client, experiment_id, run_identity.value)
+    existing = store.find_parent(client, experiment_id, prepared.identity.value)
     if existing is not None:
         parent_id = existing.info.run_id
         logger.info(
             "run identity %s already logged as parent run %s in experiment '%s' (%s): "
             "code, params, raw data and scores unchanged, nothing logged",
-            run_identity.value[:12],
+            prepared.identity.value[:12],
             parent_id,
             experiment,
             public_uri(uri),
         )
     else:
         parent_id = store.log_pipeline(
-            client, experiment_id, parent, children, artifact_files(), batch_size
+            client, experiment_id, prepared.parent, prepared.children, artifact_files(), batch_size
         )
         logger.info(
             "logged parent run %s with %d child runs and %d metrics to experiment '%s' (%s)",
             parent_id,
-            len(children),
+            len(prepared.children),
             n_metrics,
             experiment,
             public_uri(uri),
@@ -301,21 +324,21 @@ def main(argv: list[str] | None = None) -> int:
     logger.info(
         "track took %.2f s (reading and hashing %.2f s, MLflow %.2f s)",
         finished - started,
-        prepared - started,
-        finished - prepared,
+        ready - started,
+        finished - ready,
     )
     record = {
         "tracking_uri": public_uri(uri),
         "experiment": experiment,
         "experiment_id": experiment_id,
         "parent_run_id": parent_id,
-        "run_identity": run_identity.value,
-        "identity_parts": run_identity.parts,
+        "run_identity": prepared.identity.value,
+        "identity_parts": prepared.identity.parts,
         "reused": existing is not None,
-        "child_runs": len(children),
+        "child_runs": len(prepared.children),
         "metrics": n_metrics,
-        "git_commit": tags["git_commit"],
-        "synthetic": synthetic,
+        "git_commit": prepared.git_commit,
+        "synthetic": prepared.synthetic,
     }
     TRACKING_RECORD.parent.mkdir(parents=True, exist_ok=True)
     TRACKING_RECORD.write_text(json.dumps(record, indent=2) + "\n", encoding="utf-8")

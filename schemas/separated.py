@@ -14,7 +14,7 @@ import pandera.pandas as pa
 from pandera.typing import Series
 
 from schemas import checks
-from schemas.vocabulary import DIRECTIONS, SEASONS, SPLITS
+from schemas.vocabulary import SEASONS, SPLITS
 
 
 class SpindleThermalErrorModel(pa.DataFrameModel):
@@ -29,6 +29,7 @@ class SpindleThermalErrorModel(pa.DataFrameModel):
     rpm: Series[float] = pa.Field(nullable=True)
     split: Series[str] = pa.Field(isin=SPLITS)
     season: Series[str] = pa.Field(isin=SEASONS)
+    synthetic: Series[bool]
     thermal_error_um: Series[float]
     displacement_um: Series[float]
 
@@ -45,31 +46,33 @@ class SpindleThermalErrorModel(pa.DataFrameModel):
 
 
 class AxisSlopesModel(pa.DataFrameModel):
-    """``axis_slopes.parquet``: one row per laser run of an axis campaign.
+    """``axis_slopes.parquet``: one row per pass (elapsed_min) of an axis campaign.
 
-    After the geometric error (cold run polynomial over position) is removed, the thermal
-    positioning error of a run is fitted by a line over position (the patent's slope method):
-    ``e(x) = intercept_um + slope_um_per_mm * x``. Temperatures at the run (degC) may follow as
-    extra columns.
+    After the geometric error (cold pass polynomial over position) is removed, the thermal
+    positioning error of a pass is fitted by a line over position (the patent's slope method):
+    ``e(x) = intercept_um + slope_um_per_mm * x``. Temperatures at the pass (degC) follow as
+    extra columns, named as in campaign.yaml.
     """
 
     campaign_id: Series[str]
-    run: Series[np.int64]
-    direction: Series[str] = pa.Field(isin=DIRECTIONS)
+    axis_name: Series[str]
+    split: Series[str] = pa.Field(isin=SPLITS)
+    season: Series[str] = pa.Field(isin=SEASONS)
+    synthetic: Series[bool]
     elapsed_min: Series[float] = pa.Field(ge=0)
     slope_um_per_mm: Series[float]
     intercept_um: Series[float]
 
     class Config:
-        """Sensor (and split/season) columns may follow."""
+        """Sensor columns vary by campaign."""
 
         strict = False
 
     @pa.dataframe_check
     @classmethod
-    def one_row_per_run(cls, df: pd.DataFrame) -> Series[bool]:
-        """Check that a run of a campaign has one slope."""
-        return ~df.duplicated(["campaign_id", "run"], keep=False)
+    def one_row_per_pass(cls, df: pd.DataFrame) -> Series[bool]:
+        """Check that a pass (campaign, elapsed_min) has one slope."""
+        return ~df.duplicated(["campaign_id", "elapsed_min"], keep=False)
 
 
 def with_sensor_columns(

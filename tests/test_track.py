@@ -342,6 +342,34 @@ def test_batches_respect_mlflow_limits():
         list(store.batches(metrics, {}, {}, batch_size=0))
 
 
+def test_batch_size_above_mlflow_limit_is_rejected_before_logging(workdir, client):
+    params = yaml.safe_load((workdir / "params.yaml").read_text())
+    params["track"]["batch_size"] = 5000
+    (workdir / "params.yaml").write_text(yaml.safe_dump(params))
+    with pytest.raises(ValueError, match=r"params.yaml: track.batch_size = 5000; MLflow accepts"):
+        track.main([])
+    assert client.get_experiment_by_name(EXPERIMENT) is None
+
+
+def test_small_batch_size_splits_the_metrics(workdir, client, monkeypatch):
+    params = yaml.safe_load((workdir / "params.yaml").read_text())
+    params["track"]["batch_size"] = 7
+    (workdir / "params.yaml").write_text(yaml.safe_dump(params))
+    sizes = []
+    original = MlflowClient.log_batch
+
+    def spy(self, run_id, metrics=(), params=(), tags=(), **kwargs):
+        sizes.append(len(metrics))
+        return original(self, run_id, metrics=metrics, params=params, tags=tags, **kwargs)
+
+    monkeypatch.setattr(MlflowClient, "log_batch", spy)
+    track.main([])
+    assert max(sizes) == 7
+    assert sum(sizes) == record(workdir)["metrics"]
+    _, children = split_runs(all_runs(client))
+    assert all(len(r.data.metrics) == 2 * len(CAMPAIGNS) + len(SUMMARY_KEYS) for r in children)
+
+
 def test_missing_evaluate_output_says_what_to_run(workdir):
     (workdir / "reports" / "fitted_models.json").unlink()
     with pytest.raises(FileNotFoundError, match=r"fitted_models.json not found.*dvc repro"):

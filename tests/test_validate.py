@@ -647,6 +647,7 @@ def test_spindle_thermal_error_model_with_sensor_columns():
             "rpm": [4000.0] * 3,
             "split": ["train"] * 3,
             "season": ["winter"] * 3,
+            "synthetic": [True] * 3,
             "T1": [20.0, 20.5, 21.0],
             "thermal_error_um": [0.0, 1.0, 2.0],
             "displacement_um": [5.0, 6.0, 7.0],
@@ -657,3 +658,22 @@ def test_spindle_thermal_error_model_with_sensor_columns():
     with pytest.raises(SchemaErrors, match="column_in_dataframe"):
         schema.validate(frame.drop(columns="T1"), lazy=True)
     assert isinstance(schema, pa.DataFrameSchema)
+
+
+def test_axis_slopes_model_one_row_per_pass():
+    slopes = pd.DataFrame(
+        {
+            "campaign_id": ["Y01", "Y01"],
+            "axis_name": ["Y", "Y"],
+            "split": ["train", "train"],
+            "season": ["spring", "spring"],
+            "synthetic": [True, True],
+            "elapsed_min": [0.0, 20.0],
+            "slope_um_per_mm": [0.0, 0.024],
+            "intercept_um": [0.0, 0.74],
+            "T1": [22.4, 24.5],
+        }
+    )
+    schemas.AxisSlopesModel.validate(slopes)
+    with pytest.raises(SchemaErrors, match="one_row_per_pass"):
+        schemas.AxisSlopesModel.validate(slopes.assign(elapsed_min=[20.0, 20.0]), lazy=True)

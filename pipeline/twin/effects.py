@@ -11,8 +11,9 @@ A model is a tuple of :class:`Term` objects, each filling one *slot*:
     ``func(params, rise_K, drive) -> ndarray (n_t,)``, um: a Z component at the spindle nose
     from the node temperature rises ``rise_K`` (n_t, n_nodes) since the start; terms add up.
 ``sensor``
-    ``func(params) -> float``: time constant (s) through which every sensor reads its node,
-    0 = reads it directly.
+    ``func(params) -> float or tuple of float``: first-order time constant (s) through which
+    each sensor reads its node, one value for all sensors or one per sensor of
+    ``params.sensors``; 0 = reads it directly.
 
 The *baseline* of a machine is a fixed tuple of terms (spindle: bearing friction heat
 proportional to speed, constant ambient equal to its value at the start, uniform expansion of
@@ -206,9 +207,17 @@ def direct_sensors(params: Any) -> float:
     return 0.0
 
 
-def lagged_sensors(params: Any) -> float:
-    """Sensors read their node through a first-order lag of ``params.sensor_tau_s``."""
-    return float(params.sensor_tau_s)
+def lagged_sensors(params: Any) -> tuple[float, ...]:
+    """Each sensor reads its node through a first-order lag, s, one value per sensor.
+
+    ``tau dS/dt = T_node - S``: a sensor glued, screwed or magnet-mounted on a surface reads
+    the local skin of the part through the contact resistance and its own housing, and the
+    skin follows the bulk of the lumped node with a delay. The time constant is the sensor's
+    ``tau_s`` (set by its mounting) or, when that is None, the machine's ``sensor_tau_s``.
+    """
+    return tuple(
+        float(params.sensor_tau_s if s.tau_s is None else s.tau_s) for s in params.sensors
+    )
 
 
 # ----------------------------------------------------------------------------- registry

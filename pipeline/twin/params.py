@@ -46,6 +46,10 @@ class SensorSpec:
         Sensor model written to campaign.yaml (``"DS18B20"``, ``"PT100"``).
     offset_degc : float
         Fixed calibration offset of this sensor, degC (within its accuracy class).
+    tau_s : float or None
+        First-order time constant through which this sensor reads its node when
+        ``sensor_lag`` is on, s (set by how it is mounted); None = the machine's
+        ``sensor_tau_s``.
     """
 
     name: str
@@ -54,6 +58,7 @@ class SensorSpec:
     node: str
     type: str
     offset_degc: float = 0.0
+    tau_s: float | None = None
 
 
 @dataclass(frozen=True)

@@ -52,6 +52,26 @@ class NetworkRun:
     sensors_degc: np.ndarray
 
 
+def sensor_time_constants(value: Any, n_sensors: int) -> np.ndarray:
+    """Broadcast the value of a sensor term to one time constant per sensor.
+
+    Parameters
+    ----------
+    value : float or sequence of float
+        What the model's ``sensor`` term returned, s: one value for all sensors or one per
+        sensor (0 = the sensor reads its node directly).
+    n_sensors : int
+
+    Returns
+    -------
+    ndarray of shape (n_sensors,), s
+    """
+    taus = np.broadcast_to(np.asarray(value, dtype=float), (n_sensors,)).copy()
+    if np.any(~np.isfinite(taus)) or np.any(taus < 0):
+        raise ValueError(f"sensor time constants must be finite and >= 0 s, got {taus.tolist()}")
+    return taus
+
+
 def _grid(times: np.ndarray, breaks: np.ndarray, max_step_s: float) -> np.ndarray:
     t_end = times[-1]
     pts = np.concatenate([[0.0], times, breaks[(breaks > 0) & (breaks < t_end)]])
@@ -121,12 +141,12 @@ def run_network(
     (sensor_term,) = slot_terms(terms, "sensor")
     sensors: tuple[SensorSpec, ...] = params.sensors
     sensor_nodes = tuple(-1 if s.node == "ambient" else net.index(s.node) for s in sensors)
-    tau = float(sensor_term.func(params))
-    lagged = tau > 0
+    taus = sensor_time_constants(sensor_term.func(params), len(sensors))
+    lagged = tuple(j for j, tau in enumerate(taus) if tau > 0)
     system = build_system(
         net,
-        sensor_nodes if lagged else (),
-        tuple(tau for _ in sensor_nodes) if lagged else (),
+        tuple(sensor_nodes[j] for j in lagged),
+        tuple(float(taus[j]) for j in lagged),
     )
 
     def air(t: np.ndarray) -> np.ndarray:
@@ -174,12 +194,11 @@ def run_network(
     idx = np.searchsorted(grid, times)
     nodes = x[idx, :n]
     amb = air(times)
-    if lagged:
-        readings = x[idx, n:]
-    else:
-        readings = np.column_stack([amb if j < 0 else nodes[:, j] for j in sensor_nodes]).reshape(
-            times.size, len(sensor_nodes)
-        )
+    readings = np.column_stack([amb if j < 0 else nodes[:, j] for j in sensor_nodes]).reshape(
+        times.size, len(sensor_nodes)
+    )
+    for k, j in enumerate(lagged):
+        readings[:, j] = x[idx, n + k]
     logger.debug("run_network: %d grid steps, method %s", grid.size - 1, method)
     return NetworkRun(
         times_s=times,

@@ -1,0 +1,86 @@
+"""What validation reports: one :class:`Problem` per finding group, and the stage outcome."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import pandas as pd
+
+CAMPAIGN_FILE = "campaign.yaml"
+TEMPERATURE_FILE = "temperature.csv"
+DISPLACEMENT_FILE = "displacement.csv"
+LASER_FILE = "laser.csv"
+
+
+class NoValidCampaignError(RuntimeError):
+    """Raised when every campaign is quarantined (or there is none)."""
+
+
+@dataclass(frozen=True)
+class Problem:
+    """One entry of ``reports/validation.json``.
+
+    ``row`` is the 1-based data row of ``file`` (the first of a group of consecutive rows; the
+    message names them all), None for campaign-level problems; ``line`` is ``row + 1``.
+    """
+
+    campaign: str
+    file: str
+    row: int | None
+    column: str | None
+    check: str
+    value: Any
+    message: str
+    action: str
+
+    @property
+    def line(self) -> int | None:
+        """File line of ``row`` (the header is line 1)."""
+        return None if self.row is None else self.row + 1
+
+    def to_dict(self) -> dict[str, Any]:
+        """Return the report entry (JSON-ready)."""
+        return {
+            "campaign": self.campaign,
+            "file": self.file,
+            "row": self.row,
+            "line": self.line,
+            "column": self.column,
+            "check": self.check,
+            "value": self.value,
+            "message": self.message,
+            "action": self.action,
+        }
+
+
+@dataclass(frozen=True)
+class ValidationResult:
+    """Outcome of :func:`pipeline.validate.validate_tables`.
+
+    Attributes
+    ----------
+    campaigns : tuple of str
+        Every campaign id seen in any ingested table, sorted.
+    problems : tuple of Problem
+        Every problem, grouped by campaign.
+    """
+
+    campaigns: tuple[str, ...]
+    problems: tuple[Problem, ...]
+
+    @property
+    def quarantined(self) -> list[str]:
+        """Campaigns with at least one problem, sorted."""
+        return sorted({p.campaign for p in self.problems})
+
+    @property
+    def valid(self) -> list[str]:
+        """Campaigns without any problem, sorted."""
+        bad = set(self.quarantined)
+        return [c for c in self.campaigns if c not in bad]
+
+
+def row_number(value: Any) -> int | None:
+    """Return a 1-based file row as ``int``, None when it is missing (None, NaN, ``pd.NA``)."""
+    return None if value is None or pd.isna(value) else int(value)

@@ -1,0 +1,276 @@
+"""How each check's failures are worded: message and action per check id.
+
+The check ids are the Pandera check names of :mod:`schemas` (plus the renamed structural checks
+and the campaign-level ids of :mod:`pipeline.validation`). Templates are ``str.format``
+strings over the fields of a finding group (see :func:`pipeline.validation.rendering.render`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from schemas.vocabulary import SENSOR_ROLES
+
+RERUN = "then rerun dvc repro"
+
+
+@dataclass(frozen=True)
+class ProblemText:
+    """How a check's failures are reported.
+
+    ``message``/``action``/``column`` are ``str.format`` templates over the fields of a
+    problem (see :func:`pipeline.validation.rendering.render`). ``row_level=False`` reports the
+    problem without a row; ``collapse=True`` merges all failures of the check in a campaign
+    into one problem.
+    """
+
+    message: str
+    action: str
+    column: str | None = None
+    row_level: bool = True
+    collapse: bool = False
+
+
+PROBLEM_TEXTS: dict[str, ProblemText] = {
+    # ---- temperature.csv / displacement.csv (samples)
+    "sensor_column_missing": ProblemText(
+        "sensor {column} is declared under sensors: in {campaign}/campaign.yaml but "
+        "{campaign}/temperature.csv has no column {column}, or none of its cells has a reading",
+        "add the readings of {column} to {campaign}/temperature.csv, or remove {column} from "
+        f"sensors: in {{campaign}}/campaign.yaml, {RERUN}",
+    ),
+    "unknown_temperature_column": ProblemText(
+        "{campaign}/temperature.csv has a column {column} that is not declared under sensors: "
+        "in {campaign}/campaign.yaml",
+        "declare {column} (with its role) under sensors: in {campaign}/campaign.yaml, or delete "
+        f"the column from {{campaign}}/temperature.csv, {RERUN}",
+    ),
+    "displacement_column_missing": ProblemText(
+        "axis {axis} is declared under displacement: in {campaign}/campaign.yaml but "
+        "{campaign}/displacement.csv has no column {axis}, or none of its cells has a reading",
+        "add the {axis} readings to {campaign}/displacement.csv, or remove {axis} from "
+        f"displacement: in {{campaign}}/campaign.yaml, {RERUN}",
+        column="{axis}",
+    ),
+    "unknown_displacement_column": ProblemText(
+        "{campaign}/displacement.csv has readings in column {axis} but displacement: in "
+        "{campaign}/campaign.yaml does not declare axis {axis}",
+        "declare {axis} under displacement: in {campaign}/campaign.yaml (e.g. "
+        f"{{axis}}: {{{{probe: eddy_current}}}}), or delete the column, {RERUN}",
+        column="{axis}",
+    ),
+    "time_increasing": ProblemText(
+        "elapsed_s does not increase at {where}: {value} s follows {previous} s",
+        "make elapsed_s strictly increasing in {campaign}/{file} (remove the duplicated or "
+        f"out-of-order {{rows}}), {RERUN}",
+    ),
+    "sampling_interval": ProblemText(
+        "the sampling interval before {where} is {value} s, more than "
+        "{interval_tolerance_pct} % away from the campaign's median interval {median_interval} s "
+        "(dropped or extra samples)",
+        "check the logger around {rows} of {campaign}/{file}: add the missing instants with "
+        "empty cells or remove the extra rows; if the sampling is irregular on purpose, raise "
+        f"validate.interval_tolerance in params.yaml; {RERUN}",
+    ),
+    "temperature_range": ProblemText(
+        "{column} reads {value} degC at {where}, outside the physical range "
+        "{temperature_low} to {temperature_high} degC",
+        "check sensor {column} and its unit (degC); replace the impossible readings of {column} "
+        f"in {{campaign}}/{{file}} {{rows}} with empty cells, {RERUN}",
+    ),
+    "ds18b20_power_on": ProblemText(
+        "{column} reads {value} degC at {where}: the DS18B20 power-on reset value, not a "
+        "measurement",
+        "replace the {value} readings of {column} in {campaign}/{file} {rows} with empty cells "
+        f"(sensor power-on value) or fix the logger, {RERUN}",
+    ),
+    "ds18b20_disconnected": ProblemText(
+        "{column} reads {value} degC at {where}: the DS18B20 'device not found' code (sensor "
+        "disconnected or wiring fault)",
+        "check the wiring of {column}; replace the {value} readings of {column} in "
+        f"{{campaign}}/{{file}} {{rows}} with empty cells, {RERUN}",
+    ),
+    "stuck_sensor": ProblemText(
+        "{column} repeats {value} degC for {n_rows} samples in a row at {where} while another "
+        "sensor changed by {stuck_min_other_change} degC or more: the sensor is stuck",
+        "check sensor {column} and its logger channel; replace its readings in "
+        f"{{campaign}}/{{file}} {{rows}} with empty cells, {RERUN}",
+    ),
+    "spike": ProblemText(
+        "{column} jumps to {value} degC at {where}, more than {spike_threshold} degC away from "
+        "both neighbouring readings",
+        "replace the spike of {column} in {campaign}/{file} {rows} with an empty cell (and check "
+        f"the sensor's wiring), {RERUN}",
+    ),
+    "displacement_range": ProblemText(
+        "displacement {axis} reads {value} um at {where}, outside the probe range "
+        "{displacement_low} to {displacement_high} um",
+        "check probe {axis} (gap, range, unit um); replace the out-of-range readings in "
+        f"{{campaign}}/{{file}} {{rows}} with empty cells, {RERUN}",
+        column="{axis}",
+    ),
+    "missing_value": ProblemText(
+        "{column} is empty at {where}",
+        f"fill in {{column}} in {{campaign}}/{{file}} {{rows}} or delete the row, {RERUN}",
+    ),
+    "no_samples": ProblemText(
+        "{campaign}/temperature.csv has no data rows",
+        f"add the temperature log to data/raw/{{campaign}}/temperature.csv, {RERUN}",
+        row_level=False,
+    ),
+    # ---- laser.csv
+    "no_laser": ProblemText(
+        "{campaign} is an axis_positioning campaign but {campaign}/laser.csv has no data rows",
+        f"add the laser interferometer runs to data/raw/{{campaign}}/laser.csv, {RERUN}",
+        row_level=False,
+    ),
+    "laser_direction": ProblemText(
+        "direction {value} at {where} is neither '+' nor '-'",
+        f"write + or - in the direction column of {{campaign}}/{{file}} {{rows}}, {RERUN}",
+    ),
+    "laser_run_one_direction": ProblemText(
+        "run {run} mixes directions: direction {value} at {where} differs from most rows of the "
+        "run (a run goes one way; a bidirectional pass is two runs)",
+        "give every row of run {run} in {campaign}/{file} the same direction, or number the "
+        f"reverse rows ({{rows}}) as a run of their own, {RERUN}",
+    ),
+    "laser_run_one_time": ProblemText(
+        "run {run} has more than one elapsed_min: {value} min at {where} differs from most rows "
+        "of the run",
+        f"give every row of run {{run}} in {{campaign}}/{{file}} the same elapsed_min, {RERUN}",
+    ),
+    "laser_elapsed_nonnegative": ProblemText(
+        "elapsed_min is negative ({value} min) at {where}",
+        f"correct elapsed_min (minutes since start:) in {{campaign}}/{{file}} {{rows}}, {RERUN}",
+    ),
+    "laser_cold_run": ProblemText(
+        "{campaign}/laser.csv has no run at elapsed_min 0: the cold-machine run carries the "
+        "geometric error",
+        "add the cold run (elapsed_min 0) to {campaign}/laser.csv, or correct the elapsed_min of "
+        f"the run measured on the cold machine to 0, {RERUN}",
+        row_level=False,
+    ),
+    "laser_bidirectional": ProblemText(
+        "the pass at elapsed_min {elapsed_min} has only '{direction}' runs; each pass needs a "
+        "'+' and a '-' run (the pass starts at {where})",
+        "add the missing direction of the pass at elapsed_min {elapsed_min} to "
+        "{campaign}/laser.csv, or correct the elapsed_min of its other run so that both runs "
+        f"agree, {RERUN}",
+    ),
+    "laser_target_set": ProblemText(
+        "target {value} mm of run {run} at {where} matches no target of the reference (cold) run "
+        "within {laser_target_tolerance} mm",
+        "measure every run at the same targets: correct target_mm in {campaign}/{file} {rows}, "
+        "or raise validate.laser_target_tolerance_mm in params.yaml if the positions scatter "
+        f"by design, {RERUN}",
+    ),
+    "laser_target_missing": ProblemText(
+        "run {run} ('{direction}', elapsed_min {elapsed_min}) starting at {where} lacks the "
+        "target(s) {value} mm of the reference (cold) run",
+        "add the missing targets to run {run} in {campaign}/{file}, or remove the incomplete "
+        f"run, {RERUN}",
+    ),
+    # ---- campaign.yaml
+    "metadata_missing": ProblemText(
+        "{yaml_key}: is missing or empty in {campaign}/campaign.yaml",
+        f"add {{yaml_key}}: to {{campaign}}/campaign.yaml (see data-contract.md), {RERUN}",
+        column="{yaml_key}",
+    ),
+    "kind_known": ProblemText(
+        "kind {value} in {campaign}/campaign.yaml is not one of spindle_drift, axis_positioning",
+        f"set kind: to spindle_drift or axis_positioning in {{campaign}}/campaign.yaml, {RERUN}",
+        column="kind",
+    ),
+    "split_known": ProblemText(
+        "split {value} in {campaign}/campaign.yaml is not train or validation",
+        f"set split: to train or validation in {{campaign}}/campaign.yaml (or delete it: the "
+        f"default is train), {RERUN}",
+        column="split",
+    ),
+    "season_known": ProblemText(
+        "season {value} in {campaign}/campaign.yaml is not spring, summer, autumn or winter",
+        "correct season: in {campaign}/campaign.yaml, or delete it to derive the season from "
+        f"start:, {RERUN}",
+        column="season",
+    ),
+    "campaign_id_format": ProblemText(
+        "campaign_id {value} has characters other than letters, digits, '-' and '_'",
+        f"rename the folder data/raw/{{campaign}} and its campaign_id:, {RERUN}",
+        column="campaign_id",
+    ),
+    "campaign_id_unique": ProblemText(
+        "campaign_id {value} is used by more than one campaign (this one in {source_dir})",
+        f"give every campaign folder its own id (campaign_id: = folder name), {RERUN}",
+        column="campaign_id",
+    ),
+    "stroke_positive": ProblemText(
+        "axis stroke_mm {value} in {campaign}/campaign.yaml is not positive",
+        f"set axis: stroke_mm: to the travel of the axis in mm in {{campaign}}/campaign.yaml, "
+        f"{RERUN}",
+        column="axis.stroke_mm",
+    ),
+    "json_readable": ProblemText(
+        "the {yaml_key}: block of {campaign}/campaign.yaml was not stored as valid JSON by "
+        "ingest (value {value})",
+        "check the {yaml_key}: block of {campaign}/campaign.yaml; if it is correct this is an "
+        f"ingest bug (data/ingested/campaigns.parquet, column {{column}}), {RERUN}",
+        column="{yaml_key}",
+    ),
+    "sensors_declared": ProblemText(
+        "{campaign}/campaign.yaml declares no temperature sensor under sensors:",
+        "add one entry per temperature.csv column under sensors: in {campaign}/campaign.yaml "
+        f"(e.g. T1: {{{{role: spindle_front_bearing}}}}), {RERUN}",
+        column="sensors",
+    ),
+    "displacement_declared": ProblemText(
+        "{campaign} is a spindle_drift campaign but its campaign.yaml declares no axis under "
+        "displacement:",
+        "add the probe axes under displacement: in {campaign}/campaign.yaml (e.g. "
+        f"Z: {{{{probe: eddy_current}}}}), {RERUN}",
+        column="displacement",
+    ),
+    "displacement_axis_known": ProblemText(
+        "displacement: in {campaign}/campaign.yaml names an axis other than X, Y, Z ({value})",
+        f"use only X, Y or Z as displacement axes in {{campaign}}/campaign.yaml, {RERUN}",
+        column="displacement",
+    ),
+    "axis_declared": ProblemText(
+        "{campaign} is an axis_positioning campaign but its campaign.yaml has no axis: name:",
+        f"add axis: {{{{name: <X|Y|Z>, stroke_mm: <travel>}}}} to {{campaign}}/campaign.yaml, "
+        f"{RERUN}",
+        column="axis.name",
+    ),
+    "sensor_role_known": ProblemText(
+        "sensor {sensor} in {campaign}/campaign.yaml has role {value}, which is not in the "
+        "closed vocabulary (" + ", ".join(SENSOR_ROLES) + ")",
+        "set role: of {sensor} in {campaign}/campaign.yaml to one of the roles (other for "
+        f"anything else), {RERUN}",
+        column="sensors.{sensor}.role",
+    ),
+    "single_ambient": ProblemText(
+        "sensors {value} of {campaign}/campaign.yaml all have role ambient; at most one sensor "
+        "of a campaign may be ambient",
+        "keep role: ambient only on the sensor that measures the air around the machine and give "
+        f"the others their real role (or other) in {{campaign}}/campaign.yaml, {RERUN}",
+        column="sensors",
+        collapse=True,
+    ),
+    "campaign_metadata_missing": ProblemText(
+        "{campaign} has {file} data but no campaign metadata (campaign.yaml missing or unreadable)",
+        f"add a valid data/raw/{{campaign}}/campaign.yaml, {RERUN}",
+        row_level=False,
+        collapse=True,
+    ),
+}
+
+FALLBACK_TEXT = ProblemText(
+    "{column} failed the check {check} at {where} (value {value})",
+    "the ingested tables must follow schemas/ingested.py: check thermal ingest's output "
+    f"(data/ingested/*.parquet) and the files of data/raw/{{campaign}}, {RERUN}",
+)
+"""Used for Pandera's own checks (dtype, uniqueness, ...) that have no entry above."""
+
+
+def text_for(check: str) -> ProblemText:
+    """Return the text of check id ``check`` (:data:`FALLBACK_TEXT` when it has none)."""
+    return PROBLEM_TEXTS.get(check, FALLBACK_TEXT)
