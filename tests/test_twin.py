@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import filecmp
+from dataclasses import replace
 from datetime import datetime
 from pathlib import Path
 
@@ -27,9 +28,22 @@ from pipeline.twin import (
     simulate_spindle,
 )
 from pipeline.twin.ambient import SEASON_OF_MONTH
-from pipeline.twin.campaigns import PATENT_PASSES_MIN
+from pipeline.twin.campaigns import (
+    PATENT_PASSES_MIN,
+    SpindlePlan,
+    campaign_rng,
+    simulate_spindle_campaign,
+)
+from pipeline.twin.conditions import (
+    DEMO_SCATTER,
+    CampaignState,
+    StateScatter,
+    apply_state,
+    draw_state,
+)
 from pipeline.twin.effects import bearing_friction_heat, check_effects, uniform_expansion
 from pipeline.twin.program import Program
+from pipeline.twin.simulate import sensor_time_constants
 
 REPO = Path(__file__).resolve().parents[1]
 ROLES = {
@@ -235,16 +249,46 @@ def test_sensor_lag_delays_readings_only(baseline):
     lag = (baseline["T1"] - on["T1"]).to_numpy()
     assert np.all(lag[(t_min > 0) & (t_min <= 120)] > 0)  # reads low while heating
     assert np.all(lag[(t_min > 203) & (t_min <= 260)] < 0)  # reads high while cooling
-    # first-order lag: reading error ~ tau * slope (within 20 % on the smooth part)
-    slope = np.gradient(baseline["T1"].to_numpy(), TIMES)
+    # first-order lag: reading error ~ tau * slope (within 20 % on the smooth part), each
+    # sensor with the time constant of its own mounting
     k = np.searchsorted(TIMES, 90 * 60)
-    assert lag[k] == pytest.approx(PARAMS.sensor_tau_s * slope[k], rel=0.2)
+    for sensor in PARAMS.sensors[:4]:
+        slope = np.gradient(baseline[sensor.name].to_numpy(), TIMES)
+        lag_s = (baseline[sensor.name] - on[sensor.name]).to_numpy()
+        assert lag_s[k] == pytest.approx(sensor.tau_s * slope[k], rel=0.2), sensor.name
     # converges at steady state
     long = run(effects={"sensor_lag"}, program=4000.0, ambient=AmbientProfile(20.0),
                times=np.array([0.0, 3.0e6]))  # fmt: skip
     node_of = {s.name: f"node_{s.node}" for s in PARAMS.sensors if s.node != "ambient"}
     for sensor, node in node_of.items():
         assert long[sensor].iloc[-1] == pytest.approx(long[node].iloc[-1], abs=1e-6)
+
+
+def test_sensor_time_constants_are_per_mounting_and_realistic():
+    taus = {s.name: s.tau_s for s in PARAMS.sensors}
+    # several minutes (screwed into a bearing housing) to 20 min (pad on the bed)
+    assert all(240.0 <= t <= 1200.0 for t in taus.values())
+    assert taus["T1"] < taus["T4"] < taus["T7"] and len(set(taus.values())) >= 5
+    assert EFFECTS["sensor_lag"].term.func(PARAMS) == tuple(taus.values())
+    # a sensor without its own time constant uses the machine's; 0 = reads its node directly
+    assert AxisParams().sensors[0].tau_s is None
+    assert EFFECTS["sensor_lag"].term.func(AxisParams())[0] == AxisParams().sensor_tau_s
+    np.testing.assert_array_equal(sensor_time_constants(60.0, 3), [60.0, 60.0, 60.0])
+    with pytest.raises(ValueError, match="must be finite and >= 0 s"):
+        sensor_time_constants((60.0, -1.0), 2)
+
+
+def test_sensor_lag_mixes_direct_and_lagged_sensors():
+    sensors = tuple(
+        replace(s, tau_s=0.0) if s.name in ("T1", "T10") else s for s in PARAMS.sensors
+    )
+    params = replace(PARAMS, sensors=sensors)
+    mixed = simulate_spindle(params, {"sensor_lag"}, PROGRAM, AMBIENT, TIMES)
+    direct = run()
+    lagged = run(effects={"sensor_lag"})
+    pd.testing.assert_series_equal(mixed["T1"], direct["T1"])
+    pd.testing.assert_series_equal(mixed["T10"], direct["T10"])
+    np.testing.assert_allclose(mixed["T5"], lagged["T5"], atol=1e-12)
 
 
 def test_thermal_bending_follows_column_front_rear_difference(baseline):
@@ -285,6 +329,151 @@ def test_axis_ignores_spindle_effects_and_follows_ambient():
     np.testing.assert_allclose(base["slope_um_per_mm"], 0.0115 * base["screw_rise_K"])
 
 
+# --------------------------------------------------- machine state, campaign to campaign
+
+COLD = StateScatter()
+PLAN = SpindlePlan("X01", datetime(2024, 7, 9, 8, 30), 6000.0, scatter=COLD)
+
+
+def run_state(**state) -> pd.DataFrame:
+    """The twin at 6000 rpm in a constant 20 degC air with the given machine state."""
+    s = CampaignState(**state)
+    params = apply_state(PARAMS, s)
+    effects = {"nonlinear_bearing_heat", "motor_heat"}
+    return simulate_spindle(params, effects, 6000.0, AmbientProfile(20.0), TIMES, history=s.history)
+
+
+def shaft_minus_housing(out: pd.DataFrame) -> float:
+    return float(out["node_spindle_shaft"].iloc[60] - out["node_front_bearing"].iloc[60])
+
+
+def test_nominal_state_leaves_the_machine_unchanged():
+    assert apply_state(PARAMS, CampaignState()) == PARAMS
+    c = simulate_spindle_campaign(replace(PLAN, scatter=None), seed=1)
+    assert c.state is None
+
+
+def test_bearing_state_changes_the_unmeasured_shaft_against_its_housings():
+    nominal = run_state()
+    # preload/lubrication: more friction heat heats everything
+    hot = run_state(bearing_heat_gain=1.2)
+    assert hot["node_front_bearing"].iloc[60] > nominal["node_front_bearing"].iloc[60] + 1.0
+    # what the sensors cannot see: the shaft against the housings that carry T1/T2
+    for state, hotter in (
+        ({"shaft_share": 0.55}, True),
+        ({"shaft_share": 0.25}, False),
+        ({"bearing_contact_gain": 0.7}, True),
+        ({"shaft_cooling_gain": 1.4}, False),
+    ):
+        out = run_state(**state)
+        gap = shaft_minus_housing(out) - shaft_minus_housing(nominal)
+        assert (gap > 0.3) if hotter else (gap < -0.3), (state, gap)
+    # same front-bearing reading, different drift: the T -> Z relation itself changes
+    per_kelvin = [
+        out["z_um"].iloc[60] / (out["node_front_bearing"].iloc[60] - 20.0)
+        for out in (nominal, run_state(shaft_share=0.55))
+    ]
+    assert abs(per_kelvin[1] / per_kelvin[0] - 1.0) > 0.1
+    net = apply_state(PARAMS, CampaignState(bearing_contact_gain=0.5)).network
+    links = {frozenset((a, b)): g for a, b, g in net.links}
+    assert links[frozenset(("front_bearing", "spindle_shaft"))] == pytest.approx(1.5)
+    assert links[frozenset(("headstock", "column_front"))] == pytest.approx(10.0)
+
+
+def test_motor_state_scales_the_motor_loss():
+    out = run_state(motor_heat_gain=1.2)
+    nominal = run_state()
+    assert out["node_motor"].iloc[60] > nominal["node_motor"].iloc[60] + 0.5
+    assert apply_state(PARAMS, CampaignState(motor_heat_gain=1.2)).motor_heat_w == 42.0
+
+
+def test_season_convection_summer_fans_cool_the_machine():
+    winter = run_state(convection_gain=DEMO_SCATTER.convection_factor("winter"))
+    summer = run_state(convection_gain=DEMO_SCATTER.convection_factor("summer"))
+    assert DEMO_SCATTER.convection_factor("summer") > DEMO_SCATTER.convection_factor("winter")
+    for node in ("node_headstock", "node_column_front", "node_motor"):
+        assert summer[node].iloc[-1] < winter[node].iloc[-1] - 0.2, node
+    conv = apply_state(PARAMS, CampaignState(convection_gain=1.3)).network.convection
+    np.testing.assert_allclose(conv, 1.3 * PARAMS.network.convection)
+
+
+def test_warm_start_after_the_previous_afternoon():
+    scatter = replace(COLD, warm_start_probability=1.0)
+    warm = simulate_spindle_campaign(replace(PLAN, scatter=scatter), seed=3, effects=DEMO_EFFECTS)
+    cold = simulate_spindle_campaign(PLAN, seed=3, effects=DEMO_EFFECTS)
+    assert warm.state.warm_start and not cold.state.warm_start
+    (segment,) = warm.state.history.segments
+    stop_hour = 8.5 + segment.to_min / 60.0 + 24.0  # previous day, local time
+    assert 16.0 <= stop_hour <= 18.0 and 2.0 <= (segment.to_min - segment.from_min) / 60 <= 5.0
+    assert segment.value in DEMO_SCATTER.warm_start_rpm
+    # same day, same noise: only the history differs; the heavy parts start warm
+    pd.testing.assert_series_equal(warm.simulation["ambient_degC"], cold.simulation["ambient_degC"])
+    start = warm.simulation.iloc[0] - cold.simulation.iloc[0]
+    assert start["node_column_front"] > 0.1 and start["node_bed"] > 0.02
+    # ... and keep cooling: they rise less during the test than after a cold night
+    for node in ("node_column_front", "node_headstock"):
+        rise_w = warm.simulation[node].iloc[-1] - warm.simulation[node].iloc[0]
+        rise_c = cold.simulation[node].iloc[-1] - cold.simulation[node].iloc[0]
+        assert rise_w < rise_c - 0.05, node
+
+
+def test_probe_mounting_offset_vanishes_after_zeroing():
+    scatter = replace(COLD, probe_offset_sd_um=30.0)
+    moved = simulate_spindle_campaign(replace(PLAN, scatter=scatter), seed=5)
+    same = simulate_spindle_campaign(PLAN, seed=5)
+    shift = moved.displacement["Z"] - same.displacement["Z"]
+    assert abs(moved.state.probe_offset_um) > 1.0
+    np.testing.assert_allclose(shift, moved.state.probe_offset_um, atol=1e-9)
+    pd.testing.assert_frame_equal(moved.temperature, same.temperature)
+
+
+def test_state_draws_never_shift_the_other_random_draws():
+    scatters = (COLD, DEMO_SCATTER, replace(DEMO_SCATTER, warm_start_probability=1.0))
+    after = []
+    for scatter in scatters:
+        rng = campaign_rng(1, "K01")
+        draw_state(scatter, PARAMS, "winter", 8.5, rng)
+        after.append(rng.standard_normal(3))
+    np.testing.assert_array_equal(after[0], after[1])
+    np.testing.assert_array_equal(after[0], after[2])
+
+
+def test_demo_states_vary_within_physical_limits(demo):
+    states = [c.state for c in demo.values() if isinstance(c, SpindleCampaign)]
+    gains = np.array([s.bearing_heat_gain for s in states])
+    shares = np.array([s.shaft_share for s in states])
+    assert 0.6 < gains.min() < 0.95 and 1.05 < gains.max() < 1.6
+    assert shares.min() >= 0.15 and shares.max() <= 0.7 and np.ptp(shares) > 0.15
+    warm = [s.warm_start for s in states]
+    assert 0 < sum(warm) < len(warm)
+    summer = [c.state.convection_gain for c in demo.values() if c.info.season == "summer"]
+    winter = [c.state.convection_gain for c in demo.values()
+              if c.info.season == "winter" and isinstance(c, SpindleCampaign)]  # fmt: skip
+    assert min(summer) > max(winter)
+
+
+def _mlr_scores(campaigns: list[SpindleCampaign]) -> tuple[float, float]:
+    """Fit S and prediction Mn (residual std, um) of MLR on all sensor rises (the paper's)."""
+    data = {}
+    for c in campaigns:
+        t = c.temperature.drop(columns="elapsed_s").to_numpy()
+        z = c.displacement["Z"].to_numpy()
+        data[c.info.campaign_id] = (np.column_stack([np.ones(len(t)), t - t[0]]), z - z[0])
+    fit, prediction = [], []
+    for train, (x, y) in data.items():
+        coef = np.linalg.lstsq(x, y, rcond=None)[0]
+        for test, (xt, yt) in data.items():
+            (fit if test == train else prediction).append(np.std(yt - xt @ coef, ddof=1))
+    return float(np.mean(fit)), float(np.mean(prediction))
+
+
+def test_demo_makes_the_model_choice_matter(demo):
+    train = [c for c in demo.values() if isinstance(c, SpindleCampaign) and c.info.split == "train"]
+    s_fit, mn = _mlr_scores(train)
+    # a model of one campaign predicts another several times worse than it fits its own
+    assert 1.5 < mn < 8.0 and mn > 4 * s_fit, (s_fit, mn)
+
+
 # ------------------------------------------------------------------------ demo campaigns
 
 
@@ -292,6 +481,14 @@ def test_demo_set_is_the_papers_protocol(demo):
     assert list(demo) == DEMO_IDS
     spindle = [c for c in demo.values() if isinstance(c, SpindleCampaign)]
     assert all(c.effects == DEMO_EFFECTS for c in demo.values())
+    assert DEMO_EFFECTS == {
+        "ambient_variation",
+        "motor_heat",
+        "nonlinear_bearing_heat",
+        "sensor_lag",
+        "thermal_bending",
+    }
+    assert all(c.state is not None for c in spindle)
     seasons = pd.Series([c.info.season for c in spindle if c.info.split == "train"])
     assert seasons.value_counts().to_dict() == {
         s: 3 for s in ("winter", "spring", "summer", "autumn")
@@ -323,6 +520,18 @@ def test_demo_magnitudes_match_the_sources(demo):
         assert drifts == sorted(drifts)  # faster spindle, larger drift
 
 
+@pytest.mark.parametrize("cid", ["K01", "K03"])
+def test_every_demo_effect_changes_the_demo_data_noticeably(demo, cid):
+    plan = next(p for p in demo_plans() if p.campaign_id == cid)
+    on = demo[cid].simulation
+    sensors = [s.name for s in PARAMS.sensors]
+    for name in sorted(DEMO_EFFECTS):
+        off = simulate_spindle_campaign(plan, seed=cli.DEFAULT_SEED, effects=DEMO_EFFECTS - {name})
+        d_temp = np.abs(on[sensors].to_numpy() - off.simulation[sensors].to_numpy()).max()
+        d_z = np.abs(on["z_um"] - off.simulation["z_um"]).max()
+        assert d_temp > 0.3 or d_z > 1.0, f"{name} hardly changes {cid}: {d_temp} K, {d_z} um"
+
+
 def test_sensor_chain_quantises_and_offsets(demo):
     c = demo["K05"]
     values = c.temperature[[s.name for s in c.sensors]].to_numpy()
@@ -331,7 +540,7 @@ def test_sensor_chain_quantises_and_offsets(demo):
     offsets = np.array([s.offset_degc for s in c.sensors])
     assert np.all(np.abs(offsets) <= 0.2)
     np.testing.assert_allclose(err.mean(axis=0), offsets, atol=0.03)
-    probe = c.displacement["Z"] - c.simulation["z_um"]
+    probe = c.displacement["Z"] - c.simulation["z_um"] - c.state.probe_offset_um
     assert 0.1 < probe.std() < 0.35 and probe.abs().max() < 1.0
 
 
@@ -508,7 +717,10 @@ def test_cli_lists_effects(capsys):
     assert cli.main(["--list-effects"]) == 0
     out = capsys.readouterr().out
     assert all(name in out for name in EFFECTS)
-    assert "demo preset: ambient_variation, motor_heat, thermal_bending" in out
+    assert (
+        "demo preset: ambient_variation, motor_heat, nonlinear_bearing_heat, sensor_lag, "
+        "thermal_bending" in out
+    )
 
 
 def test_demo_plans_ids_are_unique():

@@ -20,6 +20,11 @@ import schemas
 from pipeline import paths
 from pipeline import validate as v
 from pipeline.config import load_section
+from pipeline.validation.limits import limits_from_params
+from pipeline.validation.problems import NoValidCampaignError
+from pipeline.validation.report import require_valid
+from pipeline.validation.tables import select_valid
+from pipeline.validation.texts import PROBLEM_TEXTS
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -204,7 +209,7 @@ def test_every_check_of_the_schemas_has_a_problem_text():
         for column in schema.columns.values():
             names |= {c.name for c in column.checks}
     names -= {"greater_than_or_equal_to"}  # source_row >= 1: an ingest format error (fallback)
-    assert names - set(v.PROBLEM_TEXTS) == set()
+    assert names - set(PROBLEM_TEXTS) == set()
 
 
 # --------------------------------------------------------------------------- temperature.csv
@@ -552,7 +557,7 @@ def test_good_campaign_survives_next_to_a_bad_one():
     tables = set_cells(make_tables(), "samples", "K01", [1, 2], "T1", 85.0)
     result = run(tables)
     assert result.valid == ["A01"] and result.quarantined == ["K01"]
-    out = v.select_valid(tables["campaigns"], tables["samples"], tables["laser"], result.valid)
+    out = select_valid(tables["campaigns"], tables["samples"], tables["laser"], result.valid)
     assert out["spindle"]["campaigns"].empty and out["spindle"]["samples"].empty
     assert list(out["axis"]["campaigns"]["campaign_id"]) == ["A01"]
     assert set(out["axis"]["samples"]["campaign_id"]) == {"A01"}
@@ -565,16 +570,16 @@ def test_no_valid_campaign_raises_naming_the_report():
     tables = set_campaign(tables, "A01", "split", "test")
     result = run(tables)
     assert result.valid == []
-    with pytest.raises(v.NoValidCampaignError, match=r"no valid campaign.*reports/validation"):
-        v.require_valid(result, paths.VALIDATION_REPORT)
+    with pytest.raises(NoValidCampaignError, match=r"no valid campaign.*reports/validation"):
+        require_valid(result, paths.VALIDATION_REPORT)
 
 
 def test_limits_from_params_reads_the_repo_section_and_names_bad_keys():
-    limits = v.limits_from_params(load_section("validate", REPO / "params.yaml"))
+    limits = limits_from_params(load_section("validate", REPO / "params.yaml"))
     assert limits.ds18b20_codes == (85.0, -127.0)
     bad = {**load_section("validate", REPO / "params.yaml"), "spike_degC": 1.0}
     with pytest.raises(ValueError, match=r"params.yaml validate: .*unknown keys \['spike_degC'\]"):
-        v.limits_from_params(bad)
+        limits_from_params(bad)
 
 
 def _write_ingested(root: Path, tables) -> None:

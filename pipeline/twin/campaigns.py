@@ -1,8 +1,11 @@
 """Synthetic measurement campaigns: the twin plus the measurement chain and a test protocol.
 
-A *plan* says what was run (id, start, speed or warm-up feed, split); simulating it draws the
-day's ambient from the :class:`~pipeline.twin.ambient.Climate`, a small campaign-to-campaign
-scatter of the heat sources, then runs the twin and passes the result through the sensors:
+A *plan* says what was run (id, start, speed or warm-up feed, split) and how much the machine's
+unmeasured state varies between campaigns (:mod:`pipeline.twin.conditions`); simulating it
+draws the day's ambient from the :class:`~pipeline.twin.ambient.Climate`, the campaign's
+machine state (bearing preload and lubrication, convection by season, a warm start after the
+previous afternoon's work, the probe mounting) or, without a state scatter, a small scatter of
+the heat sources, then runs the twin and passes the result through the sensors:
 
 * spindle drift (PCDL paper, seeds/000_...): constant speed 2000/4000/6000 rpm for 4.5 h, then
   1 h stopped, a sample every 3 min; 10 DS18B20 (per-sensor offset within +-0.2 degC, noise,
@@ -29,6 +32,13 @@ import pandas as pd
 
 from pipeline.twin.ambient import AmbientProfile, Climate, season_of
 from pipeline.twin.axis import AxisTruth, axis_truth, laser_runs, simulate_axis
+from pipeline.twin.conditions import (
+    DEMO_SCATTER,
+    CampaignState,
+    StateScatter,
+    apply_state,
+    draw_state,
+)
 from pipeline.twin.effects import DEMO_EFFECTS, check_effects
 from pipeline.twin.params import (
     DS18B20,
@@ -76,6 +86,10 @@ class SpindlePlan:
         Sampling interval of temperatures and displacement, min.
     season : str or None
         Written season; derived from ``start`` when None.
+    scatter : StateScatter or None
+        Campaign-to-campaign variation of the machine's unmeasured state
+        (:mod:`pipeline.twin.conditions`); None = only a small scatter of the heat sources
+        (``SpindleParams.heat_scatter_rel``), cold start, no probe offset.
     """
 
     campaign_id: str
@@ -86,6 +100,7 @@ class SpindlePlan:
     cooldown_min: float = 60.0
     sample_min: float = 3.0
     season: str | None = None
+    scatter: StateScatter | None = None
 
     def program(self) -> Program:
         """Speed program: ``rpm`` for ``run_min``, then 0 (open-ended)."""
@@ -172,13 +187,15 @@ class SpindleCampaign:
     temperature : pandas.DataFrame
         temperature.csv content: ``elapsed_s`` and T1..T10 as read (offset, noise, quantised).
     displacement : pandas.DataFrame
-        displacement.csv content: ``elapsed_s``, ``Z`` (um, probe noise).
+        displacement.csv content: ``elapsed_s``, ``Z`` (um, probe noise and mounting offset).
     simulation : pandas.DataFrame
         Noise-free twin output (:func:`~pipeline.twin.spindle.simulate_spindle`).
     ambient : AmbientProfile
     params : SpindleParams
-        Parameters actually used (with this campaign's heat scatter).
+        Parameters actually used (with this campaign's machine state or heat scatter).
     effects : frozenset of str
+    state : CampaignState or None
+        The machine state drawn for this campaign (None without a state scatter).
     """
 
     info: CampaignInfo
@@ -190,6 +207,7 @@ class SpindleCampaign:
     ambient: AmbientProfile
     params: SpindleParams
     effects: frozenset[str]
+    state: CampaignState | None = None
 
 
 @dataclass(frozen=True)
@@ -267,11 +285,17 @@ def _scatter(rng: np.random.Generator, rel: float, n: int) -> np.ndarray:
     return 1.0 + rel * rng.standard_normal(n)
 
 
-def _notes(seed: int, preset: str) -> str:
-    return (
+def _notes(seed: int, preset: str, varied: bool = False) -> str:
+    text = (
         "Synthetic campaign written by the physical twin (pipeline.twin, "
         f"thermal simulate --preset {preset} --seed {seed}); not a measurement."
     )
+    if varied:
+        text += (
+            " The machine state no sensor sees (bearing preload and lubrication, convection, "
+            "earlier use, probe mounting) varies from campaign to campaign."
+        )
+    return text
 
 
 def simulate_spindle_campaign(
@@ -309,29 +333,38 @@ def simulate_spindle_campaign(
     names = check_effects(effects)
     rng = campaign_rng(seed, plan.campaign_id)
     ambient = climate.profile(plan.start, rng)
-    f_front, f_rear, f_motor = _scatter(rng, params.heat_scatter_rel, 3)
-    used = replace(
-        params,
-        front_bearing_heat_w=params.front_bearing_heat_w * f_front,
-        rear_bearing_heat_w=params.rear_bearing_heat_w * f_rear,
-        motor_heat_w=params.motor_heat_w * f_motor,
-    )
+    season = plan.season or season_of(plan.start)
+    state = None
+    if plan.scatter is None:
+        f_front, f_rear, f_motor = _scatter(rng, params.heat_scatter_rel, 3)
+        used = replace(
+            params,
+            front_bearing_heat_w=params.front_bearing_heat_w * f_front,
+            rear_bearing_heat_w=params.rear_bearing_heat_w * f_rear,
+            motor_heat_w=params.motor_heat_w * f_motor,
+        )
+    else:
+        start_hour = plan.start.hour + plan.start.minute / 60.0
+        state = draw_state(plan.scatter, params, season, start_hour, rng)
+        used = apply_state(params, state)
     times = plan.times_s()
-    sim = simulate_spindle(used, names, plan.program(), ambient, times)
+    history = None if state is None else state.history
+    sim = simulate_spindle(used, names, plan.program(), ambient, times, history=history)
     names_t = [s.name for s in used.sensors]
     read = read_sensors(sim[names_t].to_numpy(), used.sensors, DS18B20, rng)
     temperature = pd.DataFrame(read, columns=names_t)
     temperature.insert(0, "elapsed_s", times)
-    z = sim["z_um"].to_numpy() + used.probe_noise_um * rng.standard_normal(times.size)
+    offset = 0.0 if state is None else state.probe_offset_um
+    z = sim["z_um"].to_numpy() + offset + used.probe_noise_um * rng.standard_normal(times.size)
     displacement = pd.DataFrame({"elapsed_s": times, "Z": z})
     info = CampaignInfo(
         campaign_id=plan.campaign_id,
         kind="spindle_drift",
         machine=machine,
         start=plan.start,
-        season=plan.season or season_of(plan.start),
+        season=season,
         split=plan.split,
-        notes=_notes(seed, preset),
+        notes=_notes(seed, preset, varied=state is not None),
     )
     logger.debug("simulated %s at %s rpm", plan.campaign_id, plan.rpm)
     return SpindleCampaign(
@@ -344,6 +377,7 @@ def simulate_spindle_campaign(
         ambient=ambient,
         params=used,
         effects=names,
+        state=state,
     )
 
 
@@ -448,10 +482,13 @@ def demo_plans() -> tuple[SpindlePlan | AxisPlan, ...]:
         d(2024, 12, 3, 8, 30), d(2024, 12, 10, 9, 0), d(2024, 12, 17, 8, 45),  # December
     )  # fmt: skip
     plans: list[SpindlePlan | AxisPlan] = [
-        SpindlePlan(f"K{i + 1:02d}", start, speeds[i % 3]) for i, start in enumerate(train_starts)
+        SpindlePlan(f"K{i + 1:02d}", start, speeds[i % 3], scatter=DEMO_SCATTER)
+        for i, start in enumerate(train_starts)
     ]
     plans += [
-        SpindlePlan(f"V{i + 1:02d}", start, speeds[i % 3], split="validation")
+        SpindlePlan(
+            f"V{i + 1:02d}", start, speeds[i % 3], split="validation", scatter=DEMO_SCATTER
+        )
         for i, start in enumerate(validation_starts)
     ]
     plans.append(AxisPlan("Y01", d(2024, 5, 14, 8, 0), PATENT_PASSES_MIN))

@@ -5,7 +5,8 @@ Examples
 ``thermal simulate --preset demo --out data/raw --seed 2016``
     the demo set (K01-K12, V01-V06, Y01, Y02), regenerated bit for bit from the seed;
 ``thermal simulate --preset single --id K13 --season summer --rpm 4000 --seed 13 --out DIR``
-    one extra spindle-drift campaign;
+    one extra spindle-drift campaign (same machine, its own machine state drawn like the
+    demo's);
 ``thermal simulate --list-effects``
     the switchable physical effects.
 """
@@ -26,6 +27,7 @@ from pipeline.twin.campaigns import (
     demo_plans,
     simulate_plan,
 )
+from pipeline.twin.conditions import DEMO_SCATTER
 from pipeline.twin.effects import DEMO_EFFECTS, EFFECTS, check_effects
 from pipeline.twin.writer import write_campaign
 
@@ -90,6 +92,7 @@ def _single_plan(args: argparse.Namespace) -> SpindlePlan:
         run_min=args.run_min,
         cooldown_min=args.cooldown_min,
         season=args.season,
+        scatter=DEMO_SCATTER,
     )
 
 

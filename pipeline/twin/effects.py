@@ -323,7 +323,9 @@ EFFECTS: dict[str, Effect] = {
 }
 """Switchable effects by name; exactly these six."""
 
-DEMO_EFFECTS = frozenset({"ambient_variation", "motor_heat", "thermal_bending"})
+DEMO_EFFECTS = frozenset(
+    {"ambient_variation", "motor_heat", "nonlinear_bearing_heat", "sensor_lag", "thermal_bending"}
+)
 """Effects switched on in the demo campaigns (never written to the campaign files)."""
 
 
