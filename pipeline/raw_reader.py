@@ -223,15 +223,22 @@ def _campaign_row(folder: Path, meta: dict[str, Any], report) -> dict[str, Any]:
     }
 
 
+def _read_text_csv(path: Path, report) -> pd.DataFrame | None:
+    """Read a CSV as text cells (empty cells stay empty); None and a problem if unreadable."""
+    try:
+        return pd.read_csv(path, dtype=str, keep_default_na=False, skipinitialspace=True)
+    except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as error:
+        report(path.name, None, None, "unreadable_csv", f"{path.name} cannot be parsed: {error}",
+               "save it as comma-separated UTF-8 with one header row")  # fmt: skip
+        return None
+
+
 def _read_numeric_csv(path: Path, report) -> pd.DataFrame | None:
     """Read a CSV whose columns are all numeric; non-numeric cells become NaN and problems."""
     if not path.is_file():
         return None
-    try:
-        text = pd.read_csv(path, dtype=str, keep_default_na=False, skipinitialspace=True)
-    except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as error:
-        report(path.name, None, None, "unreadable_csv", f"{path.name} cannot be parsed: {error}",
-               "save it as comma-separated UTF-8 with one header row")  # fmt: skip
+    text = _read_text_csv(path, report)
+    if text is None:
         return None
     if "elapsed_s" not in text.columns:
         report(path.name, None, "elapsed_s", "missing_column",
@@ -332,11 +339,8 @@ def _nearest_index(sorted_times: np.ndarray, target: np.ndarray) -> np.ndarray:
 
 
 def _read_laser(path: Path, campaign_id: str, report) -> pd.DataFrame | None:
-    try:
-        text = pd.read_csv(path, dtype=str, keep_default_na=False, skipinitialspace=True)
-    except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as error:
-        report(path.name, None, None, "unreadable_csv", f"laser.csv cannot be parsed: {error}",
-               "save it as comma-separated UTF-8 with one header row")  # fmt: skip
+    text = _read_text_csv(path, report)
+    if text is None:
         return None
     missing = [c for c in LASER_COLUMNS if c not in text.columns]
     if missing:

@@ -220,8 +220,8 @@ class CampaignsModel(pa.DataFrameModel):
 class SensorsModel(pa.DataFrameModel):
     """The sensor maps of all campaigns as a long table, one row per declared sensor.
 
-    Built by ``pipeline.validation.campaign_checks.sensor_table`` from ``campaigns.sensors_json``; a missing role
-    is the empty string.
+    Built by ``pipeline.validation.campaign_checks.sensor_table`` from
+    ``campaigns.sensors_json``; a missing role is the empty string.
     """
 
     campaign_id: Series[str]
