@@ -62,13 +62,16 @@ def run_benchmark(root: Path) -> dict:
         env = {**os.environ, "PATH": path,
                "MLFLOW_TRACKING_URI": f"sqlite:///{whole_copy / 'mlflow.db'}"}  # fmt: skip
         whole = timed([str(bin_dir / "dvc"), "repro"], whole_copy, env)
+        # Stages one by one, logging to the store the whole run created (its tables exist, as
+        # for every run but a store's first); then track once more into a brand-new store.
         stage_copy = copy_repository(root, Path(folder) / "stages")
-        env["MLFLOW_TRACKING_URI"] = f"sqlite:///{stage_copy / 'mlflow.db'}"
         stages = yaml.safe_load((stage_copy / "dvc.yaml").read_text())["stages"]
         per_stage = {
             name: timed(stage["cmd"].split(), stage_copy, env) for name, stage in stages.items()
         }
-    return {"whole_s": whole, "stages_s": per_stage}
+        env["MLFLOW_TRACKING_URI"] = f"sqlite:///{stage_copy / 'fresh.db'}"
+        track_fresh = timed(stages["track"]["cmd"].split(), stage_copy, env)
+    return {"whole_s": whole, "stages_s": per_stage, "track_fresh_store_s": track_fresh}
 
 
 def report_lines(figures: dict) -> list[str]:
@@ -78,13 +81,16 @@ def report_lines(figures: dict) -> list[str]:
     lines = [f"{'stage':<18}{'seconds':>9}{'share':>8}"]
     lines += [f"{name:<18}{sec:>9.2f}{sec / total_stages:>8.1%}" for name, sec in stages.items()]
     track = stages.get("track", 0.0)
+    fresh = figures["track_fresh_store_s"]
     lines += [
         f"{'sum of stages':<18}{total_stages:>9.2f}",
         f"whole dvc repro from scratch: {whole:.2f} s (target < {TARGET_TOTAL_S:.0f} s: "
         f"{'met' if whole < TARGET_TOTAL_S else 'NOT met'})",
-        f"MLflow logging (track) share of the stages: {track / total_stages:.1%} "
+        f"MLflow logging (track stage, existing store) / whole dvc repro: {track / whole:.1%} "
         f"(target <= {TARGET_TRACK_SHARE:.0%}: "
-        f"{'met' if track / total_stages <= TARGET_TRACK_SHARE else 'NOT met'})",
+        f"{'met' if track / whole <= TARGET_TRACK_SHARE else 'NOT met'})",
+        f"track into a brand-new store (also creates the MLflow tables): {fresh:.2f} s, "
+        f"{fresh / whole:.1%} of the whole dvc repro",
     ]
     return lines
 
