@@ -9,6 +9,8 @@ library of named, switchable physical effects. Modules:
 ``effects``    named terms and the registry of the six switchable effects
 ``spindle``    :func:`simulate_spindle`
 ``axis``       :func:`simulate_axis`, :class:`AxisTruth`
+``conditions`` campaign-to-campaign machine state no sensor sees (bearings, convection, warm
+               start, probe mounting), drawn per campaign by the demo plans
 ``campaigns``  plans, measurement chain (sensors, probe, laser), demo set
 ``writer``     :func:`write_campaign` in the raw campaign contract
 ``cli``        ``thermal simulate``

@@ -3,13 +3,14 @@
 A *plan* says what was run (id, start, speed or warm-up feed, split) and how much the machine's
 unmeasured state varies between campaigns (:mod:`pipeline.twin.conditions`); simulating it
 draws the day's ambient from the :class:`~pipeline.twin.ambient.Climate`, the campaign's
-machine state (bearing preload and lubrication, convection by season, a warm start after the
-previous afternoon's work, the probe mounting) or, without a state scatter, a small scatter of
-the heat sources, then runs the twin and passes the result through the sensors:
+machine state (bearing preload and lubrication, convection by season, a warm start after an
+earlier job, the probe mounting) or, without a state scatter, a small scatter of the heat
+sources, then runs the twin and passes the result through the sensors:
 
 * spindle drift (PCDL paper, seeds/000_...): constant speed 2000/4000/6000 rpm for 4.5 h, then
   1 h stopped, a sample every 3 min; 10 DS18B20 (per-sensor offset within +-0.2 degC, noise,
-  0.0625 degC quantisation) and an eddy-current probe (+-0.5 um);
+  0.0625 degC quantisation; with ``sensor_lag`` each through the lag of its mounting) and an
+  eddy-current probe (+-0.5 um, re-mounted for every campaign: a constant offset);
 * axis positioning (patent, seeds/002_...): Y axis warmed up by moving it (20 mm/s), laser
   passes over 0..280 mm every 10 mm in both directions at 0/20/50/110/190/340/390 min, 7 PT100
   read every 10 min.
@@ -344,8 +345,7 @@ def simulate_spindle_campaign(
             motor_heat_w=params.motor_heat_w * f_motor,
         )
     else:
-        start_hour = plan.start.hour + plan.start.minute / 60.0
-        state = draw_state(plan.scatter, params, season, start_hour, rng)
+        state = draw_state(plan.scatter, params, season, rng)
         used = apply_state(params, state)
     times = plan.times_s()
     history = None if state is None else state.history
@@ -486,9 +486,7 @@ def demo_plans() -> tuple[SpindlePlan | AxisPlan, ...]:
         for i, start in enumerate(train_starts)
     ]
     plans += [
-        SpindlePlan(
-            f"V{i + 1:02d}", start, speeds[i % 3], split="validation", scatter=DEMO_SCATTER
-        )
+        SpindlePlan(f"V{i + 1:02d}", start, speeds[i % 3], split="validation", scatter=DEMO_SCATTER)
         for i, start in enumerate(validation_starts)
     ]
     plans.append(AxisPlan("Y01", d(2024, 5, 14, 8, 0), PATENT_PASSES_MIN))

@@ -28,9 +28,11 @@ Mechanisms (each one named, with its physical cause):
     Convection coefficient of every surface by season: doors closed and no fans in winter,
     doors open and floor fans in summer (a factor per season, times a day-to-day jitter).
 ``warm_start``
-    With a given probability the machine ran the previous afternoon (a few hours at one of the
-    usual speeds, ending between 16:00 and 18:00) and was switched off overnight: the heavy
-    column and bed start the test still warm and cooling (the twin's ``history=``).
+    With a given probability the machine ran a job before the test (a night- or early-shift job
+    of a few hours at one of the usual speeds, stopped 2-4 h before the start): the test starts
+    partially warm, the spindle and headstock still cooling while the column and bed keep
+    the heat (the twin's ``history=``). A run the previous afternoon would not do: after a
+    night the twin's structure is within 0.1 K of cold (its slowest time constants are ~4 h).
 ``probe_mounting``
     The eddy-current probe is re-mounted for every campaign: a constant offset of the raw Z
     reading, irrelevant once the displacement is zeroed at the cold state.
@@ -76,13 +78,13 @@ class StateScatter:
     convection_sd : float
         Log-normal day-to-day jitter of that factor.
     warm_start_probability : float
-        Probability that the machine ran the previous afternoon, 0..1.
+        Probability that the machine ran a job before the test, 0..1.
     warm_start_rpm : tuple of float
         Speeds it may have run at then, rpm (drawn uniformly).
     warm_start_hours : tuple of (float, float)
         Range of the running time then, h (uniform).
-    warm_start_end_hour : tuple of (float, float)
-        Range of the local time it was stopped, h (uniform, 16.5 = 16:30).
+    warm_start_gap_hours : tuple of (float, float)
+        Range of the time between that run's stop and the campaign start, h (uniform).
     probe_offset_sd_um : float
         Standard deviation of the probe re-mounting offset of the raw Z reading, um.
     """
@@ -102,8 +104,8 @@ class StateScatter:
     convection_sd: float = 0.0
     warm_start_probability: float = 0.0
     warm_start_rpm: tuple[float, ...] = (2000.0, 4000.0, 6000.0)
-    warm_start_hours: tuple[float, float] = (2.0, 5.0)
-    warm_start_end_hour: tuple[float, float] = (16.0, 18.0)
+    warm_start_hours: tuple[float, float] = (1.0, 3.0)
+    warm_start_gap_hours: tuple[float, float] = (2.0, 4.0)
     probe_offset_sd_um: float = 0.0
 
     def convection_factor(self, season: str) -> float:
@@ -168,7 +170,6 @@ def draw_state(
     scatter: StateScatter,
     params: SpindleParams,
     season: str,
-    start_hour: float,
     rng: np.random.Generator,
 ) -> CampaignState:
     """Draw one campaign's machine state.
@@ -183,8 +184,6 @@ def draw_state(
         Nominal machine (supplies the nominal shaft share).
     season : str
         The campaign's season (convection factor).
-    start_hour : float
-        Local time of the campaign start, h (places the previous afternoon's run).
     rng : numpy.random.Generator
         The campaign's generator.
 
@@ -200,8 +199,8 @@ def draw_state(
     if u[0] < scatter.warm_start_probability:
         rpm = scatter.warm_start_rpm[int(u[1] * len(scatter.warm_start_rpm))]
         hours = scatter.warm_start_hours[0] + u[2] * np.diff(scatter.warm_start_hours)[0]
-        end_h = scatter.warm_start_end_hour[0] + u[3] * np.diff(scatter.warm_start_end_hour)[0]
-        end_min = round(float(-(start_hour + 24.0 - end_h) * 60.0), 1)
+        gap_h = scatter.warm_start_gap_hours[0] + u[3] * np.diff(scatter.warm_start_gap_hours)[0]
+        end_min = round(float(-60.0 * gap_h), 1)
         from_min = round(float(end_min - 60.0 * hours), 1)
         history = Program((Segment(from_min, end_min, float(rpm)),), key="rpm")
     offset = scatter.probe_offset_sd_um * float(rng.standard_normal())
@@ -222,9 +221,12 @@ def draw_state(
 def apply_state(params: SpindleParams, state: CampaignState) -> SpindleParams:
     """Return the machine parameters of a campaign in ``state`` (``params`` is not changed)."""
     net = params.network
-    for a, b in SHAFT_LINKS:
-        g = next(g for x, y, g in net.links if {x, y} == {a, b})
-        net = net.with_link(a, b, g * state.bearing_contact_gain)
+    shaft_links = [set(pair) for pair in SHAFT_LINKS]
+    links = tuple(
+        (a, b, g * state.bearing_contact_gain if {a, b} in shaft_links else g)
+        for a, b, g in net.links
+    )
+    net = replace(net, links=links)
     conv = [h * state.convection_gain for h in net.convection_w_per_k]
     conv[net.index("spindle_shaft")] *= state.shaft_cooling_gain
     net = replace(net, convection_w_per_k=tuple(conv))
