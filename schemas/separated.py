@@ -8,41 +8,27 @@ from __future__ import annotations
 
 from collections.abc import Iterable
 
-import numpy as np
 import pandas as pd
 import pandera.pandas as pa
 from pandera.typing import Series
 
-from schemas import checks
+from schemas.ingested import SamplesModel
 from schemas.vocabulary import SEASONS, SPLITS
 
 
-class SpindleThermalErrorModel(pa.DataFrameModel):
+class SpindleThermalErrorModel(SamplesModel):
     """``spindle_thermal_error.parquet``: one row per aligned sample of a spindle campaign.
 
-    ``thermal_error_um`` = ``displacement_um`` minus its cold value (um); samples in time order.
+    The samples columns (time strictly increasing per campaign) plus the campaign's split and
+    season and ``thermal_error_um`` = ``displacement_um`` minus its cold value (um); sensor
+    columns (degC) and their ``rise_<sensor>`` twins (K) vary by campaign.
     """
 
-    campaign_id: Series[str]
-    elapsed_s: Series[float]
-    source_row: Series[np.int64] = pa.Field(ge=1)
-    rpm: Series[float] = pa.Field(nullable=True)
     split: Series[str] = pa.Field(isin=SPLITS)
     season: Series[str] = pa.Field(isin=SEASONS)
     synthetic: Series[bool]
     thermal_error_um: Series[float]
     displacement_um: Series[float]
-
-    class Config:
-        """Sensor columns vary by campaign."""
-
-        strict = False
-
-    @pa.dataframe_check
-    @classmethod
-    def time_increasing(cls, df: pd.DataFrame) -> Series[bool]:
-        """Check that ``elapsed_s`` strictly increases within each campaign."""
-        return checks.increasing_within(df["elapsed_s"], df["campaign_id"])
 
 
 class AxisSlopesModel(pa.DataFrameModel):

@@ -44,22 +44,10 @@ from pipeline.twin.conditions import (
 from pipeline.twin.effects import bearing_friction_heat, check_effects, uniform_expansion
 from pipeline.twin.program import Program
 from pipeline.twin.simulate import sensor_time_constants
+from schemas.vocabulary import SENSOR_ROLES
 
 REPO = Path(__file__).resolve().parents[1]
-ROLES = {
-    "spindle_front_bearing",
-    "spindle_rear_bearing",
-    "spindle_motor",
-    "headstock",
-    "column_front",
-    "column_rear",
-    "bed",
-    "ball_screw",
-    "nut",
-    "coolant",
-    "ambient",
-    "other",
-}
+ROLES = set(SENSOR_ROLES)
 DEMO_IDS = [f"K{i:02d}" for i in range(1, 13)] + [f"V{i:02d}" for i in range(1, 7)] + ["Y01", "Y02"]
 TIMES = np.arange(0.0, 300 * 60 + 1, 180.0)
 # 6000 rpm, then 2000 rpm (both away from the 4000 rpm reference), then stopped
