@@ -294,9 +294,16 @@ def main(argv: list[str] | None = None) -> int:
     uri = resolve_tracking_uri(settings)
     client = store.make_client(absolute_store_uri(uri))
     artifact_dir = str(settings.get("local_artifact_dir") or DEFAULT_ARTIFACT_DIR)
-    experiment_id = store.ensure_experiment(
-        client, experiment, local_artifact_location(uri, artifact_dir, experiment)
-    )
+    try:
+        experiment_id = store.ensure_experiment(
+            client, experiment, local_artifact_location(uri, artifact_dir, experiment)
+        )
+    except store.MlflowException as error:
+        raise SystemExit(
+            f"thermal track: cannot use the MLflow tracking store {public_uri(uri)} "
+            f"({str(error)[:300]}); start the server or fix MLFLOW_TRACKING_URI, or unset it "
+            "to log to the local store sqlite:///mlflow.db"
+        ) from error
     existing = store.find_parent(client, experiment_id, prepared.identity.value)
     if existing is not None:
         parent_id = existing.info.run_id

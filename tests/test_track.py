@@ -7,6 +7,7 @@ import json
 import math
 import os
 import shutil
+import socket
 import subprocess
 import sys
 from pathlib import Path
@@ -461,3 +462,16 @@ def test_track_logs_to_a_real_mlflow_server(tmp_path):
         listed = {f.path for f in client.list_artifacts(parents[0].info.run_id, "reports")}
         assert "reports/cross_season_matrix.png" in listed
     assert not (work / "mlflow.db").exists()  # nothing went to the default local store
+
+
+def test_unreachable_tracking_server_is_a_clear_error(workdir, monkeypatch):
+    with socket.socket() as probe:  # a port nothing listens on
+        probe.bind(("127.0.0.1", 0))
+        port = probe.getsockname()[1]
+    monkeypatch.setenv("MLFLOW_TRACKING_URI", f"http://127.0.0.1:{port}")
+    monkeypatch.setenv("MLFLOW_HTTP_REQUEST_MAX_RETRIES", "0")
+    with pytest.raises(
+        SystemExit, match=r"cannot use the MLflow tracking store.*MLFLOW_TRACKING_URI"
+    ):
+        track.main([])
+    assert not (workdir / "reports" / "mlflow_run.json").exists()

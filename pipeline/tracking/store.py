@@ -9,11 +9,13 @@ then its end status: about three store round trips per run whatever the number o
 from __future__ import annotations
 
 import logging
+import os
 import time
 from collections.abc import Iterator, Mapping, Sequence
 from pathlib import Path
 
 from mlflow.entities import Metric, Param, Run, RunStatus, RunTag
+from mlflow.exceptions import MlflowException
 from mlflow.tracking import MlflowClient
 
 from pipeline.tracking.records import IDENTITY_TAG, PARENT_RUN_TAG, RunRecord
@@ -69,8 +71,17 @@ def batches(
         tag_items = tag_items[len(tag_chunk) :]
 
 
+# MLflow's own defaults retry an unreachable server for minutes; fail within about a minute
+# instead. A user's own settings of these variables win.
+__all__ = ["MlflowException"]  # re-exported: callers catch it without importing mlflow
+
+HTTP_DEFAULTS = {"MLFLOW_HTTP_REQUEST_MAX_RETRIES": "2", "MLFLOW_HTTP_REQUEST_TIMEOUT": "20"}
+
+
 def make_client(tracking_uri: str) -> MlflowClient:
     """Return a client of the store at ``tracking_uri`` (e.g. ``sqlite:///mlflow.db``)."""
+    for name, value in HTTP_DEFAULTS.items():
+        os.environ.setdefault(name, value)
     return MlflowClient(tracking_uri=tracking_uri)
 
 
