@@ -18,11 +18,9 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from pipeline.twin.effects import check_effects, model_terms
 from pipeline.twin.params import AxisParams
 from pipeline.twin.program import Program
-from pipeline.twin.simulate import run_network
-from pipeline.twin.spindle import as_program
+from pipeline.twin.simulate import machine_frame, simulate_machine
 
 
 @dataclass(frozen=True)
@@ -107,36 +105,23 @@ def simulate_axis(
         ``elapsed_s``, ``feed_mm_s``, ``ambient_degC``, ``node_<name>`` (degC), sensor columns
         ``T1``... (noise-free), ``screw_rise_K``, ``slope_um_per_mm`` (k), ``offset_um`` (b).
     """
-    names = check_effects(effects)
-    terms = model_terms("axis", names)
-    prog = as_program(program, key="feed_mm_s")
-    past = None if history is None else as_program(history, key=prog.key)
-    run = run_network(
-        params, terms, prog, ambient, times_s, method=method, preroll_h=preroll_h, history=past
-    )
-    rise = run.nodes_degc - run.start_degc
+    machine = simulate_machine(
+        "axis", params, effects, program, "feed_mm_s", ambient, times_s,
+        method=method, preroll_h=preroll_h, history=history,
+    )  # fmt: skip
     net = params.network
-    cols: dict[str, np.ndarray] = {
-        "elapsed_s": run.times_s,
-        "feed_mm_s": run.drive,
-        "ambient_degC": run.ambient_degc,
-    }
-    for j, node in enumerate(net.nodes):
-        cols[f"node_{node}"] = run.nodes_degc[:, j]
-    for j, sensor in enumerate(params.sensors):
-        cols[sensor.name] = run.sensors_degc[:, j]
-    cols["screw_rise_K"] = rise[:, net.index("screw")]
-    cols["slope_um_per_mm"] = 1e3 * params.alpha_steel_per_k * rise[:, net.index("screw")]
-    cols["offset_um"] = (
-        1e3
-        * params.alpha_steel_per_k
-        * params.bearing_offset_length_mm
-        * rise[:, net.index("screw_bearing")]
+    screw_rise = machine.rise_k[:, net.index("screw")]
+    bearing_rise = machine.rise_k[:, net.index("screw_bearing")]
+    return machine_frame(
+        machine,
+        {
+            "screw_rise_K": screw_rise,
+            "slope_um_per_mm": 1e3 * params.alpha_steel_per_k * screw_rise,
+            "offset_um": (
+                1e3 * params.alpha_steel_per_k * params.bearing_offset_length_mm * bearing_rise
+            ),
+        },
     )
-    frame = pd.DataFrame(cols)
-    frame.attrs["effects"] = sorted(names)
-    frame.attrs["terms"] = [t.name for t in terms]
-    return frame
 
 
 def laser_runs(

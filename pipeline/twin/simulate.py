@@ -11,12 +11,14 @@ breakpoints; ``method="Radau"`` (or ``"BDF"``, ``"LSODA"``) uses ``scipy.integra
 from __future__ import annotations
 
 import logging
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+import pandas as pd
 
-from pipeline.twin.effects import Term, slot_terms
+from pipeline.twin.effects import Term, check_effects, model_terms, slot_terms
 from pipeline.twin.network import build_system, integrate_foh, integrate_ivp
 from pipeline.twin.params import SensorSpec
 from pipeline.twin.program import Program
@@ -208,3 +210,84 @@ def run_network(
         start_degc=x0[:n].copy(),
         sensors_degc=readings,
     )
+
+
+def as_program(program: Program | Sequence[Mapping[str, Any]] | float, key: str) -> Program:
+    """Accept a :class:`Program`, a contract list ``[{from_min, to_min?, key}]`` or a constant."""
+    if isinstance(program, Program):
+        return program
+    if isinstance(program, int | float):
+        return Program.constant(float(program), key=key)
+    return Program.from_contract(program, key=key)
+
+
+@dataclass(frozen=True)
+class MachineRun:
+    """A network run of one machine with its model and its common output columns.
+
+    Attributes
+    ----------
+    run : NetworkRun
+    effects : frozenset of str
+        Effects switched on.
+    terms : tuple of Term
+        The model's terms for those effects.
+    columns : dict of str to ndarray
+        ``elapsed_s``, the program (``rpm`` or ``feed_mm_s``), ``ambient_degC``,
+        ``node_<name>`` (degC) and the noise-free sensor columns (``T1``...).
+    rise_k : ndarray of shape (n_t, n_nodes)
+        Node temperatures minus their values at t = 0, K.
+    """
+
+    run: NetworkRun
+    effects: frozenset[str]
+    terms: tuple[Term, ...]
+    columns: dict[str, np.ndarray]
+    rise_k: np.ndarray
+
+
+def simulate_machine(
+    machine: str,
+    params: Any,
+    effects: Iterable[str],
+    program: Program | Sequence[Mapping[str, Any]] | float,
+    key: str,
+    ambient: Any,
+    times_s: np.ndarray,
+    *,
+    method: str,
+    preroll_h: float,
+    history: Program | Sequence[Mapping[str, Any]] | None,
+) -> MachineRun:
+    """Run the network of ``machine`` ("spindle" or "axis") under its model for ``effects``.
+
+    Shared by :func:`pipeline.twin.spindle.simulate_spindle` and
+    :func:`pipeline.twin.axis.simulate_axis`, which add their own displacement outputs; the
+    arguments are documented there. ``key`` names the program's quantity (``rpm``,
+    ``feed_mm_s``).
+    """
+    names = check_effects(effects)
+    terms = model_terms(machine, names)
+    prog = as_program(program, key=key)
+    past = None if history is None else as_program(history, key=prog.key)
+    run = run_network(
+        params, terms, prog, ambient, times_s, method=method, preroll_h=preroll_h, history=past
+    )
+    columns: dict[str, np.ndarray] = {
+        "elapsed_s": run.times_s,
+        key: run.drive,
+        "ambient_degC": run.ambient_degc,
+    }
+    for j, node in enumerate(params.network.nodes):
+        columns[f"node_{node}"] = run.nodes_degc[:, j]
+    for j, sensor in enumerate(params.sensors):
+        columns[sensor.name] = run.sensors_degc[:, j]
+    return MachineRun(run, names, terms, columns, run.nodes_degc - run.start_degc)
+
+
+def machine_frame(machine_run: MachineRun, extra: Mapping[str, np.ndarray]) -> pd.DataFrame:
+    """Return the run's columns plus ``extra`` as a frame; ``attrs`` name effects and terms."""
+    frame = pd.DataFrame({**machine_run.columns, **extra})
+    frame.attrs["effects"] = sorted(machine_run.effects)
+    frame.attrs["terms"] = [t.name for t in machine_run.terms]
+    return frame

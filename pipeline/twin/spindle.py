@@ -14,19 +14,10 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from pipeline.twin.effects import check_effects, model_terms, slot_terms
+from pipeline.twin.effects import slot_terms
 from pipeline.twin.params import SpindleParams
 from pipeline.twin.program import Program
-from pipeline.twin.simulate import run_network
-
-
-def as_program(program: Program | Sequence[Mapping[str, Any]] | float, key: str) -> Program:
-    """Accept a :class:`Program`, a contract list ``[{from_min, to_min?, key}]`` or a constant."""
-    if isinstance(program, Program):
-        return program
-    if isinstance(program, int | float):
-        return Program.constant(float(program), key=key)
-    return Program.from_contract(program, key=key)
+from pipeline.twin.simulate import machine_frame, simulate_machine
 
 
 def simulate_spindle(
@@ -74,30 +65,15 @@ def simulate_spindle(
         ``z_um`` (their sum; um, positive = tool away from the table). ``attrs["effects"]``
         lists the effects on, ``attrs["terms"]`` the model's term names.
     """
-    names = check_effects(effects)
-    terms = model_terms("spindle", names)
-    prog = as_program(program, key="rpm")
-    past = None if history is None else as_program(history, key=prog.key)
-    run = run_network(
-        params, terms, prog, ambient, times_s, method=method, preroll_h=preroll_h, history=past
-    )
-    rise = run.nodes_degc - run.start_degc
-    cols: dict[str, np.ndarray] = {
-        "elapsed_s": run.times_s,
-        "rpm": run.drive,
-        "ambient_degC": run.ambient_degc,
+    machine = simulate_machine(
+        "spindle", params, effects, program, "rpm", ambient, times_s,
+        method=method, preroll_h=preroll_h, history=history,
+    )  # fmt: skip
+    z_parts = {
+        f"z_{term.name}_um": np.asarray(
+            term.func(params, machine.rise_k, machine.run.drive), dtype=float
+        )
+        for term in slot_terms(machine.terms, "displacement")
     }
-    for j, node in enumerate(params.network.nodes):
-        cols[f"node_{node}"] = run.nodes_degc[:, j]
-    for j, sensor in enumerate(params.sensors):
-        cols[sensor.name] = run.sensors_degc[:, j]
-    z = np.zeros(run.times_s.size)
-    for term in slot_terms(terms, "displacement"):
-        part = np.asarray(term.func(params, rise, run.drive), dtype=float)
-        cols[f"z_{term.name}_um"] = part
-        z = z + part
-    cols["z_um"] = z
-    frame = pd.DataFrame(cols)
-    frame.attrs["effects"] = sorted(names)
-    frame.attrs["terms"] = [t.name for t in terms]
-    return frame
+    z = sum(z_parts.values(), np.zeros(machine.run.times_s.size))
+    return machine_frame(machine, {**z_parts, "z_um": z})
