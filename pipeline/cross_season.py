@@ -1,170 +1,141 @@
-"""The cross-season protocol: build a model on each training campaign, apply it to every campaign.
+"""The cross-season protocol: build a model on each training unit, apply it to every campaign.
 
 From the PCDL paper (Miao et al. 2016, section 4.2): a model Mi built on batch Ki is applied to
 every batch; its fit accuracy is scored on Ki, its prediction accuracy on the other training
-batches and on the validation batches (section 5). Splits follow campaigns (and so seasons),
-never random samples. Scores are defined in :mod:`pipeline.scoring`.
+batches and on the validation batches (section 5). Training units (one campaign, three seasons,
+all training campaigns) are defined in :mod:`pipeline.training_units`; scores in
+:mod:`pipeline.scoring`.
+
+Models flagged ``needs_error_feedback`` (they use the measured error's own history) are scored in
+two modes, as ``design.md`` requires: ``one_step`` (each prediction uses the measured error up
+to the previous sample, as on a machine that measures its error online) and ``free_run`` (their
+own predictions fed back, as on a machine that does not). Other models are scored in mode
+``static``.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import pandas as pd
-from joblib import Parallel, delayed
 from sklearn.base import RegressorMixin, clone
 
 from pipeline.scoring import residual_std, root_mean_square
+from pipeline.training_units import CampaignSeries, TrainingUnit, stack
 
-TARGET = "thermal_error_um"
+STATIC, ONE_STEP, FREE_RUN = "static", "one_step", "free_run"
 
 
 @dataclass(frozen=True)
-class CampaignSeries:
-    """One campaign's time series, ordered by time.
+class Candidate:
+    """One model on one sensor selection."""
+
+    model: str
+    selection: str
+
+
+@dataclass(frozen=True)
+class UnitResult:
+    """A candidate fitted on one training unit, with its scores on every campaign.
 
     Attributes
     ----------
-    campaign_id : str
-    split : str
-        ``train`` or ``validation``.
-    elapsed_s : ndarray of shape (n,)
-        Seconds since the campaign start.
-    features : DataFrame of shape (n, m)
-        Model inputs (temperature or temperature rise per sensor), degC or K.
-    target : ndarray of shape (n,)
-        Thermal error, um.
+    candidate : Candidate
+    unit : TrainingUnit
+    sensors : list of str
+        Model inputs (the selection made on this unit).
+    chosen_params : dict
+        What the fit decided (the estimator's ``chosen_params_``, when it has them).
+    scores : DataFrame
+        One row per (mode, test campaign); columns of ``schemas.CrossSeasonScoresModel``.
+    predictions : dict
+        ``{(mode, campaign_id): ndarray of shape (n,)}``, um.
+    estimator : RegressorMixin
+        The fitted estimator.
     """
 
-    campaign_id: str
-    split: str
-    elapsed_s: np.ndarray
-    features: pd.DataFrame
-    target: np.ndarray
-
-
-@dataclass(frozen=True)
-class FittedOnCampaign:
-    """A model fitted on one training campaign and its scores on every campaign."""
-
-    train_campaign: str
+    candidate: Candidate
+    unit: TrainingUnit
     sensors: list[str]
-    estimator: RegressorMixin
+    chosen_params: dict
     scores: pd.DataFrame
-    predictions: dict[str, np.ndarray]
+    predictions: dict = field(repr=False)
+    estimator: RegressorMixin = field(repr=False)
 
 
-def campaign_series(
-    table: pd.DataFrame, sensors: list[str], feature_prefix: str
-) -> list[CampaignSeries]:
-    """Split the separated spindle table into per-campaign series.
+def modes_of(estimator: RegressorMixin) -> tuple[str, ...]:
+    """Scoring modes of an estimator: ``static``, or ``one_step`` and ``free_run``."""
+    return (ONE_STEP, FREE_RUN) if getattr(estimator, "needs_error_feedback", False) else (STATIC,)
+
+
+def predict_campaign(
+    estimator: RegressorMixin, campaign: CampaignSeries, sensors: list[str], mode: str
+) -> np.ndarray:
+    """Predict one campaign's thermal error (um); NaN where a chosen sensor is missing.
 
     Parameters
     ----------
-    table : DataFrame
-        ``data/separated/spindle_thermal_error.parquet``.
+    estimator : fitted estimator
+    campaign : CampaignSeries
     sensors : list of str
-        Sensor names; the feature column of sensor ``s`` is ``feature_prefix + s``.
-    feature_prefix : str
-        ``"rise_"`` for temperature rises, ``""`` for absolute temperatures.
+    mode : str
+        ``static`` or ``free_run`` call ``predict(X)``; ``one_step`` also passes the measured
+        error as ``y_history``.
     """
-    series = []
-    for campaign_id, rows in table.groupby("campaign_id", sort=True):
-        rows = rows.sort_values("elapsed_s")
-        columns = {s: rows[feature_prefix + s] if feature_prefix + s in rows else np.nan
-                   for s in sensors}  # fmt: skip
-        series.append(
-            CampaignSeries(
-                campaign_id=str(campaign_id),
-                split=str(rows["split"].iloc[0]),
-                elapsed_s=rows["elapsed_s"].to_numpy(),
-                features=pd.DataFrame(columns, index=rows.index).astype(float),
-                target=rows[TARGET].to_numpy(dtype=float),
-            )
-        )
-    return series
-
-
-def available_sensors(series: CampaignSeries) -> list[str]:
-    """Sensors with at least one reading in a campaign (selection ``all``)."""
-    return [s for s in series.features.columns if series.features[s].notna().any()]
-
-
-def fit_and_score(
-    train: CampaignSeries,
-    campaigns: list[CampaignSeries],
-    estimator: RegressorMixin,
-    sensors: list[str],
-) -> FittedOnCampaign:
-    """Fit ``estimator`` on ``train`` using ``sensors`` and score it on every campaign.
-
-    Rows with a missing feature or target are left out of the fit; a prediction is NaN where a
-    feature is missing, and the scores use the remaining samples. A campaign lacking one of the
-    sensors gets NaN scores (``n_samples`` 0).
-
-    Returns
-    -------
-    FittedOnCampaign
-        ``scores`` has one row per campaign: ``test_campaign``, ``test_split``, ``role``,
-        ``n_samples``, ``rmse_um``, ``resid_std_um``.
-    """
-    X = train.features[sensors].to_numpy()
-    usable = np.isfinite(X).all(axis=1) & np.isfinite(train.target)
-    model = clone(estimator).fit(X[usable], train.target[usable])
-    rows, predictions = [], {}
-    for test in campaigns:
-        predicted = _predict(model, test.features.reindex(columns=sensors).to_numpy())
-        residual = test.target - predicted
-        predictions[test.campaign_id] = predicted
-        role = ("fit" if test.campaign_id == train.campaign_id
-                else "prediction" if test.split == "train" else "validation")  # fmt: skip
-        rows.append({
-            "train_campaign": train.campaign_id,
-            "test_campaign": test.campaign_id,
-            "test_split": test.split,
-            "role": role,
-            "n_samples": int(np.isfinite(residual).sum()),
-            "rmse_um": root_mean_square(residual),
-            "resid_std_um": residual_std(residual),
-        })  # fmt: skip
-    return FittedOnCampaign(train.campaign_id, sensors, model, pd.DataFrame(rows), predictions)
-
-
-def _predict(model: RegressorMixin, X: np.ndarray) -> np.ndarray:
-    predicted = np.full(X.shape[0], np.nan)
-    complete = np.isfinite(X).all(axis=1)
-    if complete.any():
-        predicted[complete] = model.predict(X[complete])
+    X = campaign.features.reindex(columns=sensors)
+    complete = X.notna().all(axis=1).to_numpy()
+    predicted = np.full(len(X), np.nan)
+    if not complete.any():
+        return predicted
+    if mode == ONE_STEP:
+        history = np.nan_to_num(campaign.target[complete], nan=0.0)
+        predicted[complete] = estimator.predict(X[complete], y_history=history)
+    else:
+        predicted[complete] = estimator.predict(X[complete])
     return predicted
 
 
-def cross_season(
-    campaigns: list[CampaignSeries],
-    make_estimator: Callable[[], RegressorMixin],
-    select: Callable[[CampaignSeries], list[str]],
-    n_jobs: int = 1,
-) -> list[FittedOnCampaign]:
-    """Build one model per training campaign and score each on every campaign.
+def _role(unit: TrainingUnit, test: CampaignSeries) -> str:
+    if test.split == "validation":
+        return "validation"
+    return "fit" if test.campaign_id in unit.campaigns else "prediction"
 
-    Parameters
-    ----------
-    campaigns : list of CampaignSeries
-        Training and validation campaigns.
-    make_estimator : callable
-        Returns a new unfitted scikit-learn estimator.
-    select : callable
-        Chooses the sensors from the training campaign (sees no other campaign).
-    n_jobs : int
-        Training campaigns processed in parallel (joblib threads).
+
+def fit_and_score(
+    candidate: Candidate,
+    unit: TrainingUnit,
+    campaigns: list[CampaignSeries],
+    estimator: RegressorMixin,
+    sensors: list[str],
+) -> UnitResult:
+    """Fit ``estimator`` on the unit's campaigns using ``sensors`` and score every campaign.
+
+    Returns
+    -------
+    UnitResult
+        ``scores`` has columns ``model``, ``selection``, ``mode``, ``scheme``, ``train_unit``,
+        ``test_campaign``, ``test_split``, ``test_season``, ``role``, ``n_samples``,
+        ``rmse_um``, ``resid_std_um``; campaigns without a finite residual get no row.
     """
-    training = [c for c in campaigns if c.split == "train"]
-    if not training:
-        raise ValueError(
-            "no training campaign among the valid campaigns "
-            f"({[c.campaign_id for c in campaigns]}); mark at least one campaign split: train"
-        )
-    estimator = make_estimator()
-    jobs = (delayed(fit_and_score)(t, campaigns, estimator, select(t)) for t in training)
-    return list(Parallel(n_jobs=n_jobs, prefer="threads")(jobs))
+    training = [c for c in campaigns if c.campaign_id in unit.campaigns]
+    X, y = stack(training, sensors)
+    model = clone(estimator).fit(X, y)
+    rows, predictions = [], {}
+    for mode in modes_of(model):
+        for test in campaigns:
+            predicted = predict_campaign(model, test, sensors, mode)
+            residual = test.target - predicted
+            predictions[(mode, test.campaign_id)] = predicted
+            n_samples = int(np.isfinite(residual).sum())
+            if n_samples == 0:
+                continue
+            rows.append({
+                "model": candidate.model, "selection": candidate.selection, "mode": mode,
+                "scheme": unit.scheme, "train_unit": unit.name,
+                "test_campaign": test.campaign_id, "test_split": test.split,
+                "test_season": test.season, "role": _role(unit, test), "n_samples": n_samples,
+                "rmse_um": root_mean_square(residual), "resid_std_um": residual_std(residual),
+            })  # fmt: skip
+    chosen = dict(getattr(model, "chosen_params_", {}) or {})
+    return UnitResult(candidate, unit, sensors, chosen, pd.DataFrame(rows), predictions, model)

@@ -1,8 +1,13 @@
-"""DVC stage ``evaluate``: every model built on each training campaign, scored on every campaign.
+"""DVC stage ``evaluate``: every candidate model, built on each training unit, scored everywhere.
 
-Reads ``data/separated/spindle_thermal_error.parquet``; writes the long score table, the
-train x test matrices (CSV + heat-map PNG), ``metrics/cross_season.json`` (a DVC metric), the
-fitted-model record read by ``track`` and two DVC plot tables. Scores: :mod:`pipeline.scoring`.
+Reads ``data/separated/spindle_thermal_error.parquet`` and the sensitive points of
+``reports/selection/selected.json``. Runs each candidate (model x selection, see
+:mod:`pipeline.candidates`) on each training unit (each training campaign, each season left out,
+all training campaigns; :mod:`pipeline.training_units`) and scores it on every campaign
+(:mod:`pipeline.cross_season`, :mod:`pipeline.scoring`). Writes the long score table, one row
+of scores per candidate, ``metrics/cross_season.json`` (a DVC metric), the fitted-model record
+read by ``track``, the matrices (CSV, one heat-map per candidate), ``reports/model_comparison.md``
+with its figures, the champion model (``data/models/champion/``) and two DVC plot tables.
 """
 
 from __future__ import annotations
@@ -11,148 +16,199 @@ import argparse
 import json
 import logging
 
+import joblib
 import numpy as np
 import pandas as pd
 
-from pipeline import paths, plots
+from pipeline import comparison_report, paths, plots
+from pipeline.candidates import candidate_list, run_all
+from pipeline.champion import champion_card, rank_candidates
 from pipeline.config import load_section
-from pipeline.cross_season import (
-    FittedOnCampaign,
-    available_sensors,
-    campaign_series,
-    cross_season,
-)
-from pipeline.models import make_model
-from pipeline.scoring import metrics_tree, score_matrix
+from pipeline.cross_season import UnitResult
+from pipeline.scoring import candidate_summary, metrics_tree, score_matrix
+from pipeline.select import feature_prefix, sensor_columns
+from pipeline.training_units import POOLED_UNIT, CampaignSeries, campaign_series, training_units
 from schemas import CrossSeasonScoresModel
 
 LOGGER = logging.getLogger(__name__)
 
-FEATURE_PREFIX = {"temperature_rise": "rise_", "absolute": ""}
-SELECTION = "all"
+CANDIDATE = ["model", "selection", "mode"]
 
 
-def sensor_columns(table: pd.DataFrame) -> list[str]:
-    """Temperature sensor names present in the separated table (columns with a ``rise_`` twin)."""
-    return [c.removeprefix("rise_") for c in table.columns if c.startswith("rise_")]
+def label(row) -> str:
+    """Short name of a candidate, e.g. ``dl/fc_grd/static``."""
+    return "/".join(str(row[key]) for key in CANDIDATE)
 
 
 def evaluate(
-    table: pd.DataFrame, model: str, features: str, n_jobs: int
-) -> tuple[pd.DataFrame, list[FittedOnCampaign]]:
-    """Score ``model`` on all temperature sensors across campaigns.
+    series: list[CampaignSeries], selected: dict, params: dict
+) -> tuple[pd.DataFrame, list[UnitResult]]:
+    """Score every candidate on every training unit.
 
     Parameters
     ----------
-    table : DataFrame
-        The separated spindle thermal-error table.
-    model : str
-        Registry name, e.g. ``"mlr"``.
-    features : str
-        ``temperature_rise`` (each sensor minus its value at the cold reference, K) or
-        ``absolute`` (degC).
-    n_jobs : int
-        Parallel training campaigns.
+    series : list of CampaignSeries
+        All valid spindle campaigns.
+    selected : dict
+        ``selected.json`` ``methods``: ``{method: {unit: {"sensors": [...], ...}}}``.
+    params : dict
+        The ``evaluate`` section: ``candidates``, ``full_grid``, ``model_params``, ``n_jobs``.
 
     Returns
     -------
     scores : DataFrame
-        Long score table (``model``, ``selection``, ``train_campaign``, ``test_campaign``,
-        ``test_split``, ``role``, ``n_samples``, ``rmse_um``, ``resid_std_um``).
-    fitted : list of FittedOnCampaign
+        Long score table (``schemas.CrossSeasonScoresModel``).
+    results : list of UnitResult
     """
-    if features not in FEATURE_PREFIX:
-        raise ValueError(
-            f"params.yaml evaluate.features is '{features}'; use one of {sorted(FEATURE_PREFIX)}"
-        )
-    series = campaign_series(table, sensor_columns(table), FEATURE_PREFIX[features])
-    fitted = cross_season(series, lambda: make_model(model), available_sensors, n_jobs)
-    scores = pd.concat([f.scores for f in fitted], ignore_index=True)
-    scores.insert(0, "selection", SELECTION)
-    scores.insert(0, "model", model)
-    return CrossSeasonScoresModel.validate(scores, lazy=True), fitted
+    units = training_units(series)
+    candidates = candidate_list(params["candidates"], selected, bool(params.get("full_grid")))
+    results = run_all(
+        candidates, units, series, selected, params.get("model_params") or {},
+        int(params.get("n_jobs", 1)),
+    )  # fmt: skip
+    scores = pd.concat([r.scores for r in results], ignore_index=True)
+    return CrossSeasonScoresModel.validate(scores, lazy=True), results
 
 
-def fitted_record(model: str, features: str, fitted: list[FittedOnCampaign]) -> dict:
-    """JSON-ready description of each fitted model (sensors, coefficients in um/K)."""
-    record = {}
-    for item in fitted:
-        params: dict = {"features": features}
-        estimator = item.estimator
-        if hasattr(estimator, "coef_"):
-            params["coefficients_um_per_K"] = dict(
-                zip(item.sensors, np.round(estimator.coef_, 6).tolist(), strict=True)
-            )
-            params["intercept_um"] = round(float(estimator.intercept_), 6)
-        record[f"{model}/{SELECTION}/{item.train_campaign}"] = {
-            "model": model,
-            "selection": SELECTION,
-            "train_campaign": item.train_campaign,
-            "sensors": item.sensors,
-            "params": params,
+def fitted_record(results: list[UnitResult]) -> dict:
+    """JSON-ready record of every fit: sensors and what the fit decided, per candidate and unit."""
+    return {
+        f"{r.candidate.model}/{r.candidate.selection}/{r.unit.name}": {
+            "model": r.candidate.model,
+            "selection": r.candidate.selection,
+            "train_unit": r.unit.name,
+            "scheme": r.unit.scheme,
+            "sensors": r.sensors,
+            "chosen_params": {k: _plain(v) for k, v in r.chosen_params.items()},
         }
-    return record
+        for r in results
+    }
 
 
-def prediction_plot_table(
-    table: pd.DataFrame, scores: pd.DataFrame, fitted: list[FittedOnCampaign]
-) -> pd.DataFrame:
-    """Measured and predicted thermal error for the DVC plot.
+def _plain(value):
+    if hasattr(value, "tolist"):
+        return value.tolist()
+    return value
 
-    On the validation campaigns (or, without any, the other training campaigns), by the model
-    built on the campaign with the best Mn_val (or Mn).
+
+def pooled_result(results: list[UnitResult], model: str, selection: str) -> UnitResult:
+    """The candidate's fit on all training campaigns."""
+    return next(
+        r for r in results
+        if r.unit.name == POOLED_UNIT and (r.candidate.model, r.candidate.selection)
+        == (model, selection)
+    )  # fmt: skip
+
+
+def prediction_panels(
+    series: list[CampaignSeries], first: tuple[UnitResult, str], second: tuple[UnitResult, str]
+) -> dict[str, pd.DataFrame]:
+    """Measured and two candidates' predicted error on each validation campaign (um)."""
+    panels = {}
+    for campaign in (s for s in series if s.split == "validation"):
+        minutes = campaign.features.index.get_level_values("elapsed_s").to_numpy() / 60.0
+        panels[campaign.campaign_id] = pd.DataFrame({
+            "elapsed_min": minutes,
+            "measured_um": campaign.target,
+            "first_um": first[0].predictions[(first[1], campaign.campaign_id)],
+            "second_um": second[0].predictions[(second[1], campaign.campaign_id)],
+        })  # fmt: skip
+    return panels
+
+
+def write_matrices(scores: pd.DataFrame, title_suffix: str) -> list[str]:
+    """Matrices CSV (every candidate, both scores) and one heat-map PNG per candidate.
+
+    Returns
+    -------
+    list of str
+        Heat-map paths relative to ``reports/``.
     """
-    role = "validation" if (scores["role"] == "validation").any() else "prediction"
-    mean = scores[scores["role"] == role].groupby("train_campaign")["resid_std_um"].mean()
-    best = mean.idxmin() if mean.notna().any() else scores["train_campaign"].iloc[0]
-    chosen = next(f for f in fitted if f.train_campaign == best)
-    tests = scores.loc[(scores["train_campaign"] == best) & (scores["role"] == role),
-                       "test_campaign"]  # fmt: skip
-    frames = []
-    for campaign in tests:
-        rows = table[table["campaign_id"] == campaign].sort_values("elapsed_s")
-        frames.append(pd.DataFrame({
-            "campaign_id": campaign,
-            "model_built_on": best,
-            "elapsed_min": rows["elapsed_s"].to_numpy() / 60.0,
-            "measured_um": rows["thermal_error_um"].to_numpy(),
-            "predicted_um": np.round(chosen.predictions[campaign], 4),
-        }))  # fmt: skip
-    return pd.concat(frames, ignore_index=True) if frames else pd.DataFrame()
+    cross = scores[scores["scheme"] != "pooled"]
+    frames, figures = [], []
+    for path in paths.MATRICES.glob("*.png"):
+        path.unlink()
+    for keys, group in cross.groupby(CANDIDATE, sort=True):
+        for column in ("resid_std_um", "rmse_um"):
+            matrix = score_matrix(group, column)
+            matrix.index = pd.MultiIndex.from_tuples(
+                [(*keys, column, unit) for unit in matrix.index],
+                names=[*CANDIDATE, "score", "train_unit"],
+            )
+            frames.append(matrix)
+        out = paths.MATRICES / f"{'__'.join(keys)}.png"
+        plots.score_heatmaps(
+            {"residual standard deviation (um)": score_matrix(group, "resid_std_um")},
+            f"{'/'.join(keys)}: built on one training unit, applied to every campaign "
+            f"({title_suffix})",
+            out,
+        )
+        figures.append(out.relative_to(paths.REPORTS).as_posix())
+    pd.concat(frames).to_csv(paths.MATRIX_CSV, float_format="%.4f")
+    return figures
 
 
-def write_outputs(table: pd.DataFrame, scores: pd.DataFrame, fitted: list, model: str,
-                  features: str) -> None:  # fmt: skip
-    """Write every output declared for the stage in ``dvc.yaml``."""
-    for path in (paths.SCORES_LONG, paths.CROSS_SEASON_METRICS, paths.PLOT_PREDICTIONS):
+def write_champion(card: dict, result: UnitResult) -> None:
+    """Save the champion estimator (joblib) and its card (JSON) for ``track`` to register."""
+    paths.CHAMPION.mkdir(parents=True, exist_ok=True)
+    joblib.dump(result.estimator, paths.CHAMPION_ESTIMATOR)
+    paths.CHAMPION_CARD.write_text(json.dumps(card, indent=2, sort_keys=True) + "\n")
+
+
+def write_outputs(
+    series: list[CampaignSeries],
+    selected: dict,
+    features: str,
+    scores: pd.DataFrame,
+    results: list[UnitResult],
+    synthetic: bool,
+) -> dict:
+    """Write every output declared for the stage in ``dvc.yaml``; return the champion card."""
+    for path in (paths.SCORES_LONG, paths.CROSS_SEASON_METRICS, paths.PLOT_MODEL_SCORES):
         path.parent.mkdir(parents=True, exist_ok=True)
     scores.to_csv(paths.SCORES_LONG, index=False, float_format="%.6g")
-    tree = metrics_tree(scores)
-    paths.CROSS_SEASON_METRICS.write_text(json.dumps(_round(tree), indent=2, sort_keys=True))
-    paths.FITTED_MODELS.write_text(
-        json.dumps(fitted_record(model, features, fitted), indent=2, sort_keys=True)
+    summary = candidate_summary(scores)
+    summary.to_csv(paths.CANDIDATE_SCORES, index=False, float_format="%.4f")
+    paths.CROSS_SEASON_METRICS.write_text(
+        json.dumps(_round(metrics_tree(scores)), indent=2, sort_keys=True)
     )
-    matrices = {
-        "resid_std_um": score_matrix(scores, "resid_std_um"),
-        "rmse_um": score_matrix(scores, "rmse_um"),
-    }
-    pd.concat(matrices, names=["score", "train_campaign"]).to_csv(
-        paths.MATRIX_CSV, float_format="%.4f"
+    paths.FITTED_MODELS.write_text(json.dumps(fitted_record(results), indent=2, sort_keys=True))
+
+    ranked, column = rank_candidates(summary)
+    best, worst = ranked.iloc[0], ranked.iloc[-1]
+    champion = pooled_result(results, best["model"], best["selection"])
+    card = champion_card(best, column, champion, features)
+    write_champion(card, champion)
+
+    origin = "SYNTHETIC data from the physical twin" if synthetic else "measured data"
+    heatmaps = write_matrices(scores, origin)
+    worst_fit = pooled_result(results, worst["model"], worst["selection"])
+    panels = prediction_panels(series, (champion, best["mode"]), (worst_fit, worst["mode"]))
+    figure = paths.COMPARISON_FIGURES / "best_worst_validation.png"
+    labels = (f"best: {label(best)}", f"worst: {label(worst)}")
+    plots.predicted_vs_measured(
+        panels, labels, f"Validation campaigns, models built on all training campaigns ({origin})",
+        figure,
+    )  # fmt: skip
+    n_campaigns = {split: sum(s.split == split for s in series) for split in ("train", "validation")}
+    paths.MODEL_COMPARISON.write_text(
+        comparison_report.render(
+            summary, card, selected, heatmaps, figure.relative_to(paths.REPORTS).as_posix(),
+            labels, n_campaigns, synthetic,
+        )  # fmt: skip
     )
-    synthetic = bool(table["synthetic"].any())
-    label = "SYNTHETIC data from the physical twin" if synthetic else "measured data"
-    plots.score_heatmaps(
-        {
-            "residual standard deviation S (um)": matrices["resid_std_um"],
-            "RMS of the residual (um)": matrices["rmse_um"],
-        },
-        f"{model} on all sensors, built on one campaign, applied to every other ({label})",
-        paths.MATRIX_PNG,
+
+    plot_scores = summary.assign(candidate=summary.apply(label, axis=1))
+    plot_scores[["candidate", "Mn_um", "Mn_val_um"]].to_csv(
+        paths.PLOT_MODEL_SCORES, index=False, float_format="%.4f"
     )
-    by_train = pd.DataFrame(tree[model][SELECTION]["by_train_campaign"]).T
-    by_train.index.name = "train_campaign"
-    by_train.reset_index().to_csv(paths.PLOT_SCORES_BY_TRAIN, index=False, float_format="%.4f")
-    prediction_plot_table(table, scores, fitted).to_csv(paths.PLOT_PREDICTIONS, index=False)
+    rows = []
+    for campaign, frame in panels.items():
+        rows.append(frame.rename(columns={"first_um": "predicted_um"})
+                    .drop(columns="second_um").assign(campaign_id=campaign))  # fmt: skip
+    predictions = pd.concat(rows, ignore_index=True) if rows else pd.DataFrame()
+    predictions.round(4).to_csv(paths.PLOT_PREDICTIONS, index=False)
+    return card
 
 
 def _round(tree):
@@ -167,13 +223,19 @@ def main(argv: list[str] | None = None) -> int:
     parser.parse_args(argv)
     params = load_section("evaluate")
     table = pd.read_parquet(paths.SPINDLE_THERMAL_ERROR)
-    model, features = str(params["model"]), str(params["features"])
-    scores, fitted = evaluate(table, model, features, int(params.get("n_jobs", 1)))
-    write_outputs(table, scores, fitted, model, features)
-    overall = metrics_tree(scores)[model][SELECTION]["overall"]
+    if not paths.SELECTED.is_file():
+        raise FileNotFoundError(
+            f"{paths.SELECTED} not found: run the select stage first (dvc repro select)"
+        )
+    document = json.loads(paths.SELECTED.read_text())
+    features, selected = str(document["features"]), document["methods"]
+    series = campaign_series(table, sensor_columns(table), feature_prefix(features))
+    scores, results = evaluate(series, selected, params)
+    card = write_outputs(series, selected, features, scores, results,
+                         bool(table["synthetic"].any()))  # fmt: skip
     LOGGER.info(
-        "%s on %d training campaigns: S %.2f um, Mn %.2f um, Sd %.2f um, Mn_val %.2f um "
-        "(residual std; RMS Mn %.2f um)", model, len(fitted), overall["S_um"], overall["Mn_um"],
-        overall["Sd_um"], overall["Mn_val_um"], overall["Mn_rms_um"],
+        "champion %s/%s/%s on %s: %s %.2f um; report %s", card["model"], card["selection"],
+        card["mode"], ", ".join(card["sensors"]) or "no sensor", card["chosen_on"],
+        card["scores_um"].get(card["chosen_on"]) or float("nan"), paths.MODEL_COMPARISON,
     )  # fmt: skip
     return 0

@@ -26,17 +26,33 @@ AXIS_GEOMETRIC = SEPARATED / "axis_geometric.parquet"
 AXIS_THERMAL_ERROR = SEPARATED / "axis_thermal_error.parquet"
 AXIS_SLOPES = SEPARATED / "axis_slopes.parquet"
 
+MODELS = Path("data/models")
+CHAMPION = MODELS / "champion"
+CHAMPION_ESTIMATOR = CHAMPION / "estimator.joblib"
+CHAMPION_CARD = CHAMPION / "champion.json"
+
 REPORTS = Path("reports")
 VALIDATION_REPORT = REPORTS / "validation.json"
 SEPARATION_PLOTS = REPORTS / "separation"
+SELECTION = REPORTS / "selection"
+SELECTED = SELECTION / "selected.json"
+SELECTION_STABILITY = SELECTION / "stability.csv"
+SELECTION_STABILITY_PNG = SELECTION / "stability.png"
 SCORES_LONG = REPORTS / "cross_season_scores.csv"
+CANDIDATE_SCORES = REPORTS / "model_scores.csv"
 MATRIX_CSV = REPORTS / "cross_season_matrix.csv"
-MATRIX_PNG = REPORTS / "cross_season_matrix.png"
+MATRICES = REPORTS / "matrices"
+MODEL_COMPARISON = REPORTS / "model_comparison.md"
+COMPARISON_FIGURES = REPORTS / "comparison"
 PLOTS = REPORTS / "plots"
-PLOT_SCORES_BY_TRAIN = PLOTS / "scores_by_train_campaign.csv"
+PLOT_MODEL_SCORES = PLOTS / "model_scores.csv"
 PLOT_PREDICTIONS = PLOTS / "predicted_vs_measured.csv"
 TRACKING_RECORD = REPORTS / "mlflow_run.json"
 
 METRICS = Path("metrics")
 CROSS_SEASON_METRICS = METRICS / "cross_season.json"
 FITTED_MODELS = REPORTS / "fitted_models.json"
+
+AXIS_MODEL_REPORT = REPORTS / "axis_model.json"
+AXIS_MODEL_PLOT = REPORTS / "axis_model.png"
+AXIS_MODEL_METRICS = METRICS / "axis_model.json"

@@ -85,3 +85,68 @@ def axis_separation(
     out.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(out, dpi=110)
     plt.close(fig)
+
+
+def selection_stability(stability: pd.DataFrame, title: str, out: Path) -> None:
+    """Heat-map of how often each method chose each sensor across the training campaigns.
+
+    Parameters
+    ----------
+    stability : DataFrame
+        ``method``, ``sensor``, ``frequency`` (0-1), ``times_chosen``, ``n_campaigns``.
+    title : str
+        Figure title (says whether the data are synthetic).
+    out : Path
+        PNG path; parent folders are created.
+    """
+    table = stability.pivot_table(index="method", columns="sensor", values="frequency")
+    counts = stability.pivot_table(index="method", columns="sensor", values="times_chosen")
+    fig, ax = plt.subplots(figsize=(1.0 + 0.7 * max(table.shape[1], 1), 1.5 + 0.5 * len(table)))
+    image = ax.imshow(table.to_numpy(dtype=float), cmap="Blues", vmin=0, vmax=1, aspect="auto")
+    ax.set_xticks(range(table.shape[1]), table.columns)
+    ax.set_yticks(range(table.shape[0]), table.index)
+    for (i, j), value in np.ndenumerate(counts.to_numpy(dtype=float)):
+        if np.isfinite(value):
+            ax.text(j, i, f"{int(value)}", ha="center", va="center", fontsize=8)
+    fig.colorbar(image, ax=ax, label="share of training campaigns")
+    ax.set_title(title, fontsize=9)
+    fig.tight_layout()
+    out.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(out, dpi=110)
+    plt.close(fig)
+
+
+def predicted_vs_measured(
+    panels: dict[str, pd.DataFrame], labels: tuple[str, str], title: str, out: Path
+) -> None:
+    """Measured thermal error and two models' predictions, one panel per campaign.
+
+    Parameters
+    ----------
+    panels : dict of str to DataFrame
+        Campaign id -> ``elapsed_min``, ``measured_um``, ``first_um``, ``second_um``.
+    labels : tuple of str
+        Legend labels of ``first_um`` and ``second_um``.
+    title : str
+    out : Path
+        PNG path; parent folders are created.
+    """
+    n = max(len(panels), 1)
+    columns = min(n, 3)
+    rows = -(-n // columns)
+    fig, axes = plt.subplots(rows, columns, figsize=(5 * columns, 3.2 * rows), squeeze=False)
+    for ax, (campaign, frame) in zip(axes.flat, panels.items(), strict=False):
+        ax.plot(frame["elapsed_min"], frame["measured_um"], "k.", ms=3, label="measured")
+        ax.plot(frame["elapsed_min"], frame["first_um"], "-", label=labels[0])
+        ax.plot(frame["elapsed_min"], frame["second_um"], "--", label=labels[1])
+        ax.set_title(campaign)
+        ax.set_xlabel("time (min)")
+        ax.set_ylabel("thermal error (um)")
+    for ax in list(axes.flat)[len(panels) :]:
+        ax.set_visible(False)
+    axes.flat[0].legend(fontsize=7)
+    fig.suptitle(title, fontsize=10)
+    fig.tight_layout()
+    out.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(out, dpi=100)
+    plt.close(fig)

@@ -60,9 +60,9 @@ def summarise(scores: pd.DataFrame) -> dict[str, float]:
     Parameters
     ----------
     scores : DataFrame
-        Rows of the long score table (columns ``train_campaign``, ``role`` in
-        {"fit", "prediction", "validation"}, ``resid_std_um``, ``rmse_um``) for one model and
-        selection; one or many training campaigns.
+        Rows of the long score table (columns ``role`` in {"fit", "prediction",
+        "validation"}, ``resid_std_um``, ``rmse_um``) for one candidate and scheme; one or many
+        training units.
 
     Returns
     -------
@@ -83,38 +83,66 @@ def summarise(scores: pd.DataFrame) -> dict[str, float]:
     return summary
 
 
+SCHEMES = ("campaign", "season", "pooled")
+CANDIDATE_KEYS = ["model", "selection", "mode"]
+
+
 def metrics_tree(scores: pd.DataFrame) -> dict:
-    """Nest summaries as ``{model: {selection: {"overall": {...}, "by_train_campaign": {...}}}}``.
+    """Nest summaries as ``{model: {selection: {mode: {scheme: {...}}}}}``.
+
+    Each scheme entry holds ``overall`` (:func:`summarise` of all its rows) and
+    ``by_train_unit`` (one summary per training campaign, left-out season or pooled unit).
 
     Parameters
     ----------
     scores : DataFrame
-        The whole long score table.
+        The whole long score table (``schemas.CrossSeasonScoresModel``).
     """
     tree: dict = {}
-    for (model, selection), group in scores.groupby(["model", "selection"], sort=True):
-        tree.setdefault(model, {})[selection] = {
+    for (model, selection, mode, scheme), group in scores.groupby(
+        [*CANDIDATE_KEYS, "scheme"], sort=True
+    ):
+        modes = tree.setdefault(model, {}).setdefault(selection, {}).setdefault(mode, {})
+        modes[scheme] = {
             "overall": summarise(group),
-            "by_train_campaign": {
-                str(train): summarise(rows)
-                for train, rows in group.groupby("train_campaign", sort=True)
+            "by_train_unit": {
+                str(unit): summarise(rows) for unit, rows in group.groupby("train_unit", sort=True)
             },
         }
     return tree
 
 
-def score_matrix(scores: pd.DataFrame, column: str) -> pd.DataFrame:
-    """Train campaign x test campaign matrix of one score column (um).
+def candidate_summary(scores: pd.DataFrame) -> pd.DataFrame:
+    """One row per (model, selection, mode): the overall scores of every scheme.
 
-    Rows are training campaigns, columns the training campaigns then the validation ones, in the
-    order they appear in ``scores``.
+    Columns are the candidate keys, then ``S_um``, ``Mn_um``... of the ``campaign`` scheme (the
+    PCDL paper's protocol), ``loso_`` + the same for leave-one-season-out and ``pooled_`` + the
+    same for the model built on all training campaigns; all in um.
+    """
+    rows = []
+    for keys, group in scores.groupby(CANDIDATE_KEYS, sort=True):
+        row = dict(zip(CANDIDATE_KEYS, keys, strict=True))
+        for scheme, prefix in zip(SCHEMES, ("", "loso_", "pooled_"), strict=True):
+            part = group[group["scheme"] == scheme]
+            if len(part):
+                row.update({prefix + key: value for key, value in summarise(part).items()})
+        rows.append(row)
+    return pd.DataFrame(rows)
+
+
+def score_matrix(scores: pd.DataFrame, column: str) -> pd.DataFrame:
+    """Training unit x test campaign matrix of one score column (um) for one candidate.
+
+    Rows are training units in the order they appear, columns the training campaigns then the
+    validation ones.
     """
     order = list(dict.fromkeys(scores.sort_values(["test_split", "test_campaign"],
                                                   key=_split_order)["test_campaign"]))  # fmt: skip
+    units = list(dict.fromkeys(scores["train_unit"]))
     matrix = scores.pivot_table(
-        index="train_campaign", columns="test_campaign", values=column, aggfunc="first"
+        index="train_unit", columns="test_campaign", values=column, aggfunc="first"
     )
-    return matrix.reindex(columns=order)
+    return matrix.reindex(index=units, columns=order)
 
 
 def _split_order(column: pd.Series) -> pd.Series:

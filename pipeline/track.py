@@ -1,15 +1,18 @@
 """The ``track`` stage: log the cross-season scores of one pipeline execution to MLflow.
 
-``thermal track`` (run from the repository root) reads the evaluate outputs
-(``reports/fitted_models.json``, ``reports/cross_season_scores.csv``,
-``metrics/cross_season.json``) and logs
+``thermal track`` (run from the repository root) reads the select and evaluate outputs
+(``reports/selection/selected.json``, ``reports/fitted_models.json``,
+``reports/cross_season_scores.csv``, ``metrics/cross_season.json``, ``data/models/champion``)
+and logs
 
-- one parent run per pipeline execution: overall scores ``<model>.<selection>.<key>`` (um), the
-  whole ``params.yaml`` as parameters, tags ``run_identity``, ``git_commit``, ``synthetic``,
-  ``dvc.*`` (md5 hashes from ``dvc.lock``), and the report files as artifacts;
-- one child run per (model, selection, train campaign) with parameters ``model``, ``selection``,
-  ``train_campaign``, ``sensors``, ``params`` and metrics ``rmse_um.<test campaign>``,
-  ``resid_std_um.<test campaign>`` for every scored campaign plus ``S_um``, ``Mn_um``, ``Sd_um``...
+- one parent run per pipeline execution: overall scores
+  ``<model>.<selection>.<mode>.<scheme>.<key>`` (um), the whole ``params.yaml`` and every
+  selection's sensors (``selected.<method>.<unit>``) as parameters, tags ``run_identity``,
+  ``git_commit``, ``synthetic``, ``dvc.*`` (md5 hashes from ``dvc.lock``), the report files
+  (comparison report, matrices, selection evidence) as artifacts, and the champion model,
+  registered in the model registry as ``track.registered_model`` with the alias ``champion``;
+- one child run per candidate (model, selection, mode) with its summary scores, every
+  cross-campaign score and what each fit decided (see :mod:`pipeline.tracking.records`).
 
 The store is ``$MLFLOW_TRACKING_URI`` when set, else ``track.default_tracking_uri``
 (``sqlite:///mlflow.db`` in the working directory, artifacts in ``mlartifacts/`` beside it).
@@ -38,12 +41,19 @@ import yaml
 
 from pipeline.config import DEFAULT_PARAMS, load_section
 from pipeline.paths import (
+    CANDIDATE_SCORES,
+    CHAMPION_CARD,
+    CHAMPION_ESTIMATOR,
+    COMPARISON_FIGURES,
     CROSS_SEASON_METRICS,
     FITTED_MODELS,
+    MATRICES,
     MATRIX_CSV,
-    MATRIX_PNG,
+    MODEL_COMPARISON,
     RAW,
     SCORES_LONG,
+    SELECTED,
+    SELECTION,
     SEPARATION_PLOTS,
     TRACKING_RECORD,
     VALIDATION_REPORT,
@@ -58,7 +68,8 @@ DVC_LOCK = Path("dvc.lock")
 ENV_TRACKING_URI = "MLFLOW_TRACKING_URI"
 DEFAULT_TRACKING_URI = "sqlite:///mlflow.db"
 DEFAULT_ARTIFACT_DIR = "mlartifacts"
-SCORE_FILES = (SCORES_LONG, CROSS_SEASON_METRICS, FITTED_MODELS)
+SCORE_FILES = (SCORES_LONG, CROSS_SEASON_METRICS, FITTED_MODELS, SELECTED, CHAMPION_CARD)
+DEFAULT_REGISTERED_MODEL = "thermal-error-spindle"
 
 
 def resolve_tracking_uri(settings: Mapping[str, Any]) -> str:
@@ -204,12 +215,16 @@ def read_scores(path: Path) -> list[dict[str, Any]]:
 def artifact_files() -> list[tuple[Path, str]]:
     """Report files that exist, each with the artifact folder that mirrors its own folder."""
     candidates = [
+        MODEL_COMPARISON,
         MATRIX_CSV,
-        MATRIX_PNG,
         SCORES_LONG,
+        CANDIDATE_SCORES,
         FITTED_MODELS,
         CROSS_SEASON_METRICS,
         VALIDATION_REPORT,
+        *sorted(COMPARISON_FIGURES.glob("*.png")),
+        *sorted(MATRICES.glob("*.png")),
+        *sorted(SELECTION.glob("*")),
         *sorted(SEPARATION_PLOTS.glob("*.png")),
     ]
     return [(path, path.parent.as_posix()) for path in candidates if path.is_file()]
@@ -230,7 +245,7 @@ def _parse_args(argv: list[str]) -> argparse.Namespace:
         prog="thermal track",
         description=(
             "Log the evaluate outputs to MLflow: one parent run per pipeline execution, one "
-            f"child per model/selection/train campaign. Store: ${ENV_TRACKING_URI} or "
+            f"child per candidate model/selection/mode, and register the champion. Store: ${ENV_TRACKING_URI} or "
             f"{DEFAULT_TRACKING_URI}; writes {TRACKING_RECORD}."
         ),
     )
@@ -254,6 +269,7 @@ def prepare(params_path: Path) -> Prepared:
     all_params = _load_params(params_path)
     fitted = read_json(FITTED_MODELS)
     cross_season = read_json(CROSS_SEASON_METRICS)
+    selected = read_json(SELECTED)["methods"]
     score_rows = read_scores(SCORES_LONG)
 
     code_dirs = [_package_dir("pipeline"), _package_dir("schemas")]
@@ -268,9 +284,23 @@ def prepare(params_path: Path) -> Prepared:
     )
     children = records.child_records(fitted, score_rows, cross_season, {"synthetic": synthetic})
     parent = records.parent_record(
-        f"pipeline-{run_identity.value[:12]}", cross_season, all_params, tags
+        f"pipeline-{run_identity.value[:12]}", cross_season, all_params, tags, selected
     )
     return Prepared(run_identity, synthetic, commit, parent, children)
+
+
+def champion_hook(tracking_uri: str, registered: str):
+    """Callback logging and registering the champion on the parent run (``None`` without one)."""
+    if not (CHAMPION_ESTIMATOR.is_file() and CHAMPION_CARD.is_file()):
+        logger.warning("%s not found: no champion model to register", CHAMPION_ESTIMATOR)
+        return None
+
+    def register(parent_id: str) -> None:
+        from pipeline.tracking.champion_model import log_and_register
+
+        log_and_register(tracking_uri, parent_id, registered, CHAMPION_ESTIMATOR, CHAMPION_CARD)
+
+    return register
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -304,6 +334,7 @@ def main(argv: list[str] | None = None) -> int:
             f"({str(error)[:300]}); start the server or fix MLFLOW_TRACKING_URI, or unset it "
             "to log to the local store sqlite:///mlflow.db"
         ) from error
+    registered = str(settings.get("registered_model") or DEFAULT_REGISTERED_MODEL)
     existing = store.find_parent(client, experiment_id, prepared.identity.value)
     if existing is not None:
         parent_id = existing.info.run_id
@@ -317,8 +348,9 @@ def main(argv: list[str] | None = None) -> int:
         )
     else:
         parent_id = store.log_pipeline(
-            client, experiment_id, prepared.parent, prepared.children, artifact_files(), batch_size
-        )
+            client, experiment_id, prepared.parent, prepared.children, artifact_files(),
+            batch_size, champion_hook(absolute_store_uri(uri), registered),
+        )  # fmt: skip
         logger.info(
             "logged parent run %s with %d child runs and %d metrics to experiment '%s' (%s)",
             parent_id,
@@ -327,6 +359,7 @@ def main(argv: list[str] | None = None) -> int:
             experiment,
             public_uri(uri),
         )
+    champion = store.champion_version(client, registered, "champion")
     finished = time.perf_counter()
     logger.info(
         "track took %.2f s (reading and hashing %.2f s, MLflow %.2f s)",
@@ -343,6 +376,9 @@ def main(argv: list[str] | None = None) -> int:
         "identity_parts": prepared.identity.parts,
         "reused": existing is not None,
         "child_runs": len(prepared.children),
+        "registered_model": registered,
+        "champion_version": champion,
+        "champion_uri": f"models:/{registered}@champion" if champion else None,
         "metrics": n_metrics,
         "git_commit": prepared.git_commit,
         "synthetic": prepared.synthetic,

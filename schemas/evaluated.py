@@ -1,7 +1,8 @@
 """Pandera model of ``reports/cross_season_scores.csv`` written by ``evaluate``.
 
-One row per (model, selection, train campaign, test campaign): the model trained on the train
-campaign and scored on the test campaign (the PCDL paper's cross-season scheme).
+One row per (model, selection, mode, training unit, test campaign): the model built on the
+training unit (one campaign, the training campaigns of three seasons, or all of them) and scored on
+the test campaign (the PCDL paper's cross-season scheme, extended by leave-one-season-out).
 """
 
 from __future__ import annotations
@@ -14,8 +15,13 @@ from pandera.typing import Series
 from schemas.vocabulary import SPLITS
 
 SCORE_ROLES = ("fit", "prediction", "validation")
-"""``fit``: scored on its own campaign; ``prediction``: on another train campaign;
+"""``fit``: scored on a campaign it was built on; ``prediction``: on another train campaign;
 ``validation``: on a validation campaign."""
+MODES = ("static", "one_step", "free_run")
+"""``static``: from temperatures only; ``one_step``: with the measured error up to the previous
+sample; ``free_run``: the model's own predictions fed back as error history."""
+SCHEMES = ("campaign", "season", "pooled")
+"""Training unit: one campaign; all training campaigns but one season's; all of them."""
 
 
 class CrossSeasonScoresModel(pa.DataFrameModel):
@@ -27,9 +33,12 @@ class CrossSeasonScoresModel(pa.DataFrameModel):
 
     model: Series[str]
     selection: Series[str]
-    train_campaign: Series[str]
+    mode: Series[str] = pa.Field(isin=MODES)
+    scheme: Series[str] = pa.Field(isin=SCHEMES)
+    train_unit: Series[str]
     test_campaign: Series[str]
     test_split: Series[str] = pa.Field(isin=SPLITS)
+    test_season: Series[str]
     role: Series[str] = pa.Field(isin=SCORE_ROLES)
     n_samples: Series[np.int64] = pa.Field(ge=1)
     rmse_um: Series[float] = pa.Field(ge=0)
@@ -43,15 +52,21 @@ class CrossSeasonScoresModel(pa.DataFrameModel):
     @pa.dataframe_check
     @classmethod
     def role_consistent(cls, df: pd.DataFrame) -> Series[bool]:
-        """Check roles: fit = own campaign, validation = validation split, else prediction."""
-        own = df["train_campaign"] == df["test_campaign"]
+        """Check roles: validation split is validation; in the campaign scheme fit = own campaign."""
         validation = df["test_split"] == "validation"
-        expected = np.where(validation, "validation", np.where(own, "fit", "prediction"))
-        return df["role"] == pd.Series(expected, index=df.index)
+        own = df["train_unit"] == df["test_campaign"]
+        per_campaign = df["scheme"] == "campaign"
+        expected = np.where(own, "fit", "prediction")
+        consistent = np.where(
+            validation,
+            df["role"] == "validation",
+            np.where(per_campaign, df["role"] == expected, df["role"] != "validation"),
+        )
+        return pd.Series(consistent, index=df.index)
 
     @pa.dataframe_check
     @classmethod
     def one_score_per_pair(cls, df: pd.DataFrame) -> Series[bool]:
-        """Check for one row per model, selection, train campaign and test campaign."""
-        keys = ["model", "selection", "train_campaign", "test_campaign"]
+        """Check for one row per model, selection, mode, training unit and test campaign."""
+        keys = ["model", "selection", "mode", "train_unit", "test_campaign"]
         return ~df.duplicated(keys, keep=False)

@@ -1,17 +1,26 @@
 import numpy as np
 import pandas as pd
 import pytest
+from sklearn.base import BaseEstimator, RegressorMixin
+from sklearn.linear_model import LinearRegression
 
-from pipeline.cross_season import available_sensors, campaign_series, cross_season
-from pipeline.models import make_model
+from pipeline.cross_season import Candidate, fit_and_score, modes_of
+from pipeline.training_units import campaign_series, stack, training_units
 
 GAINS = np.array([3.0, -1.5])
+CAMPAIGNS = [
+    ("K1", "train", "winter"),
+    ("K2", "train", "summer"),
+    ("K3", "train", "summer"),
+    ("V1", "validation", "autumn"),
+]
+MLR = Candidate("mlr", "all")
 
 
 def _table(campaigns, seed=0, noisy=()):
     rng = np.random.default_rng(seed)
     frames = []
-    for campaign, split in campaigns:
+    for campaign, split, season in campaigns:
         t = np.arange(50) * 180.0
         rise = np.column_stack([8 * (1 - np.exp(-t / 3000)), 4 * (1 - np.exp(-t / 9000))])
         rise += rng.normal(0, 0.05, rise.shape)
@@ -19,53 +28,102 @@ def _table(campaigns, seed=0, noisy=()):
         if campaign in noisy:
             y = y + rng.normal(0, 2.0, len(y))
         frames.append(pd.DataFrame({
-            "campaign_id": campaign, "split": split, "elapsed_s": t,
+            "campaign_id": campaign, "split": split, "season": season, "elapsed_s": t,
             "rise_T1": rise[:, 0], "rise_T2": rise[:, 1], "thermal_error_um": y,
         }))  # fmt: skip
     return pd.concat(frames, ignore_index=True)
 
 
-CAMPAIGNS = [("K1", "train"), ("K2", "train"), ("K3", "train"), ("V1", "validation")]
-
-
-def _run(table):
+def _run(table, sensors=("T1", "T2")):
     series = campaign_series(table, ["T1", "T2"], "rise_")
-    return cross_season(series, lambda: make_model("mlr"), available_sensors, n_jobs=2)
+    return [
+        fit_and_score(MLR, unit, series, LinearRegression(), list(sensors))
+        for unit in training_units(series)
+    ]
 
 
-def test_mlr_recovers_planted_gains_and_scores_near_zero():
-    fitted = _run(_table(CAMPAIGNS))
-    assert [f.train_campaign for f in fitted] == ["K1", "K2", "K3"]
-    for item in fitted:
-        np.testing.assert_allclose(item.estimator.coef_, GAINS, atol=1e-9)
-        assert item.scores["resid_std_um"].max() < 1e-9
-        roles = dict(zip(item.scores["test_campaign"], item.scores["role"], strict=True))
-        assert roles.pop(item.train_campaign) == "fit"
+def test_units_are_each_campaign_each_left_out_season_and_all_training():
+    series = campaign_series(_table(CAMPAIGNS), ["T1", "T2"], "rise_")
+    units = {(u.name, u.scheme): u.campaigns for u in training_units(series)}
+    assert units == {
+        ("K1", "campaign"): ("K1",),
+        ("K2", "campaign"): ("K2",),
+        ("K3", "campaign"): ("K3",),
+        ("not_winter", "season"): ("K2", "K3"),
+        ("not_summer", "season"): ("K1",),
+        ("all_training", "pooled"): ("K1", "K2", "K3"),
+    }
+
+
+def test_stacked_campaigns_are_contiguous_blocks_with_campaign_index():
+    series = campaign_series(_table(CAMPAIGNS), ["T1", "T2"], "rise_")
+    X, y = stack(series[:2], ["T2"])
+    assert list(X.index.names) == ["campaign_id", "elapsed_s"]
+    assert list(X.index.get_level_values(0).unique()) == ["K1", "K2"]
+    assert X.shape == (100, 1) and y.shape == (100,)
+
+
+def test_mlr_recovers_planted_gains_and_roles_follow_the_unit():
+    results = _run(_table(CAMPAIGNS))
+    for result in results:
+        np.testing.assert_allclose(result.estimator.coef_, GAINS, atol=1e-9)
+        assert result.scores["resid_std_um"].max() < 1e-9
+        roles = dict(zip(result.scores["test_campaign"], result.scores["role"], strict=True))
         assert roles.pop("V1") == "validation"
-        assert set(roles.values()) == {"prediction"}
+        for campaign, role in roles.items():
+            assert role == ("fit" if campaign in result.unit.campaigns else "prediction")
+    assert set(results[0].scores["mode"]) == {"static"}
 
 
-def test_no_leakage_a_campaign_only_affects_its_own_model_and_its_scores():
+def test_no_leakage_a_campaign_only_affects_units_that_contain_it():
     clean = _run(_table(CAMPAIGNS))
     noisy = _run(_table(CAMPAIGNS, noisy=("K3",)))
-    for before, after in zip(clean[:2], noisy[:2], strict=True):
+    for before, after in zip(clean, noisy, strict=True):
+        if "K3" in before.unit.campaigns:
+            assert not np.allclose(before.estimator.coef_, after.estimator.coef_)
+            continue
         np.testing.assert_allclose(before.estimator.coef_, after.estimator.coef_)
         unchanged = before.scores["test_campaign"] != "K3"
         pd.testing.assert_frame_equal(before.scores[unchanged], after.scores[unchanged])
         assert after.scores.set_index("test_campaign").loc["K3", "resid_std_um"] > 1.0
-    assert not np.allclose(clean[2].estimator.coef_, noisy[2].estimator.coef_)
 
 
-def test_campaign_without_a_model_sensor_scores_nan():
+def test_campaign_without_a_model_sensor_gets_no_score_row():
     table = _table(CAMPAIGNS)
-    table.loc[table["campaign_id"] == "K2", "rise_T2"] = np.nan
-    fitted = _run(table)
-    k1 = fitted[0].scores.set_index("test_campaign")
-    assert np.isnan(k1.loc["K2", "rmse_um"]) and k1.loc["K2", "n_samples"] == 0
-    assert fitted[1].sensors == ["T1"]
+    table.loc[table["campaign_id"] == "V1", "rise_T2"] = np.nan
+    k1 = _run(table)[0]
+    assert "V1" not in set(k1.scores["test_campaign"])
+    assert np.isnan(k1.predictions[("static", "V1")]).all()
 
 
 def test_no_training_campaign_is_a_clear_error():
-    table = _table([("V1", "validation")])
+    series = campaign_series(_table([("V1", "validation", "autumn")]), ["T1"], "rise_")
     with pytest.raises(ValueError, match="mark at least one campaign split: train"):
-        _run(table)
+        training_units(series)
+
+
+class _History(RegressorMixin, BaseEstimator):
+    """Predicts the previous measured error (one step) or zero (free run)."""
+
+    needs_error_feedback = True
+
+    def fit(self, X, y):
+        self.n_train_ = len(y)
+        return self
+
+    def predict(self, X, y_history=None):
+        if y_history is None:
+            return np.zeros(len(X))
+        return np.concatenate([[0.0], np.asarray(y_history)[:-1]])
+
+
+def test_error_feedback_models_are_scored_one_step_and_free_run():
+    series = campaign_series(_table(CAMPAIGNS), ["T1", "T2"], "rise_")
+    unit = training_units(series)[0]
+    assert modes_of(_History()) == ("one_step", "free_run")
+    result = fit_and_score(Candidate("h", "none"), unit, series, _History(), [])
+    by_mode = result.scores.groupby("mode")["rmse_um"].mean()
+    assert set(by_mode.index) == {"one_step", "free_run"}
+    assert by_mode["one_step"] < by_mode["free_run"]
+    measured = series[1].target
+    np.testing.assert_allclose(result.predictions[("one_step", "K2")][1:], measured[:-1])

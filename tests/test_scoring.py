@@ -3,6 +3,7 @@ import pandas as pd
 import pytest
 
 from pipeline.scoring import (
+    candidate_summary,
     metrics_tree,
     residual_std,
     root_mean_square,
@@ -24,10 +25,11 @@ def test_residual_std_matches_eq_8_and_ignores_nan():
     assert np.isnan(residual_std(np.array([1.0])))
 
 
-def _rows(train, values):
+def _rows(train, values, scheme="campaign", mode="static"):
     return [
-        {"model": "mlr", "selection": "all", "train_campaign": train, "test_campaign": test,
-         "test_split": split, "role": role, "resid_std_um": v, "rmse_um": 2 * v}
+        {"model": "mlr", "selection": "all", "mode": mode, "scheme": scheme, "train_unit": train,
+         "test_campaign": test, "test_split": split, "role": role, "resid_std_um": v,
+         "rmse_um": 2 * v}
         for test, split, role, v in values
     ]  # fmt: skip
 
@@ -45,17 +47,36 @@ def test_summary_uses_other_training_campaigns_for_mn_and_validation_separately(
     assert summary["Mn_rms_um"] == 8.0
 
 
-def test_metrics_tree_and_matrix_layout():
-    scores = pd.DataFrame(
+def _two_campaigns_and_a_season():
+    return pd.DataFrame(
         _rows("K1", [("K1", "train", "fit", 1.0), ("K2", "train", "prediction", 3.0),
                      ("V1", "validation", "validation", 6.0)])
         + _rows("K2", [("K1", "train", "prediction", 2.0), ("K2", "train", "fit", 0.5),
                        ("V1", "validation", "validation", 4.0)])
+        + _rows("not_winter", [("K1", "train", "prediction", 7.0), ("K2", "train", "fit", 0.2),
+                               ("V1", "validation", "validation", 5.0)], scheme="season")
     )  # fmt: skip
-    tree = metrics_tree(scores)["mlr"]["all"]
-    assert set(tree["by_train_campaign"]) == {"K1", "K2"}
-    assert tree["overall"]["S_um"] == pytest.approx(0.75)
-    assert tree["overall"]["Mn_um"] == pytest.approx(2.5)
+
+
+def test_metrics_tree_and_matrix_layout():
+    scores = _two_campaigns_and_a_season()
+    tree = metrics_tree(scores)["mlr"]["all"]["static"]
+    assert set(tree) == {"campaign", "season"}
+    assert set(tree["campaign"]["by_train_unit"]) == {"K1", "K2"}
+    assert tree["campaign"]["overall"]["S_um"] == pytest.approx(0.75)
+    assert tree["campaign"]["overall"]["Mn_um"] == pytest.approx(2.5)
+    assert tree["season"]["overall"]["Mn_um"] == 7.0
     matrix = score_matrix(scores, "resid_std_um")
     assert list(matrix.columns) == ["K1", "K2", "V1"]
+    assert list(matrix.index) == ["K1", "K2", "not_winter"]
     assert matrix.loc["K2", "K1"] == 2.0 and matrix.loc["K1", "V1"] == 6.0
+
+
+def test_candidate_summary_has_one_row_per_candidate_with_scheme_prefixes():
+    scores = _two_campaigns_and_a_season()
+    summary = candidate_summary(scores)
+    assert len(summary) == 1
+    row = summary.iloc[0]
+    assert row["Mn_um"] == pytest.approx(2.5)
+    assert row["loso_Mn_um"] == 7.0 and row["loso_Mn_val_um"] == 5.0
+    assert "pooled_Mn_val_um" not in summary

@@ -1,11 +1,13 @@
 """Turn the evaluate outputs into MLflow run records (pure: no files, no MLflow).
 
 One parent record per pipeline execution (overall scores, all parameters, provenance tags) and
-one child record per (model, selection, train campaign) found in ``reports/fitted_models.json``,
-``reports/cross_season_scores.csv`` or the ``by_train_campaign`` part of
-``metrics/cross_season.json``. A child's metrics are every cross-campaign score of its rows,
-``rmse_um.<test campaign>`` and ``resid_std_um.<test campaign>`` (um), plus the keys of its
-``by_train_campaign`` entry (``S_um``, ``Mn_um``, ``Sd_um``, ...).
+one child record per candidate (model, selection, mode) found in
+``reports/cross_season_scores.csv`` or ``metrics/cross_season.json``, so that the MLflow UI
+lists the candidates side by side. A child's metrics are its summary scores (``S_um``,
+``Mn_um``, ``Sd_um``, ``Mn_val_um``... of the per-campaign protocol; ``loso.*`` leave one
+season out; ``pooled.*`` built on all training campaigns; ``unit.<unit>.*`` per training unit)
+and every cross-campaign score ``rmse_um.<train unit>.<test campaign>`` and
+``resid_std_um.<train unit>.<test campaign>`` (um).
 """
 
 from __future__ import annotations
@@ -22,8 +24,9 @@ from typing import Any
 logger = logging.getLogger(__name__)
 
 SCORE_COLUMNS = ("rmse_um", "resid_std_um")
-KEY_COLUMNS = ("model", "selection", "train_campaign")
-REQUIRED_SCORE_COLUMNS = (*KEY_COLUMNS, "test_campaign", *SCORE_COLUMNS)
+KEY_COLUMNS = ("model", "selection", "mode")
+REQUIRED_SCORE_COLUMNS = (*KEY_COLUMNS, "train_unit", "test_campaign", *SCORE_COLUMNS)
+SCHEME_PREFIX = {"campaign": "", "season": "loso", "pooled": "pooled"}
 IDENTITY_TAG = "run_identity"
 PARENT_RUN_TAG = "mlflow.parentRunId"
 MAX_PARAM_LENGTH = 6000  # MLflow's limit on a parameter value (characters)
@@ -31,7 +34,7 @@ MAX_TAG_LENGTH = 8000  # MLflow's limit on a tag value (characters)
 
 _BAD_KEY_CHARS = re.compile(r"[^\w.\- /]")
 
-ChildKey = tuple[str, str, str]
+ChildKey = tuple[str, ...]
 
 
 @dataclass(frozen=True)
@@ -136,14 +139,14 @@ def scores_by_child(
     Returns
     -------
     dict
-        ``{(model, selection, train_campaign): {"rmse_um.<test>": um, "resid_std_um.<test>":
-        um, ...}}``.
+        ``{(model, selection, mode): {"rmse_um.<train unit>.<test>": um,
+        "resid_std_um.<train unit>.<test>": um, ...}}``.
 
     Raises
     ------
     ValueError
         If a required column is missing, a score is not a number, or a (model, selection,
-        train campaign, test campaign) row appears twice; the message names the row.
+        mode, train unit, test campaign) row appears twice; the message names the row.
     """
     if rows:
         missing = [column for column in REQUIRED_SCORE_COLUMNS if column not in rows[0]]
@@ -153,55 +156,67 @@ def scores_by_child(
                 "rerun the evaluate stage (dvc repro evaluate)"
             )
     children: dict[ChildKey, dict[str, float]] = {}
-    seen: dict[tuple[str, str, str, str], int] = {}
+    seen: dict[tuple[str, ...], int] = {}
     for number, row in enumerate(rows, start=1):
-        key = (row["model"], row["selection"], row["train_campaign"])
-        test = row["test_campaign"]
-        if (*key, test) in seen:
+        key = tuple(str(row[column]) for column in KEY_COLUMNS)
+        pair = (*key, str(row["train_unit"]), str(row["test_campaign"]))
+        if pair in seen:
             raise ValueError(
-                f"{source}, data row {number}: model={key[0]} selection={key[1]} "
-                f"train_campaign={key[2]} test_campaign={test} already on data row "
-                f"{seen[(*key, test)]}; each pair must be scored once, fix the evaluate stage"
+                f"{source}, data row {number}: model={key[0]} selection={key[1]} mode={key[2]} "
+                f"train_unit={pair[3]} test_campaign={pair[4]} already on data row "
+                f"{seen[pair]}; each pair must be scored once, fix the evaluate stage"
             )
-        seen[(*key, test)] = number
+        seen[pair] = number
         metrics = children.setdefault(key, {})
         for column in SCORE_COLUMNS:
-            metrics[safe_key(column, test)] = parse_score(row[column], source, number, column)
+            metrics[safe_key(column, pair[3], pair[4])] = parse_score(
+                row[column], source, number, column
+            )
     return children
 
 
-def _entry_metrics(entry: Mapping[str, Any]) -> dict[str, float]:
+def _entry_metrics(entry: Mapping[str, Any], *prefix: str) -> dict[str, float]:
     metrics = {}
     for key, value in entry.items():
         number = _as_metric(value)
         if number is not None:
-            metrics[safe_key(key)] = number
+            metrics[safe_key(*prefix, key)] = number
     return metrics
 
 
-def _by_train(cross_season: Mapping[str, Any]) -> dict[ChildKey, Mapping[str, Any]]:
-    entries = {}
+def summary_metrics(cross_season: Mapping[str, Any]) -> dict[ChildKey, dict[str, float]]:
+    """Summary scores per candidate from ``metrics/cross_season.json``.
+
+    Returns
+    -------
+    dict
+        ``{(model, selection, mode): metrics}``: the ``campaign`` scheme's overall scores
+        under their own names (``S_um``, ``Mn_um``...), the other schemes' as
+        ``<SCHEME_PREFIX>.<key>``, and every training unit's as ``unit.<unit>.<key>`` (um).
+    """
+    found: dict[ChildKey, dict[str, float]] = {}
     for model, selections in cross_season.items():
-        for selection, body in (selections or {}).items():
-            for train, entry in ((body or {}).get("by_train_campaign") or {}).items():
-                entries[(str(model), str(selection), str(train))] = entry or {}
-    return entries
+        for selection, modes in (selections or {}).items():
+            for mode, schemes in (modes or {}).items():
+                metrics = found.setdefault((str(model), str(selection), str(mode)), {})
+                for scheme, body in (schemes or {}).items():
+                    prefix = SCHEME_PREFIX.get(scheme, scheme)
+                    overall = (body or {}).get("overall") or {}
+                    metrics.update(_entry_metrics(overall, *([prefix] if prefix else [])))
+                    for unit, entry in ((body or {}).get("by_train_unit") or {}).items():
+                        metrics.update(_entry_metrics(entry or {}, "unit", unit))
+    return found
 
 
-def _fitted_by_key(fitted: Mapping[str, Any]) -> dict[ChildKey, Mapping[str, Any]]:
-    entries = {}
+def _fitted_by_candidate(fitted: Mapping[str, Any]) -> dict[tuple[str, str], list[Mapping]]:
+    entries: dict[tuple[str, str], list[Mapping]] = {}
     for name, entry in fitted.items():
-        parts = name.split("/") if len(name.split("/")) == 3 else [None] * 3
-        key = tuple(
-            str(entry[column]) if entry.get(column) is not None else part
-            for column, part in zip(KEY_COLUMNS, parts, strict=True)
-        )
-        if None in key:
+        if not {"model", "selection", "train_unit"} <= set(entry):
             raise ValueError(
-                f"fitted_models.json, entry '{name}': expected 'model/selection/train_campaign' "
-                "or the keys model, selection, train_campaign; rerun the evaluate stage"
+                f"fitted_models.json, entry '{name}': expected the keys model, selection, "
+                "train_unit; rerun the evaluate stage"
             )
-        entries[key] = entry
+        entries.setdefault((str(entry["model"]), str(entry["selection"])), []).append(entry)
     return entries
 
 
@@ -211,13 +226,13 @@ def child_records(
     cross_season: Mapping[str, Any],
     tags: Mapping[str, str] | None = None,
 ) -> list[RunRecord]:
-    """Build one child record per (model, selection, train campaign).
+    """Build one child record per candidate (model, selection, mode).
 
     Parameters
     ----------
     fitted : mapping
-        ``reports/fitted_models.json``: ``{"<model>/<selection>/<train>": {"model",
-        "selection", "train_campaign", "sensors": [...], "params": {...}}}``.
+        ``reports/fitted_models.json``: ``{"<model>/<selection>/<unit>": {"model",
+        "selection", "train_unit", "scheme", "sensors": [...], "chosen_params": {...}}}``.
     score_rows : sequence of mapping
         Rows of ``reports/cross_season_scores.csv``.
     cross_season : mapping
@@ -228,42 +243,30 @@ def child_records(
     Returns
     -------
     list of RunRecord
-        Sorted by (model, selection, train campaign); the union of the keys of the three
-        inputs (a key missing from one of them is logged as a warning).
+        Sorted by (model, selection, mode). Parameters: ``model``, ``selection``, ``mode``,
+        ``sensors.<unit>`` (chosen sensors, comma-separated) and ``chosen.<unit>.<name>`` (what
+        each fit decided: lag order, components, penalty...). Metrics: see
+        :func:`summary_metrics` and :func:`scores_by_child`.
     """
     scores = scores_by_child(score_rows)
-    summaries = _by_train(cross_season)
-    models = _fitted_by_key(fitted)
+    summaries = summary_metrics(cross_season)
+    models = _fitted_by_candidate(fitted)
     records = []
-    for key in sorted(set(scores) | set(summaries) | set(models)):
-        model, selection, train = key
+    for key in sorted(set(scores) | set(summaries)):
+        model, selection, mode = key
         name = "/".join(key)
-        for what, table in (
-            ("fitted_models.json", models),
-            ("cross_season_scores.csv", scores),
-            ("cross_season.json by_train_campaign", summaries),
-        ):
+        for what, table in (("cross_season_scores.csv", scores), ("cross_season.json", summaries)):
             if key not in table:
                 logger.warning("%s: no entry for %s; its child run lacks that part", what, name)
-        entry = models.get(key, {})
-        sensors = [str(sensor) for sensor in entry.get("sensors") or []]
-        params = {
-            "model": model,
-            "selection": selection,
-            "train_campaign": train,
-            "sensors": _text(",".join(sensors), MAX_PARAM_LENGTH, f"{name} sensors"),
-            "n_sensors": str(len(sensors)),
-            "params": _text(entry.get("params") or {}, MAX_PARAM_LENGTH, f"{name} params"),
-        }
-        for param, value in flatten(entry.get("params") or {}).items():
-            params[safe_key("params", param)] = _text(value, MAX_PARAM_LENGTH, f"{name} {param}")
-        metrics = {**scores.get(key, {}), **_entry_metrics(summaries.get(key, {}))}
-        child_tags = {
-            **(tags or {}),
-            "model": model,
-            "selection": selection,
-            "train_campaign": train,
-        }
+        params = {"model": model, "selection": selection, "mode": mode}
+        for entry in models.get((model, selection), []):
+            unit = str(entry["train_unit"])
+            sensors = ",".join(str(sensor) for sensor in entry.get("sensors") or [])
+            params[safe_key("sensors", unit)] = _text(sensors or "-", MAX_PARAM_LENGTH, name)
+            for param, value in flatten(entry.get("chosen_params") or {}).items():
+                params[safe_key("chosen", unit, param)] = _text(value, MAX_PARAM_LENGTH, name)
+        metrics = {**scores.get(key, {}), **summaries.get(key, {})}
+        child_tags = {**(tags or {}), "model": model, "selection": selection, "mode": mode}
         records.append(RunRecord(name=name, params=params, metrics=metrics, tags=child_tags))
     return records
 
@@ -273,6 +276,7 @@ def parent_record(
     cross_season: Mapping[str, Any],
     params: Mapping[str, Any],
     tags: Mapping[str, str],
+    selected: Mapping[str, Mapping[str, Mapping[str, Any]]] | None = None,
 ) -> RunRecord:
     """Build the parent record: overall scores, every parameter, provenance tags.
 
@@ -281,24 +285,33 @@ def parent_record(
     name : str
         Run name.
     cross_season : mapping
-        ``metrics/cross_season.json``; each ``overall`` entry becomes metrics
-        ``<model>.<selection>.<key>`` (um).
+        ``metrics/cross_season.json``; each scheme's ``overall`` entry becomes metrics
+        ``<model>.<selection>.<mode>.<scheme>.<key>`` (um).
     params : mapping
         The whole parsed ``params.yaml``, flattened to ``<section>.<key>`` parameters.
     tags : mapping
         Provenance tags (identity, git commit, data hashes, synthetic flag).
+    selected : mapping, optional
+        ``reports/selection/selected.json`` ``methods``; each method's choice on each training
+        unit becomes a parameter ``selected.<method>.<unit>`` (comma-separated sensors).
     """
     metrics = {}
     for model, selections in cross_season.items():
-        for selection, body in (selections or {}).items():
-            for key, value in ((body or {}).get("overall") or {}).items():
-                number = _as_metric(value)
-                if number is not None:
-                    metrics[safe_key(model, selection, key)] = number
+        for selection, modes in (selections or {}).items():
+            for mode, schemes in (modes or {}).items():
+                for scheme, body in (schemes or {}).items():
+                    for key, value in ((body or {}).get("overall") or {}).items():
+                        number = _as_metric(value)
+                        if number is not None:
+                            metrics[safe_key(model, selection, mode, scheme, key)] = number
     flat = {
         safe_key(key): _text(value, MAX_PARAM_LENGTH, f"params.yaml {key}")
         for key, value in flatten(params).items()
     }
+    for method, units in (selected or {}).items():
+        for unit, choice in (units or {}).items():
+            sensors = ",".join(str(s) for s in (choice or {}).get("sensors") or []) or "-"
+            flat[safe_key("selected", method, unit)] = _text(sensors, MAX_PARAM_LENGTH, method)
     clean_tags = {safe_key(k): _text(v, MAX_TAG_LENGTH, f"tag {k}") for k, v in tags.items()}
     return RunRecord(name=name, params=flat, metrics=metrics, tags=clean_tags)
 
@@ -328,7 +341,7 @@ def provenance_tags(
         tags[safe_key("dvc", stage, path) if stage else safe_key("dvc", path)] = value
     tags["mlflow.note.content"] = (
         f"Thermal-error pipeline run: git commit {commit}, synthetic data: {synthetic}, "
-        f"identity {identity[:12]}. Child runs: one per model/selection/train campaign."
+        f"identity {identity[:12]}. Child runs: one per candidate model/selection/mode."
     )
     return tags
 

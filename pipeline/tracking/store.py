@@ -11,7 +11,7 @@ from __future__ import annotations
 import logging
 import os
 import time
-from collections.abc import Iterator, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from pathlib import Path
 
 from mlflow.entities import Metric, Param, Run, RunStatus, RunTag
@@ -180,6 +180,7 @@ def log_pipeline(
     children: Sequence[RunRecord],
     artifacts: Sequence[tuple[Path, str]],
     batch_size: int,
+    before_finish: Callable[[str], None] | None = None,
 ) -> str:
     """Log the parent run, its child runs and the parent's artifacts.
 
@@ -195,11 +196,14 @@ def log_pipeline(
     parent : RunRecord
         The pipeline execution (its tags carry the run identity).
     children : sequence of RunRecord
-        One per (model, selection, train campaign); linked with ``mlflow.parentRunId``.
+        One per candidate (model, selection, mode); linked with ``mlflow.parentRunId``.
     artifacts : sequence of (Path, str)
         Local file and the artifact folder it goes to on the parent (e.g. ``"reports"``).
     batch_size : int
         Most metrics per ``log_batch`` call.
+    before_finish : callable, optional
+        Called with the parent run id after everything else is logged and before the parent is
+        marked finished (the champion model is logged and registered there).
 
     Returns
     -------
@@ -215,8 +219,18 @@ def log_pipeline(
             client.set_terminated(child_id)
         for path, folder in artifacts:
             client.log_artifact(parent_id, str(path), artifact_path=folder or None)
+        if before_finish is not None:
+            before_finish(parent_id)
     except BaseException:
         client.set_terminated(parent_id, RunStatus.to_string(RunStatus.FAILED))
         raise
     client.set_terminated(parent_id)
     return parent_id
+
+
+def champion_version(client: MlflowClient, registered_name: str, alias: str) -> str | None:
+    """Version of ``registered_name`` carrying ``alias``, or ``None`` if there is none."""
+    try:
+        return str(client.get_model_version_by_alias(registered_name, alias).version)
+    except MlflowException:
+        return None

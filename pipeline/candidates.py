@@ -1,0 +1,104 @@
+"""Which model runs on which sensor selection, and the parallel run of all of them.
+
+``params.yaml`` ``evaluate.candidates`` maps each model to the selection method that feeds it
+(the sources' defaults: DL on FC-GRD, PCDL on the grey-relational top k, MLR on the best
+subset); ``evaluate.full_grid: true`` runs every model on every selection instead. Models that
+use no temperature (``arma``, ``ar_reduced``, ``tv_ar``, ``svr``) always run on selection
+``none``.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Mapping
+
+from joblib import Parallel, delayed
+
+from pipeline.cross_season import Candidate, UnitResult, fit_and_score
+from pipeline.models import MODELS, make_model
+from pipeline.training_units import CampaignSeries, TrainingUnit
+
+LOGGER = logging.getLogger(__name__)
+
+NO_SELECTION = "none"
+
+
+def candidate_list(
+    pairs: Mapping[str, str], selections: Mapping[str, object], full_grid: bool
+) -> list[Candidate]:
+    """The candidates to score.
+
+    Parameters
+    ----------
+    pairs : mapping of str to str
+        ``evaluate.candidates``: model name -> selection method.
+    selections : mapping
+        Selection methods available (``reports/selection/selected.json`` ``methods``).
+    full_grid : bool
+        Every model on every selection method (models without temperature inputs on ``none``).
+
+    Raises
+    ------
+    KeyError
+        If a model is not registered or a selection method was not run by ``select``; the
+        message lists what exists.
+    """
+    for model, selection in pairs.items():
+        if model not in MODELS:
+            raise KeyError(
+                f"params.yaml evaluate.candidates: unknown model '{model}'; registered: "
+                f"{sorted(MODELS)}"
+            )
+        if MODELS[model].uses_temperatures and selection not in selections:
+            raise KeyError(
+                f"params.yaml evaluate.candidates: model '{model}' is fed by selection "
+                f"'{selection}', which the select stage did not run; run one of "
+                f"{sorted(selections)} or add it to select.methods"
+            )
+    candidates = []
+    for model, selection in pairs.items():
+        if not MODELS[model].uses_temperatures:
+            candidates.append(Candidate(model, NO_SELECTION))
+        elif full_grid:
+            candidates.extend(Candidate(model, method) for method in selections)
+        else:
+            candidates.append(Candidate(model, selection))
+    return candidates
+
+
+def unit_sensors(
+    candidate: Candidate, unit: TrainingUnit, selected: Mapping[str, Mapping[str, Mapping]]
+) -> list[str]:
+    """The sensors the selection chose on this training unit (none for series-only models)."""
+    if candidate.selection == NO_SELECTION:
+        return []
+    return list(selected[candidate.selection][unit.name]["sensors"])
+
+
+def run_all(
+    candidates: list[Candidate],
+    units: list[TrainingUnit],
+    series: list[CampaignSeries],
+    selected: Mapping[str, Mapping[str, Mapping]],
+    model_params: Mapping[str, Mapping],
+    n_jobs: int,
+) -> list[UnitResult]:
+    """Fit every candidate on every training unit and score it on every campaign.
+
+    The (candidate, unit) fits run in parallel in ``n_jobs`` joblib worker processes; each
+    sees only the campaigns of its unit for fitting.
+    """
+    jobs = [
+        delayed(fit_and_score)(
+            candidate,
+            unit,
+            series,
+            make_model(candidate.model, **dict(model_params.get(candidate.model) or {})),
+            unit_sensors(candidate, unit, selected),
+        )
+        for candidate in candidates
+        for unit in units
+    ]
+    LOGGER.info("%d candidates x %d training units = %d fits", len(candidates), len(units),
+                len(jobs))  # fmt: skip
+    return list(Parallel(n_jobs=n_jobs)(jobs))
