@@ -37,18 +37,18 @@ target). Deviations from the patent, and why:
 
 from __future__ import annotations
 
-import logging
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass, replace
 
 import numpy as np
 import pandas as pd
-import statsmodels.api as sm
 from numpy.polynomial import Polynomial
+from statsmodels.regression.linear_model import OLS
 
+from pipeline.selection.best_subset import CRITERIA as SELECTION_RULES
+from pipeline.selection.best_subset import best_subset
+from pipeline.selection.result import Selection
 from schemas.separated import AxisSlopesModel
-
-LOGGER = logging.getLogger(__name__)
 
 TEMPERATURE_MODES = ("rise", "absolute")
 SLOPE_COLUMN = "slope_um_per_mm"
@@ -249,9 +249,10 @@ def fit_slope_model(
     if len(k) <= len(sensors) + 1:
         raise ValueError(
             f"{len(k)} training passes cannot fit a slope model with {len(sensors)} sensors and "
-            "an intercept; lower params.yaml model_axis.max_sensors or measure more passes"
+            "an intercept; select fewer sensors or measure more passes"
         )
-    fit = sm.OLS(k, sm.add_constant(features.to_numpy(dtype=float), has_constant="add")).fit()
+    design = np.column_stack([np.ones(len(k)), features.to_numpy(dtype=float)])
+    fit = OLS(k, design).fit()
     params = np.asarray(fit.params, dtype=float)
     model = SlopeModel(
         sensors=tuple(sensors),
@@ -292,14 +293,9 @@ def mean_geometric(geometric: pd.DataFrame, campaign_ids: Sequence[str]) -> tupl
 
 
 def select_sensors(
-    features: pd.DataFrame,
-    k: np.ndarray,
-    selector: Callable[..., object],
-    criteria: Sequence[str],
-    rule: str,
-    **params: object,
-) -> dict[str, object]:
-    """Best-subset selection of the slope's sensitive points under each criterion.
+    features: pd.DataFrame, k: np.ndarray, rule: str = "aicc", max_exhaustive: int = 25
+) -> Selection:
+    """Best-subset selection of the slope's sensitive points (the patent's step 2).
 
     Parameters
     ----------
@@ -307,34 +303,36 @@ def select_sensors(
         Candidate temperatures (:func:`pass_features`).
     k : ndarray of shape (n_passes,)
         Slopes, um/mm.
-    selector : callable
-        ``selector(features, k, criterion=..., **params) -> Selection`` (best subset).
-    criteria : sequence of str
-        The criteria to report (the patent: adjusted R^2 and AICc).
-    rule : str
-        The criterion whose winner is used; one of ``criteria``.
-    **params
-        Passed to ``selector`` (e.g. the maximum subset size).
+    rule : {"aicc", "adj_r2", "parsimonious"}
+        Whose winner is used (:func:`pipeline.selection.best_subset.best_subset`); the winners
+        of both criteria are in ``details`` (``winner_aicc``, ``winner_adj_r2``) either way.
+        Subsets without an AICc (k >= n_passes - 3 sensors) are excluded from both.
+    max_exhaustive : int
+        Most candidates searched exhaustively.
 
     Returns
     -------
-    dict
-        ``sensors`` (the winner of ``rule``), ``winners`` (criterion -> sensors) and
-        ``selections`` (criterion -> Selection).
+    Selection
 
     Raises
     ------
     ValueError
-        If ``rule`` is not one of ``criteria``.
+        If ``rule`` is unknown.
     """
-    if rule not in criteria:
+    if rule not in SELECTION_RULES:
         raise ValueError(
-            f"unknown selection rule '{rule}'; use one of {list(criteria)} in params.yaml "
-            "model_axis.selection_rule"
+            f"unknown selection rule '{rule}'; use one of {list(SELECTION_RULES)} in "
+            "params.yaml model_axis.selection_rule"
         )
-    selections = {c: selector(features, k, criterion=c, **params) for c in criteria}
-    winners = {c: list(s.sensors) for c, s in selections.items()}
-    return {"sensors": winners[rule], "winners": winners, "selections": selections}
+    return best_subset(features, k, criterion=rule, max_exhaustive=max_exhaustive)
+
+
+def criterion_winners(selection: Selection) -> dict[str, list[str]]:
+    """Return the adjusted-R^2 and AICc winners of a best-subset selection, sensor lists."""
+    return {
+        "adj_r2": str(selection.details["winner_adj_r2"]).split("+"),
+        "aicc": str(selection.details["winner_aicc"]).split("+"),
+    }
 
 
 def score_campaigns(

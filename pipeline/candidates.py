@@ -13,6 +13,7 @@ import logging
 from collections.abc import Mapping
 
 from joblib import Parallel, delayed
+from threadpoolctl import threadpool_limits
 
 from pipeline.cross_season import Candidate, UnitResult, fit_and_score
 from pipeline.models import MODELS, make_model
@@ -101,4 +102,8 @@ def run_all(
     ]
     LOGGER.info("%d candidates x %d training units = %d fits", len(candidates), len(units),
                 len(jobs))  # fmt: skip
-    return list(Parallel(n_jobs=n_jobs)(jobs))
+    # One BLAS thread per process: statsmodels' small Kalman filters and least-squares fits run
+    # many times slower with multi-threaded BLAS on a busy machine (joblib workers already
+    # limit theirs; this covers n_jobs=1 in the main process).
+    with threadpool_limits(limits=1):
+        return list(Parallel(n_jobs=n_jobs)(jobs))

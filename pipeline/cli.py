@@ -15,6 +15,7 @@ COMMANDS = {
     "ingest": ("pipeline.ingest", "raw campaign folders -> tidy parquet tables"),
     "validate": ("pipeline.validate", "Pandera checks; quarantine bad campaigns"),
     "separate": ("pipeline.separate", "geometric / thermal error separation"),
+    "model-axis": ("pipeline.model_axis", "linear-axis composite model (the patent)"),
     "select": ("pipeline.select", "sensitive temperature points by every selection method"),
     "evaluate": ("pipeline.evaluate", "fit models, score every campaign against every other"),
     "track": ("pipeline.track", "log the scores to MLflow"),

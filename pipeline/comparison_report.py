@@ -123,7 +123,7 @@ How often each sensor is chosen across the training campaigns:
 
 ## Predicted vs measured on the validation campaigns
 
-Best: {best_worst[0]}. Worst: {best_worst[1]}. Both built on all training campaigns.
+{best_worst[0].capitalize()}; {best_worst[1]}. Both built on all training campaigns.
 
 ![best and worst]({best_worst_figure})
 

@@ -29,6 +29,7 @@ from pipeline.axis_model import (  # noqa: E402
     CompositeModel,
     bands,
     candidate_sensors,
+    criterion_winners,
     fit_slope_model,
     mean_geometric,
     pass_features,
@@ -37,12 +38,11 @@ from pipeline.axis_model import (  # noqa: E402
     select_sensors,
 )
 from pipeline.config import load_section  # noqa: E402
-from pipeline.selection.best_subset import best_subset  # noqa: E402
+from pipeline.selection.result import Selection  # noqa: E402
 
 LOGGER = logging.getLogger(__name__)
 
 SOURCE = "the patent (seeds/002_391aae131e4de351.txt): sensitive points by best subset, eqs. 1-4"
-CRITERIA = ("adj_r2", "aicc")
 
 
 def build(params: dict, slopes: pd.DataFrame, geometric: pd.DataFrame,
@@ -86,15 +86,12 @@ def build(params: dict, slopes: pd.DataFrame, geometric: pd.DataFrame,
     selection = select_sensors(
         pass_features(train, candidates, temperature),
         pass_slopes(train),
-        best_subset,
-        CRITERIA,
         str(params["selection_rule"]),
-        max_exhaustive=int(params["max_exhaustive"]),
-        max_size=params.get("max_sensors"),
+        int(params["max_exhaustive"]),
     )
     model = CompositeModel(
         geometric=mean_geometric(geometric, _ids(train)),
-        slope=fit_slope_model(train, selection["sensors"], temperature),
+        slope=fit_slope_model(train, selection.sensors, temperature),
     )
     scored = {"fit": score_campaigns(model, train, thermal)}
     if validation.empty:
@@ -139,16 +136,16 @@ def _message(scored: dict[str, pd.DataFrame], train: pd.DataFrame) -> str:
     )
 
 
-def _selection_report(params: dict, candidates: list[str], selection: dict) -> dict:
+def _selection_report(params: dict, candidates: list[str], selection: Selection) -> dict:
     return {
         "method": "best_subset",
         "rule": str(params["selection_rule"]),
-        "max_sensors": params.get("max_sensors"),
         "candidates": candidates,
         "excluded": list(params.get("exclude_sensors") or []),
-        "selected": list(selection["sensors"]),
-        "winners": selection["winners"],
-        "details": {c: dict(s.details) for c, s in selection["selections"].items()},
+        "selected": list(selection.sensors),
+        "winners": criterion_winners(selection),
+        "details": dict(selection.details),
+        "best_of_each_size": json.loads(selection.evidence.to_json(orient="records")),
     }
 
 
@@ -228,7 +225,11 @@ def plot(points: pd.DataFrame, report: dict, out: Path) -> None:
         axes[0, column].set_title(f"{campaign_id} ({role}): measured (o) and composite (-)")
         axes[1, column].set_title(f"{campaign_id}: residual = measured - composite")
     kind = "SYNTHETIC data" if report.get("synthetic") else "measured data"
-    fig.suptitle(f"Axis composite model {report['slope_model']['equation']} ({kind})", fontsize=9)
+    fig.suptitle(
+        f"Linear-axis composite model E = P_geo(x) + (k(T) - k0) x ({kind})\n"
+        f"{report['slope_model']['equation']}",
+        fontsize=9,
+    )
     fig.tight_layout()
     fig.savefig(out, dpi=110)
     plt.close(fig)

@@ -19,6 +19,7 @@ from __future__ import annotations
 import argparse
 import json
 import logging
+import re
 
 import pandas as pd
 
@@ -39,8 +40,13 @@ FEATURE_PREFIX = {"temperature_rise": "rise_", "absolute": ""}
 
 
 def sensor_columns(table: pd.DataFrame) -> list[str]:
-    """Temperature sensor names present in the separated table (columns with a ``rise_`` twin)."""
-    return [c.removeprefix("rise_") for c in table.columns if c.startswith("rise_")]
+    """Temperature sensor names in the separated table (columns with a ``rise_`` twin).
+
+    In natural order: T2 before T10.
+    """
+    names = [c.removeprefix("rise_") for c in table.columns if c.startswith("rise_")]
+    return sorted(names, key=lambda name: [int(p) if p.isdigit() else p
+                                           for p in re.split(r"(\d+)", name)])  # fmt: skip
 
 
 def feature_prefix(features: str) -> str:
@@ -86,9 +92,18 @@ def select_all(
 
 
 def stability_table(
-    selections: dict[str, dict[str, Selection]], units: list[TrainingUnit]
+    selections: dict[str, dict[str, Selection]], units: list[TrainingUnit], sensors: list[str]
 ) -> pd.DataFrame:
     """How often each sensor is chosen across the training campaigns, per method.
+
+    Parameters
+    ----------
+    selections : dict
+        ``{method: {unit: Selection}}``.
+    units : list of TrainingUnit
+        The campaign-scheme units are counted.
+    sensors : list of str
+        Every sensor; one row each per method, chosen or not.
 
     Returns
     -------
@@ -103,17 +118,13 @@ def stability_table(
         for name in campaigns:
             for sensor in by_unit[name].sensors:
                 counts[sensor] = counts.get(sensor, 0) + 1
-        seen = {c for name in campaigns for c in by_unit[name].evidence.get("sensor", [])}
-        for sensor in sorted(seen | set(counts)):
+        for sensor in sensors:
             chosen = counts.get(sensor, 0)
             rows.append({
                 "method": method, "sensor": sensor, "times_chosen": chosen,
                 "n_campaigns": len(campaigns), "frequency": chosen / max(len(campaigns), 1),
             })  # fmt: skip
-    table = pd.DataFrame(rows)
-    if table.empty:
-        return table
-    return table.sort_values(["method", "times_chosen", "sensor"], ascending=[True, False, True])
+    return pd.DataFrame(rows)
 
 
 def selected_record(features: str, selections: dict[str, dict[str, Selection]]) -> dict:
@@ -141,6 +152,7 @@ def write_outputs(
     features: str,
     selections: dict[str, dict[str, Selection]],
     units: list[TrainingUnit],
+    sensors: list[str],
     synthetic: bool,
 ) -> None:
     """Write every output declared for the stage in ``dvc.yaml``."""
@@ -157,7 +169,7 @@ def write_outputs(
         evidence = evidence[["unit", *[c for c in evidence.columns if c != "unit"]]]
         evidence.to_csv(paths.SELECTION / f"{method}_evidence.csv", index=False,
                         float_format="%.6g")  # fmt: skip
-    stability = stability_table(selections, units)
+    stability = stability_table(selections, units, sensors)
     stability.to_csv(paths.SELECTION_STABILITY, index=False, float_format="%.4f")
     label = "SYNTHETIC data from the physical twin" if synthetic else "measured data"
     plots.selection_stability(
@@ -178,7 +190,7 @@ def main(argv: list[str] | None = None) -> int:
     series = campaign_series(table, sensor_columns(table), feature_prefix(features))
     units = training_units(series)
     selections = select_all(series, units, methods)
-    write_outputs(features, selections, units, bool(table["synthetic"].any()))
+    write_outputs(features, selections, units, sensor_columns(table), bool(table["synthetic"].any()))
     for method, by_unit in selections.items():
         LOGGER.info(
             "%s: all training campaigns -> %s", method, ", ".join(by_unit["all_training"].sensors)

@@ -41,6 +41,9 @@ import yaml
 
 from pipeline.config import DEFAULT_PARAMS, load_section
 from pipeline.paths import (
+    AXIS_MODEL_METRICS,
+    AXIS_MODEL_PLOT,
+    AXIS_MODEL_REPORT,
     CANDIDATE_SCORES,
     CHAMPION_CARD,
     CHAMPION_ESTIMATOR,
@@ -68,7 +71,9 @@ DVC_LOCK = Path("dvc.lock")
 ENV_TRACKING_URI = "MLFLOW_TRACKING_URI"
 DEFAULT_TRACKING_URI = "sqlite:///mlflow.db"
 DEFAULT_ARTIFACT_DIR = "mlartifacts"
-SCORE_FILES = (SCORES_LONG, CROSS_SEASON_METRICS, FITTED_MODELS, SELECTED, CHAMPION_CARD)
+SCORE_FILES = (
+    SCORES_LONG, CROSS_SEASON_METRICS, FITTED_MODELS, SELECTED, CHAMPION_CARD, AXIS_MODEL_METRICS
+)
 DEFAULT_REGISTERED_MODEL = "thermal-error-spindle"
 
 
@@ -222,6 +227,8 @@ def artifact_files() -> list[tuple[Path, str]]:
         FITTED_MODELS,
         CROSS_SEASON_METRICS,
         VALIDATION_REPORT,
+        AXIS_MODEL_REPORT,
+        AXIS_MODEL_PLOT,
         *sorted(COMPARISON_FIGURES.glob("*.png")),
         *sorted(MATRICES.glob("*.png")),
         *sorted(SELECTION.glob("*")),
@@ -270,6 +277,7 @@ def prepare(params_path: Path) -> Prepared:
     fitted = read_json(FITTED_MODELS)
     cross_season = read_json(CROSS_SEASON_METRICS)
     selected = read_json(SELECTED)["methods"]
+    axis_model = read_json(AXIS_MODEL_METRICS) if AXIS_MODEL_METRICS.is_file() else {}
     score_rows = read_scores(SCORES_LONG)
 
     code_dirs = [_package_dir("pipeline"), _package_dir("schemas")]
@@ -284,7 +292,8 @@ def prepare(params_path: Path) -> Prepared:
     )
     children = records.child_records(fitted, score_rows, cross_season, {"synthetic": synthetic})
     parent = records.parent_record(
-        f"pipeline-{run_identity.value[:12]}", cross_season, all_params, tags, selected
+        f"pipeline-{run_identity.value[:12]}", cross_season, all_params, tags, selected,
+        axis_model,
     )
     return Prepared(run_identity, synthetic, commit, parent, children)
 

@@ -46,8 +46,16 @@ def _scores(work: Path) -> pd.DataFrame:
     return pd.read_csv(work / "reports" / "cross_season_scores.csv")
 
 
+def _fewer_candidates(work: Path, candidates: dict[str, str]) -> None:
+    """Keep the copy's pipeline short: only these candidates (the full set runs in the MLflow test)."""
+    params = yaml.safe_load((work / "params.yaml").read_text())
+    params["evaluate"]["candidates"] = candidates
+    (work / "params.yaml").write_text(yaml.safe_dump(params, sort_keys=False))
+
+
 def test_new_campaign_is_scored_old_scores_kept_unrelated_stages_skipped(tmp_path):
     work = copy_repository(ROOT, tmp_path / "repo")
+    _fewer_candidates(work, {"mlr": "best_subset", "dl": "fc_grd", "arma": "none"})
     env = _env(f"sqlite:///{work / 'mlflow.db'}")
     _repro(work, env)
     before = _scores(work)
@@ -58,14 +66,17 @@ def test_new_campaign_is_scored_old_scores_kept_unrelated_stages_skipped(tmp_pat
     output = _repro(work, env)
 
     assert "Stage 'separate_axis' didn't change, skipping" in output
-    for stage in ("ingest", "validate", "separate_spindle", "evaluate"):
+    for stage in ("ingest", "validate", "separate_spindle", "select", "evaluate"):
         assert f"Running stage '{stage}'" in output
     after = _scores(work)
-    assert "K13" in set(after["train_campaign"]) and "K13" in set(after["test_campaign"])
+    assert "K13" in set(after["train_unit"]) and "K13" in set(after["test_campaign"])
     assert len(after) > len(before)
-    keys = ["model", "selection", "train_campaign", "test_campaign"]
-    merged = before.merge(after, on=keys, suffixes=("_before", "_after"), validate="1:1")
-    assert len(merged) == len(before)
+    # Models built without K13 (each campaign alone; the seasons other than summer) keep
+    # their scores; the others now include it.
+    keys = ["model", "selection", "mode", "train_unit", "test_campaign"]
+    unchanged = before[(before["scheme"] == "campaign") | (before["train_unit"] == "not_summer")]
+    merged = unchanged.merge(after, on=keys, suffixes=("_before", "_after"), validate="1:1")
+    assert len(merged) == len(unchanged)
     for score in ("rmse_um", "resid_std_um"):
         pd.testing.assert_series_equal(
             merged[f"{score}_before"], merged[f"{score}_after"], check_names=False
@@ -86,6 +97,7 @@ def test_malformed_campaign_is_quarantined_while_the_others_are_scored(tmp_path)
     temperature.loc[0, "T3"] = "85.0"  # DS18B20 power-on value in data row 1
     temperature.to_csv(bad / "temperature.csv", index=False)
     raw_bytes = {p: p.read_bytes() for p in bad.iterdir()}
+    _fewer_candidates(work, {"mlr": "best_subset"})
 
     _repro(work, _env(f"sqlite:///{work / 'mlflow.db'}"))
 
@@ -98,11 +110,11 @@ def test_malformed_campaign_is_quarantined_while_the_others_are_scored(tmp_path)
     assert all(p["action"] for p in problems)
     scores = _scores(work)
     assert "K99" not in set(scores["test_campaign"])
-    assert {f"K{i:02d}" for i in range(1, 13)} <= set(scores["train_campaign"])
+    assert {f"K{i:02d}" for i in range(1, 13)} <= set(scores["train_unit"])
     assert {p: p.read_bytes() for p in bad.iterdir()} == raw_bytes
 
 
-def test_every_score_reaches_a_real_mlflow_server_once(tmp_path):
+def test_every_score_reaches_a_real_mlflow_server_once_and_the_champion_loads(tmp_path):
     work = copy_repository(ROOT, tmp_path / "repo")
     with running_mlflow_server(tmp_path / "server") as uri:
         env = _env(uri)
@@ -113,8 +125,10 @@ def test_every_score_reaches_a_real_mlflow_server_once(tmp_path):
         parents = [r for r in runs if "mlflow.parentRunId" not in r.data.tags]
         children = [r for r in runs if "mlflow.parentRunId" in r.data.tags]
         scores = _scores(work)
+        params = yaml.safe_load((work / "params.yaml").read_text())
+        assert set(scores["model"]) == set(params["evaluate"]["candidates"])
         assert len(parents) == 1
-        assert len(children) == scores.groupby(["model", "selection", "train_campaign"]).ngroups
+        assert len(children) == scores.groupby(["model", "selection", "mode"]).ngroups
         logged = sum(
             1
             for r in children
@@ -122,11 +136,35 @@ def test_every_score_reaches_a_real_mlflow_server_once(tmp_path):
             if k.startswith(("rmse_um.", "resid_std_um."))
         )
         assert logged == 2 * len(scores)
-        child = next(r for r in children if r.data.params.get("train_campaign") == "K01")
-        expected = scores.query("train_campaign == 'K01'").set_index("test_campaign")
-        for campaign, row in expected.iterrows():
-            assert child.data.metrics[f"rmse_um.{campaign}"] == pytest.approx(row["rmse_um"])
+        child = next(r for r in children if r.info.run_name == "dl/fc_grd/static")
+        expected = scores.query("model == 'dl' and train_unit == 'K01'")
+        for _, row in expected.iterrows():
+            key = f"rmse_um.K01.{row['test_campaign']}"
+            assert child.data.metrics[key] == pytest.approx(row["rmse_um"])
+        assert child.data.params["sensors.K01"]
         assert parents[0].data.tags.get("git_commit")
+        assert (work / "reports" / "model_comparison.md").is_file()
+
+        record = json.loads((work / "reports" / "mlflow_run.json").read_text())
+        card = json.loads((work / "data" / "models" / "champion" / "champion.json").read_text())
+        os.environ["MLFLOW_TRACKING_URI"] = uri
+        try:
+            import mlflow
+
+            mlflow.set_tracking_uri(uri)
+            model = mlflow.pyfunc.load_model(record["champion_uri"])
+        finally:
+            del os.environ["MLFLOW_TRACKING_URI"]
+        table = pd.read_csv(work / "data" / "raw" / "V01" / "temperature.csv")
+        predicted = model.predict(table).to_numpy()
+        separated = pd.read_parquet(work / "data" / "separated" / "spindle_thermal_error.parquet")
+        measured = separated.query("campaign_id == 'V01'").sort_values("elapsed_s")
+        rmse = float(((measured["thermal_error_um"].to_numpy() - predicted) ** 2).mean() ** 0.5)
+        (logged_rmse,) = scores.query(
+            "model == @card['model'] and selection == @card['selection'] and "
+            "mode == @card['mode'] and train_unit == 'all_training' and test_campaign == 'V01'"
+        )["rmse_um"]
+        assert rmse == pytest.approx(logged_rmse, rel=1e-4)
 
         _repro(work, env)
         again = client.search_runs([experiment.experiment_id], max_results=1000)

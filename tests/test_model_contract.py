@@ -98,3 +98,12 @@ def test_feedback_flag_matches_the_registry(fitted):
     name, model = fitted
     if not MODELS[name].uses_temperatures:
         assert getattr(model, "needs_error_feedback", False), name
+
+
+@pytest.mark.parametrize("name", sorted(n for n, e in MODELS.items() if not e.uses_temperatures))
+def test_models_on_the_error_series_alone_need_no_sensor_column(name):
+    X, y = A[0].iloc[:, :0], A[1]
+    model = make_model(name).fit(X, y)
+    for history in (None, y):
+        predicted = _predict(model, X, history)
+        assert predicted.shape == (len(X),) and np.isfinite(predicted).all()

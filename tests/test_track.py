@@ -1,4 +1,12 @@
-"""Tests of the track stage on small synthetic evaluate outputs (spec.md formats)."""
+"""Tests of the track stage on small evaluate outputs built with the real pipeline functions.
+
+The fixture fits small estimators with :func:`pipeline.cross_season.fit_and_score` on synthetic
+campaigns (four training campaigns in two seasons, one validation campaign, ``training_units``
+gives each campaign, each season left out and all of them), validates the scores with
+``schemas.evaluated.CrossSeasonScoresModel``, summarises them with ``pipeline.scoring`` and picks
+the champion with ``pipeline.champion``, then writes the files the select and evaluate stages
+write. So the fixture follows the code that produces the real outputs.
+"""
 
 from __future__ import annotations
 
@@ -10,79 +18,280 @@ import shutil
 import socket
 import subprocess
 import sys
+from dataclasses import dataclass
 from pathlib import Path
 
+import joblib
+import mlflow
+import numpy as np
+import pandas as pd
 import pytest
 import yaml
 from mlflow.tracking import MlflowClient
+from sklearn.base import BaseEstimator, RegressorMixin
+from sklearn.linear_model import LinearRegression, Ridge
 
 from pipeline import track
+from pipeline.champion import champion_card, rank_candidates, temperature_features
+from pipeline.cross_season import Candidate, fit_and_score
+from pipeline.scoring import candidate_summary, metrics_tree
 from pipeline.tracking import identity, records, store
+from pipeline.training_units import (
+    INDEX_NAMES,
+    POOLED_UNIT,
+    CampaignSeries,
+    training_units,
+)
+from schemas.evaluated import CrossSeasonScoresModel
 from tests.mlflow_server import running_mlflow_server
 
 EXPERIMENT = "thermal-test"
-CAMPAIGNS = {"K01": "train", "K02": "train", "K03": "train", "V01": "validation"}
-TRAIN = [c for c, split in CAMPAIGNS.items() if split == "train"]
-MODELS = ("mlr", "ridge")
-SELECTIONS = ("all", "top3")
-SUMMARY_KEYS = ("S_um", "Mn_um", "Sd_um", "Mn_val_um", "Sd_val_um", "S_rms_um", "Mn_rms_um")
+REGISTERED = "thermal-error-spindle"
+CHAMPION_URI = f"models:/{REGISTERED}@champion"
+CAMPAIGNS = {  # campaign -> (split, season)
+    "K01": ("train", "winter"),
+    "K02": ("train", "winter"),
+    "K03": ("train", "summer"),
+    "K04": ("train", "summer"),
+    "V01": ("validation", "spring"),
+}
+UNITS = ("K01", "K02", "K03", "K04", "not_winter", "not_summer", POOLED_UNIT)
+N_SAMPLES = 24  # 3-min sampling: 69 min per campaign
+SAMPLE_S = 180.0
+COLD_DEGC = 20.0
+SELECTED_SENSORS = {  # method -> unit -> sensors, in order of preference
+    "pair": {
+        **dict.fromkeys(UNITS, ["T1", "T2"]),
+        "K04": ["T1", "T3"],
+        POOLED_UNIT: ["T2", "T1"],
+    },
+    "all": dict.fromkeys(UNITS, ["T1", "T2", "T3"]),
+}
+AXIS_METRICS = {"residual_band_um": 3.2, "rmse_um": 1.4, "n_samples": 120}
+SCHEME_PREFIX = {"campaign": "", "season": "loso.", "pooled": "pooled."}
+PNG = b"\x89PNG\r\n\x1a\nfake"
 PARAMS = {
-    "evaluate": {"model": "mlr", "features": "temperature_rise", "n_jobs": 2},
+    "evaluate": {"candidates": {"mlr": "pair", "ridge": "all", "ar1": "none"}, "n_jobs": 2},
     "track": {
         "experiment": EXPERIMENT,
         "batch_size": 1000,
         "default_tracking_uri": "sqlite:///mlflow.db",
         "local_artifact_dir": "mlartifacts",
+        "registered_model": REGISTERED,
     },
 }
 
 
-def _summary(offset: float) -> dict[str, float]:
-    return {key: round(offset + 0.1 * i, 4) for i, key in enumerate(SUMMARY_KEYS)}
+class ReportingRidge(Ridge):
+    """Ridge that reports what its fit used in ``chosen_params_``, as the registry's models do."""
+
+    def fit(self, X, y, sample_weight=None):
+        """Fit the ridge; ``chosen_params_`` holds the penalty and the number of inputs."""
+        super().fit(X, y, sample_weight=sample_weight)
+        self.chosen_params_ = {"alpha": float(self.alpha), "n_inputs": int(X.shape[1])}
+        return self
 
 
-def write_evaluate_outputs(root: Path, shift: float = 0.0) -> None:
-    """Write the evaluate outputs, params.yaml and raw campaigns that ``track`` reads."""
-    rows, fitted, metrics = [], {}, {}
-    n = 0
-    for model in MODELS:
-        metrics[model] = {}
-        for selection in SELECTIONS:
-            by_train = {}
-            for train in TRAIN:
-                for test, split in CAMPAIGNS.items():
-                    role = "fit" if test == train else split.replace("train", "prediction")
-                    n += 1
-                    rows.append({
-                        "model": model, "selection": selection, "train_campaign": train,
-                        "test_campaign": test, "test_split": split, "role": role,
-                        "n_samples": 100 + n, "rmse_um": f"{1.5 + 0.137 * n + shift:.6g}",
-                        "resid_std_um": f"{1.1 + 0.071 * n + shift:.6g}",
-                    })  # fmt: skip
-                by_train[train] = _summary(n)
-                fitted[f"{model}/{selection}/{train}"] = {
-                    "model": model,
-                    "selection": selection,
-                    "train_campaign": train,
-                    "sensors": ["T1", "T3", "T8"],
-                    "params": {"features": "temperature_rise", "alpha": 0.5, "intercept_um": 1.2},
+class ErrorAR1(RegressorMixin, BaseEstimator):
+    """AR(1) on the thermal error alone, scored one-step-ahead and in free run.
+
+    The history restarts at 0 um in every campaign (level ``campaign_id`` of X's index).
+    """
+
+    needs_error_feedback = True
+
+    def fit(self, X, y):
+        """Least-squares a1 of y_t = a1 y_{t-1}."""
+        y = np.asarray(y, dtype=float)
+        lag = _previous(y, X)
+        self.coef_ = float(lag @ y / (lag @ lag))
+        self.chosen_params_ = {"ar_order": 1, "a1": round(self.coef_, 6)}
+        return self
+
+    def predict(self, X, y_history=None):
+        """Thermal error (um): a1 times the measured (``y_history``) or predicted previous error.
+
+        In free run the prediction stays at the pre-sample error, 0 um.
+        """
+        if y_history is None:
+            return np.zeros(len(X))
+        return self.coef_ * _previous(np.asarray(y_history, dtype=float), X)
+
+
+def _previous(y: np.ndarray, X: pd.DataFrame) -> np.ndarray:
+    """y_{t-1} per campaign, 0 um before each campaign's first sample."""
+    campaign = X.index.get_level_values("campaign_id").to_numpy()
+    previous = np.r_[0.0, y[:-1]]
+    previous[np.r_[True, campaign[1:] != campaign[:-1]]] = 0.0
+    return previous
+
+
+CANDIDATES = (  # (model, selection, estimator)
+    ("mlr", "pair", LinearRegression()),
+    ("ridge", "all", ReportingRidge(alpha=50.0)),
+    ("ar1", "none", ErrorAR1()),
+)
+CHILDREN = {
+    ("mlr", "pair", "static"),
+    ("ridge", "all", "static"),
+    ("ar1", "none", "one_step"),
+    ("ar1", "none", "free_run"),
+}
+
+
+@dataclass(frozen=True)
+class EvaluateOutputs:
+    """What the select and evaluate stages produce, in memory.
+
+    Attributes
+    ----------
+    series : list of CampaignSeries
+        The synthetic campaigns (temperature rises, K; thermal error, um).
+    scores : DataFrame
+        Long score table (``CrossSeasonScoresModel``).
+    fitted : dict
+        ``reports/fitted_models.json``.
+    selected : dict
+        ``reports/selection/selected.json``.
+    card : dict
+        ``data/models/champion/champion.json``.
+    estimator : LinearRegression
+        The champion's fit on all training campaigns.
+    """
+
+    series: list
+    scores: pd.DataFrame
+    fitted: dict
+    selected: dict
+    card: dict
+    estimator: object
+
+
+def synthetic_rises(number: int, rng: np.random.Generator) -> tuple[pd.DataFrame, np.ndarray]:
+    """Temperature rises (K) of one campaign and its thermal error (um), 0 at the cold start."""
+    elapsed = SAMPLE_S * np.arange(N_SAMPLES)
+    rises = {
+        "T1": (3.0 + number) * (1.0 - np.exp(-elapsed / 1800.0)),
+        "T2": (2.0 + 0.5 * number) * (1.0 - np.exp(-elapsed / 5400.0))
+        + 0.3 * np.sin(elapsed / 900.0),
+        "T3": np.r_[0.0, rng.normal(0.0, 0.3, N_SAMPLES - 1)],
+    }
+    error = 2.0 * rises["T1"] - 1.5 * rises["T2"] + np.r_[0.0, rng.normal(0.0, 0.2, N_SAMPLES - 1)]
+    return pd.DataFrame(rises).assign(elapsed_s=elapsed), error
+
+
+def synthetic_series() -> list[CampaignSeries]:
+    """The campaigns of :data:`CAMPAIGNS` as the evaluate stage sees them."""
+    rng = np.random.default_rng(7)
+    series = []
+    for number, (campaign, (split, season)) in enumerate(CAMPAIGNS.items()):
+        rises, error = synthetic_rises(number, rng)
+        index = pd.MultiIndex.from_arrays(
+            [np.full(N_SAMPLES, campaign), rises["elapsed_s"].to_numpy()], names=INDEX_NAMES
+        )
+        features = pd.DataFrame(rises[["T1", "T2", "T3"]].to_numpy(), index, ["T1", "T2", "T3"])
+        series.append(CampaignSeries(campaign, split, season, features, error))
+    return series
+
+
+def unit_sensors(selection: str, unit: str) -> list[str]:
+    return [] if selection == "none" else list(SELECTED_SENSORS[selection][unit])
+
+
+def build_outputs() -> EvaluateOutputs:
+    """Fit every candidate on every training unit and describe the results as evaluate does."""
+    series = synthetic_series()
+    results = [
+        fit_and_score(
+            Candidate(model, selection), unit, series, estimator,
+            unit_sensors(selection, unit.name),
+        )
+        for model, selection, estimator in CANDIDATES
+        for unit in training_units(series)
+    ]  # fmt: skip
+    assert {r.unit.name for r in results} == set(UNITS)
+    scores = pd.concat([r.scores for r in results], ignore_index=True)
+    scores = CrossSeasonScoresModel.validate(scores, lazy=True)
+    fitted = {
+        f"{r.candidate.model}/{r.candidate.selection}/{r.unit.name}": {
+            "model": r.candidate.model,
+            "selection": r.candidate.selection,
+            "train_unit": r.unit.name,
+            "scheme": r.unit.scheme,
+            "sensors": list(r.sensors),
+            "chosen_params": dict(r.chosen_params),
+        }
+        for r in results
+    }
+    selected = {
+        "features": "temperature_rise",
+        "methods": {
+            method: {
+                unit: {
+                    "sensors": sensors,
+                    "details": {"rule": "fixture", "n_sensors": len(sensors)},
                 }
-            metrics[model][selection] = {
-                "overall": _summary(100 + n),
-                "by_train_campaign": by_train,
+                for unit, sensors in by_unit.items()
             }
-    (root / "reports" / "separation").mkdir(parents=True, exist_ok=True)
-    (root / "metrics").mkdir(exist_ok=True)
-    with (root / "reports" / "cross_season_scores.csv").open("w", newline="") as handle:
-        writer = csv.DictWriter(handle, fieldnames=list(rows[0]))
-        writer.writeheader()
-        writer.writerows(rows)
-    (root / "reports" / "fitted_models.json").write_text(json.dumps(fitted, indent=2))
-    (root / "metrics" / "cross_season.json").write_text(json.dumps(metrics, indent=2))
-    (root / "reports" / "cross_season_matrix.csv").write_text("score,train_campaign,K01\n")
-    (root / "reports" / "cross_season_matrix.png").write_bytes(b"\x89PNG\r\n\x1a\nfake")
-    (root / "reports" / "validation.json").write_text('{"summary": {}, "problems": []}')
-    (root / "reports" / "separation" / "axis_separation.png").write_bytes(b"\x89PNG\r\n\x1a\nx")
+            for method, by_unit in SELECTED_SENSORS.items()
+        },
+    }
+    ranked, column = rank_candidates(candidate_summary(scores))
+    best = ranked.iloc[0]
+    assert (best["model"], best["selection"], column) == ("mlr", "pair", "Mn_val_um")
+    (pooled,) = [
+        r for r in results
+        if r.unit.name == POOLED_UNIT and r.candidate == Candidate("mlr", "pair")
+    ]  # fmt: skip
+    card = champion_card(best, column, pooled, "temperature_rise")
+    return EvaluateOutputs(series, scores, fitted, selected, card, pooled.estimator)
+
+
+def _json_ready(tree):
+    """Round to 4 decimals, NaN as null: how evaluate writes ``metrics/cross_season.json``."""
+    if isinstance(tree, dict):
+        return {key: _json_ready(value) for key, value in tree.items()}
+    return None if not np.isfinite(tree) else round(float(tree), 4)
+
+
+def write_scores(root: Path, scores: pd.DataFrame) -> None:
+    """Write the long score table, the candidate table and the metrics tree as evaluate does."""
+    (root / "reports").mkdir(parents=True, exist_ok=True)
+    (root / "metrics").mkdir(parents=True, exist_ok=True)
+    scores.to_csv(root / "reports" / "cross_season_scores.csv", index=False, float_format="%.6g")
+    candidate_summary(scores).to_csv(
+        root / "reports" / "model_scores.csv", index=False, float_format="%.4f"
+    )
+    (root / "metrics" / "cross_season.json").write_text(
+        json.dumps(_json_ready(metrics_tree(scores)), indent=2, sort_keys=True)
+    )
+
+
+def write_champion(root: Path, outputs: EvaluateOutputs) -> None:
+    folder = root / "data" / "models" / "champion"
+    folder.mkdir(parents=True, exist_ok=True)
+    joblib.dump(outputs.estimator, folder / "estimator.joblib")
+    (folder / "champion.json").write_text(json.dumps(outputs.card, indent=2, sort_keys=True))
+
+
+def write_evaluate_outputs(root: Path, outputs: EvaluateOutputs) -> None:
+    """Write the select and evaluate outputs, params.yaml and raw campaigns ``track`` reads."""
+    reports = root / "reports"
+    for folder in ("selection", "matrices", "comparison", "separation"):
+        (reports / folder).mkdir(parents=True, exist_ok=True)
+    write_scores(root, outputs.scores)
+    (reports / "fitted_models.json").write_text(json.dumps(outputs.fitted, indent=2))
+    (reports / "selection" / "selected.json").write_text(json.dumps(outputs.selected, indent=2))
+    (reports / "selection" / "pair_evidence.csv").write_text("unit,sensor,score\nK01,T1,0.9\n")
+    (reports / "model_comparison.md").write_text("# Model comparison (SYNTHETIC data)\n")
+    (reports / "cross_season_matrix.csv").write_text("model,selection,mode,score,train_unit\n")
+    (reports / "matrices" / "mlr__pair__static.png").write_bytes(PNG)
+    (reports / "comparison" / "best_worst_validation.png").write_bytes(PNG)
+    (reports / "validation.json").write_text('{"summary": {}, "problems": []}')
+    (reports / "separation" / "axis_separation.png").write_bytes(PNG)
+    (reports / "axis_model.json").write_text(json.dumps({"axis_model": AXIS_METRICS}))
+    (root / "metrics" / "axis_model.json").write_text(json.dumps(AXIS_METRICS))
+    write_champion(root, outputs)
     (root / "params.yaml").write_text(yaml.safe_dump(PARAMS))
     for campaign in CAMPAIGNS:
         folder = root / "data" / "raw" / campaign
@@ -91,18 +300,98 @@ def write_evaluate_outputs(root: Path, shift: float = 0.0) -> None:
         (folder / "temperature.csv").write_text("elapsed_s,T1\n0,20.0\n60,20.5\n")
 
 
+def temperature_table() -> tuple[pd.DataFrame, pd.DataFrame]:
+    """Two runs as a machine logs them (degC, extra sensor, own column order) and their rises (K).
+
+    Returns
+    -------
+    table : DataFrame
+        Columns ``campaign_id``, ``elapsed_s``, ``T3``, ``T1``, ``T2`` (degC).
+    rises : DataFrame
+        The same rows' ``T1``, ``T2``, ``T3`` rises from each run's first reading (K).
+    """
+    rng = np.random.default_rng(11)
+    frames = []
+    for run, number in (("run-a", 5), ("run-b", 1)):
+        rises, _ = synthetic_rises(number, rng)
+        frames.append(rises.assign(campaign_id=run))
+    rises = pd.concat(frames, ignore_index=True)
+    table = rises[["campaign_id", "elapsed_s"]].assign(
+        **{
+            sensor: COLD_DEGC + 0.5 * i + rises[sensor]
+            for i, sensor in enumerate(("T3", "T1", "T2"))
+        }
+    )
+    return table, rises[["T1", "T2", "T3"]]
+
+
 def read_scores(root: Path) -> list[dict[str, str]]:
     with (root / "reports" / "cross_season_scores.csv").open(newline="") as handle:
         return list(csv.DictReader(handle))
 
 
+def read_json(root: Path, relative: str):
+    return json.loads((root / relative).read_text())
+
+
 def record(root: Path) -> dict:
-    return json.loads((root / "reports" / "mlflow_run.json").read_text())
+    return read_json(root, "reports/mlflow_run.json")
 
 
 def all_runs(client: MlflowClient) -> list:
     experiment = client.get_experiment_by_name(EXPERIMENT)
     return client.search_runs([experiment.experiment_id], max_results=1000)
+
+
+def split_runs(runs: list) -> tuple[list, list]:
+    parents = [r for r in runs if records.PARENT_RUN_TAG not in r.data.tags]
+    children = [r for r in runs if records.PARENT_RUN_TAG in r.data.tags]
+    return parents, children
+
+
+def child_key(run) -> tuple[str, str, str]:
+    return tuple(run.data.params[key] for key in records.KEY_COLUMNS)
+
+
+def expected_child_metrics(root: Path, key: tuple[str, str, str]) -> dict[str, float]:
+    """Every score of one candidate from the CSV and the metrics JSON, named as documented."""
+    expected = {}
+    for row in read_scores(root):
+        if tuple(row[k] for k in records.KEY_COLUMNS) == key:
+            for column in records.SCORE_COLUMNS:
+                name = f"{column}.{row['train_unit']}.{row['test_campaign']}"
+                expected[name] = float(row[column])
+    model, selection, mode = key
+    tree = read_json(root, "metrics/cross_season.json")[model][selection][mode]
+    for scheme, body in tree.items():
+        for name, value in body["overall"].items():
+            if value is not None:
+                expected[SCHEME_PREFIX[scheme] + name] = value
+        for unit, entry in body["by_train_unit"].items():
+            for name, value in entry.items():
+                if value is not None:
+                    expected[f"unit.{unit}.{name}"] = value
+    return expected
+
+
+def versions(client: MlflowClient) -> list[str]:
+    return sorted(str(v.version) for v in client.search_model_versions(f"name = '{REGISTERED}'"))
+
+
+@pytest.fixture(autouse=True)
+def restore_mlflow_tracking_uri():
+    """Undo ``mlflow.set_tracking_uri`` (it also sets ``MLFLOW_TRACKING_URI`` process-wide)."""
+    before = os.environ.get("MLFLOW_TRACKING_URI")
+    yield
+    mlflow.set_tracking_uri(before)
+    if before is None:
+        os.environ.pop("MLFLOW_TRACKING_URI", None)
+
+
+@pytest.fixture(scope="session")
+def outputs() -> EvaluateOutputs:
+    """The evaluate outputs in memory, built once (the fits take well under a second)."""
+    return build_outputs()
 
 
 @pytest.fixture(scope="session")
@@ -114,9 +403,9 @@ def empty_store(tmp_path_factory) -> Path:
 
 
 @pytest.fixture
-def workdir(tmp_path, monkeypatch, empty_store) -> Path:
+def workdir(tmp_path, monkeypatch, empty_store, outputs) -> Path:
     """Repo-like tmp folder with evaluate outputs; the default local store in it."""
-    write_evaluate_outputs(tmp_path)
+    write_evaluate_outputs(tmp_path, outputs)
     shutil.copy(empty_store, tmp_path / "mlflow.db")
     monkeypatch.chdir(tmp_path)
     monkeypatch.delenv("MLFLOW_TRACKING_URI", raising=False)
@@ -128,50 +417,68 @@ def client(workdir) -> MlflowClient:
     return MlflowClient(tracking_uri=f"sqlite:///{workdir / 'mlflow.db'}")
 
 
-def split_runs(runs: list) -> tuple[list, list]:
-    parents = [r for r in runs if records.PARENT_RUN_TAG not in r.data.tags]
-    children = [r for r in runs if records.PARENT_RUN_TAG in r.data.tags]
-    return parents, children
+def test_fixture_scores_follow_the_schema_and_the_protocol(outputs):
+    scores = outputs.scores
+    per_child = scores.groupby(list(records.KEY_COLUMNS)).size()
+    assert set(per_child.index) == CHILDREN
+    assert (per_child == len(UNITS) * len(CAMPAIGNS)).all()
+    assert set(scores["scheme"]) == {"campaign", "season", "pooled"}
+    assert outputs.card["sensors"] == ["T2", "T1"]
+    assert outputs.card["trained_on"] == ["K01", "K02", "K03", "K04"]
 
 
-def test_one_child_per_model_selection_train_campaign(workdir, client):
+def test_one_child_per_candidate_model_selection_mode(workdir, client):
     assert track.main([]) == 0
     parents, children = split_runs(all_runs(client))
-    fitted = json.loads((workdir / "reports" / "fitted_models.json").read_text())
     assert len(parents) == 1
-    assert len(children) == len(fitted) == len(MODELS) * len(SELECTIONS) * len(TRAIN)
+    assert {child_key(r) for r in children} == CHILDREN
+    assert len(children) == len(CHILDREN)
     assert {r.data.tags[records.PARENT_RUN_TAG] for r in children} == {parents[0].info.run_id}
-    assert {r.info.run_name for r in children} == set(fitted)
+    assert {r.info.run_name for r in children} == {"/".join(key) for key in CHILDREN}
     assert all(r.info.status == "FINISHED" for r in parents + children)
+    assert all(r.data.tags["synthetic"] == "true" for r in children)
+    assert record(workdir)["child_runs"] == len(CHILDREN)
 
 
-def test_child_metrics_equal_the_scores_csv(workdir, client):
+def test_child_metrics_equal_the_scores_csv_and_the_metrics_json(workdir, client):
     track.main([])
     _, children = split_runs(all_runs(client))
-    by_key = {tuple(r.data.params[k] for k in records.KEY_COLUMNS): r for r in children}
-    rows = read_scores(workdir)
-    for row in rows:
-        run = by_key[(row["model"], row["selection"], row["train_campaign"])]
-        for column in ("rmse_um", "resid_std_um"):
-            assert run.data.metrics[f"{column}.{row['test_campaign']}"] == float(row[column])
-    tree = json.loads((workdir / "metrics" / "cross_season.json").read_text())
-    for (model, selection, train), run in by_key.items():
-        key = (model, selection, train)
-        tests = {
-            r["test_campaign"] for r in rows if tuple(r[k] for k in records.KEY_COLUMNS) == key
-        }
-        assert tests == set(CAMPAIGNS)
-        expected = {f"{c}.{t}" for c in ("rmse_um", "resid_std_um") for t in tests}
-        expected |= set(SUMMARY_KEYS)
-        assert set(run.data.metrics) == expected
-        for key, value in tree[model][selection]["by_train_campaign"][train].items():
-            assert run.data.metrics[key] == value
-        assert run.data.params["sensors"] == "T1,T3,T8"
-        assert json.loads(run.data.params["params"])["alpha"] == 0.5
-        assert run.data.params["params.alpha"] == "0.5"
+    by_key = {child_key(r): r for r in children}
+    for row in read_scores(workdir):
+        run = by_key[tuple(row[k] for k in records.KEY_COLUMNS)]
+        for column in records.SCORE_COLUMNS:
+            name = f"{column}.{row['train_unit']}.{row['test_campaign']}"
+            assert run.data.metrics[name] == float(row[column])
+    for key, run in by_key.items():
+        assert run.data.metrics == expected_child_metrics(workdir, key)
+    metrics = by_key[("mlr", "pair", "static")].data.metrics
+    assert {"S_um", "Mn_val_um", "loso.Mn_um", "pooled.Mn_val_um", "unit.K01.S_um"} <= set(metrics)
+    assert "pooled.Mn_um" not in metrics  # no prediction role when built on all campaigns: null
 
 
-def test_parent_has_overall_scores_tags_and_artifacts(workdir, client):
+def test_child_params_hold_sensors_and_chosen_params_per_unit(workdir, client, outputs):
+    track.main([])
+    _, children = split_runs(all_runs(client))
+    by_key = {child_key(r): r for r in children}
+    for (model, selection, mode), run in by_key.items():
+        params = run.data.params
+        expected = {"model": model, "selection": selection, "mode": mode}
+        for unit in UNITS:
+            fit = outputs.fitted[f"{model}/{selection}/{unit}"]
+            expected[f"sensors.{unit}"] = ",".join(fit["sensors"]) or "-"
+            for name, value in fit["chosen_params"].items():
+                assert json.loads(params[f"chosen.{unit}.{name}"]) == value
+                expected[f"chosen.{unit}.{name}"] = params[f"chosen.{unit}.{name}"]
+        assert params == expected
+    assert by_key[("mlr", "pair", "static")].data.params["sensors.K04"] == "T1,T3"
+    assert by_key[("ridge", "all", "static")].data.params["chosen.K02.alpha"] == "50.0"
+    one_step = by_key[("ar1", "none", "one_step")].data.params
+    assert one_step["sensors.K01"] == "-"
+    assert one_step["chosen.not_summer.ar_order"] == "1"
+    assert one_step == by_key[("ar1", "none", "free_run")].data.params | {"mode": "one_step"}
+
+
+def test_parent_has_overall_scores_selected_sensors_tags_and_artifacts(workdir, client):
     (workdir / "dvc.lock").write_text(
         yaml.safe_dump({
             "schema": "2.0",
@@ -187,7 +494,7 @@ def test_parent_has_overall_scores_tags_and_artifacts(workdir, client):
         })
     )  # fmt: skip
     track.main([])
-    (parent,), _ = split_runs(all_runs(client))
+    (parent,), children = split_runs(all_runs(client))
     info = record(workdir)
     tags = parent.data.tags
     assert tags[records.IDENTITY_TAG] == info["run_identity"]
@@ -197,28 +504,78 @@ def test_parent_has_overall_scores_tags_and_artifacts(workdir, client):
     assert tags["dvc.ingest.data/ingested"] == "def.dir"
     assert tags["dvc.evaluate.reports/cross_season_scores.csv"] == "123"
     assert "dvc.track.reports/mlflow_run.json" not in tags  # its own previous output
-    tree = json.loads((workdir / "metrics" / "cross_season.json").read_text())
-    for model in MODELS:
-        for selection in SELECTIONS:
-            for key, value in tree[model][selection]["overall"].items():
-                assert parent.data.metrics[f"{model}.{selection}.{key}"] == value
-    assert parent.data.params["evaluate.model"] == "mlr"
+    expected = {}
+    tree = read_json(workdir, "metrics/cross_season.json")
+    for model, selection, mode in CHILDREN:
+        for scheme, body in tree[model][selection][mode].items():
+            for key, value in body["overall"].items():
+                if value is not None:
+                    expected[f"{model}.{selection}.{mode}.{scheme}.{key}"] = value
+    expected |= {f"axis_model.{key}": value for key, value in AXIS_METRICS.items()}
+    assert parent.data.metrics == expected
+    params = parent.data.params
+    for method, by_unit in SELECTED_SENSORS.items():
+        for unit, sensors in by_unit.items():
+            assert params[f"selected.{method}.{unit}"] == ",".join(sensors)
+    assert params["selected.pair.all_training"] == "T2,T1"
+    assert params["evaluate.candidates.mlr"] == "pair"
+    assert params["track.registered_model"] == REGISTERED
     listed = {f.path for f in client.list_artifacts(parent.info.run_id, "reports")}
-    assert {"reports/cross_season_matrix.csv", "reports/cross_season_matrix.png",
-            "reports/validation.json", "reports/separation"} <= listed  # fmt: skip
-    assert [f.path for f in client.list_artifacts(parent.info.run_id, "metrics")] == [
+    assert {"reports/model_comparison.md", "reports/cross_season_matrix.csv",
+            "reports/cross_season_scores.csv", "reports/model_scores.csv",
+            "reports/fitted_models.json", "reports/validation.json", "reports/matrices",
+            "reports/comparison", "reports/selection", "reports/separation",
+            "reports/axis_model.json"} <= listed  # fmt: skip
+    selection = {f.path for f in client.list_artifacts(parent.info.run_id, "reports/selection")}
+    assert selection == {"reports/selection/selected.json", "reports/selection/pair_evidence.csv"}
+    assert {f.path for f in client.list_artifacts(parent.info.run_id, "metrics")} == {
         "metrics/cross_season.json"
-    ]
-    separation = client.list_artifacts(parent.info.run_id, "reports/separation")
-    assert [f.path for f in separation] == ["reports/separation/axis_separation.png"]
+    }
     stored = workdir / "mlartifacts" / EXPERIMENT / parent.info.run_id / "artifacts"
-    assert (stored / "reports" / "cross_season_matrix.png").is_file()
-    assert info["child_runs"] == len(MODELS) * len(SELECTIONS) * len(TRAIN)
-    assert info["metrics"] == len(parent.data.metrics) + sum(
-        len(r.data.metrics) for r in split_runs(all_runs(client))[1]
-    )
+    assert (stored / "reports" / "matrices" / "mlr__pair__static.png").is_file()
+    assert info["metrics"] == len(parent.data.metrics) + sum(len(r.data.metrics) for r in children)
     assert info["tracking_uri"] == "sqlite:///mlflow.db"
     assert info["reused"] is False
+
+
+def test_champion_is_registered_and_predicts_from_a_temperature_table(workdir, client, outputs):
+    track.main([])
+    info = record(workdir)
+    (parent,), _ = split_runs(all_runs(client))
+    assert info["registered_model"] == REGISTERED
+    assert info["champion_version"] == "1"
+    assert info["champion_uri"] == CHAMPION_URI
+    version = client.get_model_version_by_alias(REGISTERED, "champion")
+    assert (str(version.version), version.run_id) == ("1", parent.info.run_id)
+
+    mlflow.set_tracking_uri(f"sqlite:///{workdir / 'mlflow.db'}")
+    model = mlflow.pyfunc.load_model(CHAMPION_URI)
+    table, rises = temperature_table()
+    predicted = np.asarray(model.predict(table), dtype=float)
+    card = read_json(workdir, "data/models/champion/champion.json")
+    assert card == outputs.card
+    expected = outputs.estimator.predict(temperature_features(table, card))
+    np.testing.assert_array_equal(predicted, expected)
+    index = pd.MultiIndex.from_arrays([table["campaign_id"], table["elapsed_s"]], names=INDEX_NAMES)
+    by_hand = outputs.estimator.predict(rises[card["sensors"]].set_axis(index))
+    np.testing.assert_allclose(predicted, by_hand, rtol=0, atol=1e-9)
+    first_rows = table.groupby("campaign_id").head(1).index
+    np.testing.assert_allclose(predicted[first_rows], outputs.estimator.intercept_, atol=1e-9)
+    with pytest.raises(ValueError, match=r"lacks sensor column\(s\) \['T2'\]"):
+        model.predict(table.drop(columns="T2"))
+
+
+def test_missing_champion_warns_and_still_logs_the_runs(workdir, client, caplog):
+    shutil.rmtree(workdir / "data" / "models" / "champion")
+    caplog.set_level("WARNING", logger="pipeline.track")
+    assert track.main([]) == 0
+    assert "no champion model to register" in caplog.text
+    parents, children = split_runs(all_runs(client))
+    assert len(parents) == 1 and len(children) == len(CHILDREN)
+    assert parents[0].info.status == "FINISHED"
+    info = record(workdir)
+    assert info["champion_version"] is None and info["champion_uri"] is None
+    assert versions(client) == []
 
 
 def test_missing_optional_reports_and_dvc_lock_are_tolerated(workdir, client):
@@ -231,7 +588,7 @@ def test_missing_optional_reports_and_dvc_lock_are_tolerated(workdir, client):
     assert "reports/validation.json" not in listed
 
 
-def test_second_run_on_unchanged_inputs_logs_nothing(workdir, client, caplog):
+def test_second_run_on_unchanged_inputs_logs_and_registers_nothing(workdir, client, caplog):
     track.main([])
     first = record(workdir)
     count = len(all_runs(client))
@@ -243,38 +600,44 @@ def test_second_run_on_unchanged_inputs_logs_nothing(workdir, client, caplog):
     assert second["parent_run_id"] == first["parent_run_id"]
     assert second["run_identity"] == first["run_identity"]
     assert "already logged" in caplog.text
+    assert versions(client) == ["1"]
+    assert second["champion_version"] == first["champion_version"] == "1"
 
 
-def _change_scores(root: Path) -> None:
-    write_evaluate_outputs(root, shift=0.5)
+def _change_scores(root: Path, outputs: EvaluateOutputs) -> None:
+    write_scores(root, outputs.scores.assign(rmse_um=outputs.scores["rmse_um"] + 0.5))
 
 
-def _change_params(root: Path) -> None:
+def _change_params(root: Path, outputs: EvaluateOutputs) -> None:
     params = yaml.safe_load((root / "params.yaml").read_text())
     params["evaluate"]["n_jobs"] = 3
     (root / "params.yaml").write_text(yaml.safe_dump(params))
 
 
-def _change_data(root: Path) -> None:
+def _change_data(root: Path, outputs: EvaluateOutputs) -> None:
     (root / "data" / "raw" / "K02" / "temperature.csv").write_text("elapsed_s,T1\n0,20.0\n60,21\n")
 
 
 @pytest.mark.parametrize("change", [_change_scores, _change_params, _change_data])
-def test_changed_scores_params_or_data_log_a_new_parent(workdir, client, change):
+def test_changed_scores_params_or_data_log_a_new_parent(workdir, client, outputs, change):
     track.main([])
     first = record(workdir)
-    change(workdir)
+    change(workdir, outputs)
     track.main([])
     second = record(workdir)
     assert second["run_identity"] != first["run_identity"]
     assert second["reused"] is False
     parents, children = split_runs(all_runs(client))
     assert len(parents) == 2
-    assert len(children) == 2 * first["child_runs"]
+    assert len(children) == 2 * len(CHILDREN)
+    assert versions(client) == ["1", "2"]  # the new parent registers the champion again
+    assert second["champion_version"] == "2"
+    alias = client.get_model_version_by_alias(REGISTERED, "champion")
+    assert alias.run_id == second["parent_run_id"]
 
 
-def test_identity_is_stable_and_sees_renamed_files(tmp_path):
-    write_evaluate_outputs(tmp_path)
+def test_identity_is_stable_and_sees_renamed_files(tmp_path, outputs):
+    write_evaluate_outputs(tmp_path, outputs)
     files = [tmp_path / "reports" / "cross_season_scores.csv"]
     params = yaml.safe_load((tmp_path / "params.yaml").read_text())
     first = identity.compute_identity([tmp_path / "data"], params, tmp_path / "data/raw", files)
@@ -298,18 +661,21 @@ def test_git_commit_is_tagged_when_in_a_repository(workdir, client):
     for command in (["init", "-q"], ["add", "params.yaml"], ["commit", "-q", "-m", "x"]):
         subprocess.run([git, *command], cwd=workdir, env=env, check=True)
     head = subprocess.run([git, "rev-parse", "HEAD"], cwd=workdir, capture_output=True, text=True)
+    shutil.rmtree(workdir / "data" / "models" / "champion")  # not needed here: faster
     track.main([])
     (parent,), _ = split_runs(all_runs(client))
     assert parent.data.tags["git_commit"] == head.stdout.strip()
     assert parent.data.tags["mlflow.source.git.commit"] == head.stdout.strip()
 
 
-def test_metrics_are_logged_in_batches_not_one_by_one(workdir, monkeypatch):
+def test_metrics_are_logged_in_batches_not_one_by_one(workdir, client, monkeypatch):
     calls = {"log_batch": [], "log_metric": 0}
     original = MlflowClient.log_batch
 
     def spy(self, run_id, metrics=(), params=(), tags=(), **kwargs):
-        calls["log_batch"].append(len(metrics))
+        # MLflow's log_model re-logs the run's metrics linked to the model (model_id set)
+        own = [m for m in metrics if getattr(m, "model_id", None) is None]
+        calls["log_batch"].append((run_id, len(own)))
         return original(self, run_id, metrics=metrics, params=params, tags=tags, **kwargs)
 
     def forbidden(*args, **kwargs):
@@ -318,10 +684,11 @@ def test_metrics_are_logged_in_batches_not_one_by_one(workdir, monkeypatch):
     monkeypatch.setattr(MlflowClient, "log_batch", spy)
     monkeypatch.setattr(MlflowClient, "log_metric", forbidden)
     track.main([])
-    n_runs = record(workdir)["child_runs"] + 1
+    run_ids = [r.info.run_id for r in all_runs(client)]
+    with_metrics = [run_id for run_id, n in calls["log_batch"] if n]
     assert calls["log_metric"] == 0
-    assert len(calls["log_batch"]) == n_runs  # one call per run at the default batch size
-    assert sum(calls["log_batch"]) == record(workdir)["metrics"]
+    assert sorted(with_metrics) == sorted(run_ids)  # one call per run at the default batch size
+    assert sum(n for _, n in calls["log_batch"]) == record(workdir)["metrics"]
 
 
 def test_batches_respect_mlflow_limits():
@@ -355,6 +722,7 @@ def test_small_batch_size_splits_the_metrics(workdir, client, monkeypatch):
     params = yaml.safe_load((workdir / "params.yaml").read_text())
     params["track"]["batch_size"] = 7
     (workdir / "params.yaml").write_text(yaml.safe_dump(params))
+    shutil.rmtree(workdir / "data" / "models" / "champion")  # only the runs' metrics counted
     sizes = []
     original = MlflowClient.log_batch
 
@@ -367,7 +735,8 @@ def test_small_batch_size_splits_the_metrics(workdir, client, monkeypatch):
     assert max(sizes) == 7
     assert sum(sizes) == record(workdir)["metrics"]
     _, children = split_runs(all_runs(client))
-    assert all(len(r.data.metrics) == 2 * len(CAMPAIGNS) + len(SUMMARY_KEYS) for r in children)
+    for run in children:
+        assert run.data.metrics == expected_child_metrics(workdir, child_key(run))
 
 
 def test_missing_evaluate_output_says_what_to_run(workdir):
@@ -376,13 +745,23 @@ def test_missing_evaluate_output_says_what_to_run(workdir):
         track.main([])
 
 
+def _row_number(rows: list[dict[str, str]], **match: str) -> int:
+    """1-based data row of the first row whose columns equal ``match``."""
+    return next(i for i, row in enumerate(rows, 1) if all(row[k] == v for k, v in match.items()))
+
+
 def test_bad_score_cell_names_file_row_and_column(workdir):
     rows = read_scores(workdir)
-    rows[3]["rmse_um"] = "n/a"  # model mlr, selection all, K01 -> V01
-    with pytest.raises(ValueError, match=r"data row 4, column 'rmse_um': 'n/a' is not a number"):
+    number = _row_number(rows, model="mlr", train_unit="K01", test_campaign="V01")
+    rows[number - 1]["rmse_um"] = "n/a"
+    with pytest.raises(
+        ValueError,
+        match=rf"cross_season_scores.csv, data row {number}, column 'rmse_um': 'n/a' is not a",
+    ):
         records.scores_by_child(rows)
-    rows[3]["rmse_um"] = ""
-    assert math.isnan(records.scores_by_child(rows)[("mlr", "all", "K01")]["rmse_um.V01"])
+    rows[number - 1]["rmse_um"] = ""
+    scores = records.scores_by_child(rows)[("mlr", "pair", "static")]
+    assert math.isnan(scores["rmse_um.K01.V01"])
 
 
 def _rewrite_scores(root: Path, rows: list[dict[str, str]]) -> Path:
@@ -399,17 +778,21 @@ def test_scores_are_read_exactly_and_checked_against_the_schema(workdir):
     rows = read_scores(workdir)
     parsed = track.read_scores(path)
     assert [r["rmse_um"] for r in parsed] == [float(r["rmse_um"]) for r in rows]
-    assert parsed[0]["train_campaign"] == "K01"
-    rows[3]["rmse_um"] = "-1.5"
-    rows[5]["role"] = "validation"
+    assert [r["train_unit"] for r in parsed] == [r["train_unit"] for r in rows]
+    negative = _row_number(rows, model="ridge", train_unit="K02", test_campaign="K03")
+    wrong_role = _row_number(rows, model="mlr", train_unit="not_winter", test_campaign="K01")
+    rows[negative - 1]["rmse_um"] = "-1.5"
+    rows[wrong_role - 1]["role"] = "validation"
     _rewrite_scores(workdir, rows)
     with pytest.raises(ValueError) as caught:
         track.read_scores(path)
     message = str(caught.value)
-    assert "data row 4, column 'rmse_um': -1.5 fails greater_than_or_equal_to(0)" in message
-    assert "data rows [6]: check role_consistent failed" in message
+    assert f"data row {negative}, column 'rmse_um': -1.5 fails greater_than_or_equal_to(0)" in (
+        message
+    )
+    assert f"data rows [{wrong_role}]: check role_consistent failed" in message
     assert "dvc repro evaluate" in message
-    rows[3]["rmse_um"] = "n/a"
+    rows[negative - 1]["rmse_um"] = "n/a"
     _rewrite_scores(workdir, rows)
     with pytest.raises(ValueError, match=r"column 'rmse_um'.*dvc repro evaluate"):
         track.main([])
@@ -417,8 +800,15 @@ def test_scores_are_read_exactly_and_checked_against_the_schema(workdir):
 
 def test_duplicate_score_row_is_an_error(workdir):
     rows = read_scores(workdir)
-    with pytest.raises(ValueError, match=r"data row 2: .*test_campaign=K02 already on data row 1"):
+    with pytest.raises(
+        ValueError,
+        match=r"data row 2: model=mlr selection=pair mode=static train_unit=K01 "
+        r"test_campaign=K02 already on data row 1",
+    ):
         records.scores_by_child([rows[1], rows[1]])
+    _rewrite_scores(workdir, [*rows, rows[1]])
+    with pytest.raises(ValueError, match=r"check one_score_per_pair failed"):
+        track.main([])
 
 
 def test_tracking_uri_env_var_overrides_default(workdir, monkeypatch, tmp_path_factory):
@@ -427,40 +817,11 @@ def test_tracking_uri_env_var_overrides_default(workdir, monkeypatch, tmp_path_f
     track.main([])
     assert record(workdir)["tracking_uri"] == f"sqlite:///{other}"
     assert (other.parent / "mlartifacts" / EXPERIMENT).is_dir()
+    assert not (workdir / "mlartifacts").exists()
+    assert MlflowClient(f"sqlite:///{other}").get_model_version_by_alias(REGISTERED, "champion")
     assert track.public_uri("https://user:secret@mlflow.example.org/x") == (
         "https://mlflow.example.org/x"
     )
-
-
-@pytest.mark.slow
-def test_track_logs_to_a_real_mlflow_server(tmp_path):
-    work = tmp_path / "work"
-    work.mkdir()
-    write_evaluate_outputs(work)
-    thermal = Path(sys.executable).with_name("thermal")
-    command = [str(thermal)] if thermal.exists() else [sys.executable, "-m", "pipeline"]
-    with running_mlflow_server(tmp_path) as uri:
-        env = {**os.environ, "MLFLOW_TRACKING_URI": uri}
-        for _ in range(2):  # the second run must reuse the parent
-            done = subprocess.run(
-                [*command, "track"], cwd=work, env=env, capture_output=True, text=True, timeout=300
-            )
-            assert done.returncode == 0, done.stderr
-        client = MlflowClient(tracking_uri=uri)
-        parents, children = split_runs(all_runs(client))
-        assert len(parents) == 1
-        assert len(children) == len(MODELS) * len(SELECTIONS) * len(TRAIN)
-        assert record(work)["reused"] is True
-        for row in read_scores(work):
-            (run,) = [r for r in children if r.info.run_name ==
-                      f"{row['model']}/{row['selection']}/{row['train_campaign']}"]  # fmt: skip
-            assert run.data.metrics[f"rmse_um.{row['test_campaign']}"] == float(row["rmse_um"])
-            assert run.data.metrics[f"resid_std_um.{row['test_campaign']}"] == float(
-                row["resid_std_um"]
-            )
-        listed = {f.path for f in client.list_artifacts(parents[0].info.run_id, "reports")}
-        assert "reports/cross_season_matrix.png" in listed
-    assert not (work / "mlflow.db").exists()  # nothing went to the default local store
 
 
 def test_unreachable_tracking_server_is_a_clear_error(workdir, monkeypatch):
@@ -474,3 +835,92 @@ def test_unreachable_tracking_server_is_a_clear_error(workdir, monkeypatch):
     ):
         track.main([])
     assert not (workdir / "reports" / "mlflow_run.json").exists()
+
+
+@pytest.mark.slow
+def test_track_logs_and_registers_on_a_real_mlflow_server(tmp_path, outputs, monkeypatch):
+    work = tmp_path / "work"
+    work.mkdir()
+    write_evaluate_outputs(work, outputs)
+    thermal = Path(sys.executable).with_name("thermal")
+    command = [str(thermal)] if thermal.exists() else [sys.executable, "-m", "pipeline"]
+    with running_mlflow_server(tmp_path) as uri:
+        env = {**os.environ, "MLFLOW_TRACKING_URI": uri}
+        done = subprocess.run(
+            [*command, "track"], cwd=work, env=env, capture_output=True, text=True, timeout=300
+        )
+        assert done.returncode == 0, done.stderr
+        first = record(work)
+        monkeypatch.chdir(work)
+        monkeypatch.setenv("MLFLOW_TRACKING_URI", uri)
+        assert track.main([]) == 0  # in-process (faster): must reuse the parent
+        assert record(work)["reused"] is True
+        assert record(work)["parent_run_id"] == first["parent_run_id"]
+        client = MlflowClient(tracking_uri=uri)
+        parents, children = split_runs(all_runs(client))
+        assert len(parents) == 1
+        assert {child_key(r) for r in children} == CHILDREN
+        for run in children:
+            assert run.data.metrics == expected_child_metrics(work, child_key(run))
+        listed = {f.path for f in client.list_artifacts(parents[0].info.run_id, "reports")}
+        assert "reports/model_comparison.md" in listed
+        assert versions(client) == ["1"]
+        assert first["champion_uri"] == CHAMPION_URI
+        assert first["tracking_uri"] == uri
+        mlflow.set_tracking_uri(uri)
+        model = mlflow.pyfunc.load_model(CHAMPION_URI)
+        table, _ = temperature_table()
+        expected = outputs.estimator.predict(temperature_features(table, outputs.card))
+        np.testing.assert_array_equal(np.asarray(model.predict(table), dtype=float), expected)
+    assert not (work / "mlflow.db").exists()  # nothing went to the default local store
+
+
+# Known bugs in the lead's code (see the reasons); strict: a fix turns these into failures,
+# remove the marker then.
+
+
+@pytest.mark.xfail(
+    strict=True,
+    reason="pipeline/tracking/champion_model.py log_and_register calls mlflow.set_tracking_uri, "
+    "which also sets os.environ['MLFLOW_TRACKING_URI'] for the rest of the process",
+)
+def test_track_leaves_the_process_tracking_uri_alone(workdir):
+    track.main([])
+    assert "MLFLOW_TRACKING_URI" not in os.environ
+    track.main([])
+    assert record(workdir)["tracking_uri"] == "sqlite:///mlflow.db"
+
+
+@pytest.mark.xfail(
+    strict=True,
+    reason="pipeline/tracking/store.py log_pipeline registers the champion on the parent after "
+    "its metrics are logged: MLflow 3 log_model then links every parent metric to the model, "
+    "one get_metric_history request per metric (seconds against a server)",
+)
+def test_registering_the_champion_does_not_fetch_every_metric(workdir, monkeypatch):
+    fetched = []
+    original = MlflowClient.get_metric_history
+
+    def spy(self, run_id, key):
+        fetched.append(key)
+        return original(self, run_id, key)
+
+    monkeypatch.setattr(MlflowClient, "get_metric_history", spy)
+    track.main([])
+    assert record(workdir)["champion_version"] == "1"
+    assert fetched == []
+
+
+@pytest.mark.xfail(
+    strict=True,
+    raises=ValueError,
+    reason="pipeline/track.py read_scores parses scheme, train_unit and test_season as numbers "
+    "when they look like numbers (campaign ids may be digits only)",
+)
+def test_numeric_campaign_ids_are_read_as_text(workdir):
+    path = workdir / "reports" / "cross_season_scores.csv"
+    text = path.read_text().replace("K01", "0101").replace("winter", "2023")
+    path.write_text(text)
+    parsed = track.read_scores(path)
+    assert {"0101", "not_2023"} <= {row["train_unit"] for row in parsed}
+    assert "2023" in {row["test_season"] for row in parsed}

@@ -16,11 +16,14 @@ Implementation (standard forms where the capture lost the paper's equations):
   here the error is differenced (per campaign, pre-sample error 0) until a majority of the
   training campaigns pass the test, at most ``max_diff`` times. A warm-up curve usually needs
   d = 2 (its first difference still trends from fast heating to saturation).
-- Order: candidates from :func:`pipeline.models.identification.identify`, ranked by the
-  information criterion of a Hannan-Rissanen fit (statsmodels ``hannan_rissanen``, the
-  paper's LSA/LAR estimator: long AR, then least squares on lagged values and residuals);
-  the best ``n_refit`` are refitted by exact Gaussian maximum likelihood (statsmodels
-  ``ARIMA``, state space, stationary and invertible) and the criterion of that fit decides.
+- Order: candidates from :func:`pipeline.models.identification.identify`, each estimated by
+  Hannan-Rissanen (statsmodels ``hannan_rissanen``, the paper's LSA/LAR estimator: long AR,
+  then least squares on lagged values and residuals) and ranked by the information criterion
+  of the exact Gaussian likelihood at those estimates (statsmodels ``ARIMA.loglike``); the
+  best ``n_refit`` are refitted by maximum likelihood (statsmodels ``ARIMA``, state space,
+  stationary and invertible, started from the Hannan-Rissanen estimates) and the criterion
+  of that fit decides. (Ranking by the Hannan-Rissanen residual variance alone favoured
+  over-parameterised orders.)
 - Several campaigns: statsmodels takes one series, so the campaigns are joined by
   ``GAP_LENGTH`` missing values; the Kalman filter predicts through the gap, so each campaign
   starts close to the unconditional distribution and no error history crosses a campaign.
@@ -43,6 +46,7 @@ from sklearn.base import BaseEstimator, RegressorMixin
 from sklearn.utils.validation import check_is_fitted
 from statsmodels.tsa.arima.estimators.hannan_rissanen import hannan_rissanen
 from statsmodels.tsa.arima.model import ARIMA
+from threadpoolctl import threadpool_limits
 
 from pipeline.models.feedback import ErrorFeedbackMixin, check_history
 from pipeline.models.identification import identify
@@ -93,8 +97,8 @@ class ARMAErrorModel(ErrorFeedbackMixin, RegressorMixin, BaseEstimator):
     stationarity_z_ : list of float
         z statistic of the reverse-arrangement test of each campaign at the chosen d.
     criteria_ : pandas.DataFrame
-        Candidate orders with the Hannan-Rissanen criterion and, for those refitted, the
-        maximum-likelihood criterion.
+        Candidate orders (p, q) with ``hr_ic``, the criterion at the Hannan-Rissanen estimates,
+        and ``mle_ic``, the criterion after maximum likelihood (those refitted; else NaN).
     chosen_params_ : dict
         p, d, q, identified family, ic and its value, mean_um.
     """
@@ -142,7 +146,7 @@ class ARMAErrorModel(ErrorFeedbackMixin, RegressorMixin, BaseEstimator):
         """
         if self.ic not in _CRITERIA:
             raise ValueError(f"ic must be one of {_CRITERIA}, got {self.ic!r}")
-        X, target = check_xy(X, y)
+        X, target = check_xy(X, y, min_columns=0)
         segs = segments(X)
         short = [len(rows) for rows in segs if len(rows) < MIN_CAMPAIGN_LENGTH]
         if short:
@@ -156,8 +160,9 @@ class ARMAErrorModel(ErrorFeedbackMixin, RegressorMixin, BaseEstimator):
         self.mean_ = float(np.concatenate(differenced).mean())
         centred = [piece - self.mean_ for piece in differenced]
         self.identification_ = identify(centred, self.max_p, self.max_q)
-        self.criteria_ = self._rank_candidates(centred, self.identification_.candidates)
-        best = self._refit_best(centred)
+        joined = join_campaigns(centred)
+        self.criteria_ = self._rank_candidates(joined, self.identification_.candidates)
+        best = self._refit_best(joined)
         p, q = int(best["p"]), int(best["q"])
         self.order_ = (p, n_diff, q)
         self.stationarity_z_ = z_stats
@@ -190,11 +195,9 @@ class ARMAErrorModel(ErrorFeedbackMixin, RegressorMixin, BaseEstimator):
             Predicted thermal error (um).
         """
         check_is_fitted(self, "chosen_params_")
-        X = check_features(X)
+        X = check_features(X, min_columns=0)
         measured = check_history(y_history, len(X))
-        return arma_recursion(
-            self.ar_, self.ma_, self.mean_, self.order_[1], segments(X), measured
-        )
+        return arma_recursion(self.ar_, self.ma_, self.mean_, self.order_[1], segments(X), measured)
 
     def _choose_differencing(self, pieces: Sequence[np.ndarray]) -> tuple[int, list[float]]:
         """Smallest d <= max_diff at which most campaigns pass the reverse-arrangement test."""
@@ -213,46 +216,84 @@ class ARMAErrorModel(ErrorFeedbackMixin, RegressorMixin, BaseEstimator):
         return self.max_diff, [r.z for r in results]
 
     def _rank_candidates(
-        self, centred: Sequence[np.ndarray], candidates: Sequence[tuple[int, int]]
+        self, joined: np.ndarray, candidates: Sequence[tuple[int, int]]
     ) -> pd.DataFrame:
-        """Hannan-Rissanen criterion N ln(sigma^2) + penalty (p + q) of each candidate."""
-        series = np.concatenate(centred)
-        n = len(series)
-        penalty = 2.0 if self.ic == "aic" else np.log(n)
+        """Rank candidates by the exact criterion at their Hannan-Rissanen estimates.
+
+        Hannan-Rissanen (the paper's LSA/LAR) runs on the campaigns placed end to end; its
+        estimates are scored by the exact Gaussian likelihood of the gap-joined series (one
+        Kalman filter pass). Non-stationary or non-invertible estimates rank last.
+        """
+        observed = joined[np.isfinite(joined)]
         rows = []
         for p, q in candidates:
             if p == 0 and q == 0:
-                sigma2 = float(series @ series / n)
+                params, valid = np.array([observed @ observed / len(observed)]), True
             else:
                 with warnings.catch_warnings():
                     warnings.simplefilter("ignore")
-                    params, _ = hannan_rissanen(series, ar_order=p, ma_order=q, demean=False)
-                sigma2 = float(params.sigma2)
-            rows.append({"p": p, "q": q, "hr_ic": n * np.log(sigma2) + penalty * (p + q)})
+                    hr, _ = hannan_rissanen(observed, ar_order=p, ma_order=q, demean=False)
+                params = np.r_[hr.ar_params, hr.ma_params, hr.sigma2]
+                valid = bool(hr.is_stationary and hr.is_invertible and hr.sigma2 > 0)
+            criterion = np.inf
+            if valid:
+                with warnings.catch_warnings(), threadpool_limits(limits=1):
+                    warnings.simplefilter("ignore")
+                    llf = ARIMA(joined, order=(p, 0, q), trend="n").loglike(params)
+                criterion = _criterion(llf, p + q + 1, len(observed), self.ic)
+            rows.append({"p": p, "q": q, "hr_ic": criterion, "start": params})
         return pd.DataFrame(rows).sort_values("hr_ic", kind="stable").reset_index(drop=True)
 
-    def _refit_best(self, centred: Sequence[np.ndarray]) -> pd.Series:
+    def _refit_best(self, joined: np.ndarray) -> pd.Series:
         """Maximum-likelihood fits of the best candidates; keep parameters of the winner."""
-        gap = np.full(GAP_LENGTH, np.nan)
-        joined = np.concatenate([part for piece in centred for part in (piece, gap)][:-1])
         mle_ic = np.full(len(self.criteria_), np.nan)
         fits = {}
         for i in range(min(self.n_refit, len(self.criteria_))):
             p, q = int(self.criteria_.at[i, "p"]), int(self.criteria_.at[i, "q"])
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore")
-                result = ARIMA(joined, order=(p, 0, q), trend="n").fit(
-                    method_kwargs={"maxiter": self.maxiter}, cov_type="none"
-                )
+            start = (
+                self.criteria_.at[i, "start"]
+                if np.isfinite(self.criteria_.at[i, "hr_ic"])
+                else None
+            )
+            try:
+                # One BLAS thread: the Kalman filter's 10 x 10 products are up to 50 times
+                # slower when threads compete for the cores.
+                with warnings.catch_warnings(), threadpool_limits(limits=1):
+                    warnings.simplefilter("ignore")
+                    result = ARIMA(joined, order=(p, 0, q), trend="n").fit(
+                        start_params=start,
+                        method_kwargs={"maxiter": self.maxiter},
+                        cov_type="none",
+                    )
+            except (np.linalg.LinAlgError, ValueError) as error:
+                logger.warning("ARMA(%d,%d) maximum-likelihood fit failed: %s", p, q, error)
+                continue
             mle_ic[i] = getattr(result, self.ic)
             fits[i] = result
-        self.criteria_ = self.criteria_.assign(mle_ic=mle_ic)
+        if not fits:
+            raise ValueError(
+                "no candidate ARMA order could be fitted by maximum likelihood; check that the "
+                "thermal error varies within each campaign"
+            )
+        self.criteria_ = self.criteria_.drop(columns="start").assign(mle_ic=mle_ic)
         winner = int(np.nanargmin(mle_ic))
         result = fits[winner]
         self.ar_ = np.asarray(result.arparams, dtype=float)
         self.ma_ = np.asarray(result.maparams, dtype=float)
         self.sigma2_ = float(result.params[-1])
         return self.criteria_.loc[winner]
+
+
+def _criterion(llf: float, n_params: int, n_obs: int, ic: str) -> float:
+    """AIC = -2 llf + 2 k or BIC = -2 llf + k ln N."""
+    penalty = 2.0 if ic == "aic" else np.log(n_obs)
+    return float(-2.0 * llf + penalty * n_params)
+
+
+def join_campaigns(pieces: Sequence[np.ndarray]) -> np.ndarray:
+    """Place the campaigns' series end to end, separated by ``GAP_LENGTH`` missing values."""
+    gap = np.full(GAP_LENGTH, np.nan)
+    return np.concatenate([part for piece in pieces for part in (piece, gap)][:-1])
 
 
 def difference(series: np.ndarray, n_diff: int) -> np.ndarray:

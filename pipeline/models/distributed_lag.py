@@ -178,8 +178,8 @@ class LaggedLinearModel(RegressorMixin, BaseEstimator):
     per campaign (:func:`pipeline.models.series.lagged`) and applies the coefficients, so one
     campaign's predictions never depend on another campaign's rows.
 
-    Attributes set by fit
-    ---------------------
+    Attributes
+    ----------
     coef_ : pandas.DataFrame, shape (m, lag_order_ + 1)
         b_{j,i} in um per unit of X (um/K); index = sensor, columns = lag (samples).
     intercept_ : float

@@ -170,7 +170,7 @@ def cutoff_lag(correlations: np.ndarray, band: float, max_order: int) -> int | N
 
 
 def identification_lags(pieces: Sequence[np.ndarray], max_order: int) -> int:
-    """Number of ACF/PACF lags to inspect: max(20, 2 max_order + 2), within the shortest piece."""
+    """Return the ACF/PACF lags to inspect: max(20, 2 max_order + 2), below the shortest piece."""
     shortest = min(len(piece) for piece in pieces)
     return max(2, min(max(20, 2 * max_order + 2), shortest - 1))
 

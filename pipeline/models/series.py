@@ -18,7 +18,9 @@ logger = logging.getLogger(__name__)
 CAMPAIGN_LEVEL = "campaign_id"
 
 
-def check_xy(X: pd.DataFrame, y: np.ndarray) -> tuple[pd.DataFrame, np.ndarray]:
+def check_xy(
+    X: pd.DataFrame, y: np.ndarray, min_columns: int = 1
+) -> tuple[pd.DataFrame, np.ndarray]:
     """Validate a training pair and return it as (float DataFrame, float ndarray).
 
     Parameters
@@ -27,6 +29,8 @@ def check_xy(X: pd.DataFrame, y: np.ndarray) -> tuple[pd.DataFrame, np.ndarray]:
         Temperatures (K rise or degC), one column per sensor, index as in :func:`segments`.
     y : array-like, shape (n,)
         Thermal error (um), rows aligned with X.
+    min_columns : int
+        Fewest sensor columns accepted (see :func:`check_features`).
 
     Returns
     -------
@@ -41,7 +45,7 @@ def check_xy(X: pd.DataFrame, y: np.ndarray) -> tuple[pd.DataFrame, np.ndarray]:
     ValueError
         If X has no rows or columns, if X or y holds NaN/inf, or if their lengths differ.
     """
-    frame = check_features(X)
+    frame = check_features(X, min_columns=min_columns)
     target = np.asarray(y, dtype=float).ravel()
     if len(target) != len(frame):
         raise ValueError(
@@ -52,7 +56,9 @@ def check_xy(X: pd.DataFrame, y: np.ndarray) -> tuple[pd.DataFrame, np.ndarray]:
     return frame, target
 
 
-def check_features(X: pd.DataFrame, columns: list[str] | None = None) -> pd.DataFrame:
+def check_features(
+    X: pd.DataFrame, columns: list[str] | None = None, min_columns: int = 1
+) -> pd.DataFrame:
     """Validate a feature table and return its (selected) columns as floats.
 
     Parameters
@@ -61,6 +67,9 @@ def check_features(X: pd.DataFrame, columns: list[str] | None = None) -> pd.Data
         Temperatures (K rise or degC), one column per sensor.
     columns : list of str, optional
         Sensor columns a fitted model was trained on; they are selected in this order.
+    min_columns : int
+        Fewest sensor columns accepted: 0 for models on the error series alone, which use
+        only X's index (the campaign boundaries).
 
     Returns
     -------
@@ -86,8 +95,10 @@ def check_features(X: pd.DataFrame, columns: list[str] | None = None) -> pd.Data
                 "pass the same sensors as in fit"
             )
         X = X.loc[:, list(columns)]
-    if X.shape[0] == 0 or X.shape[1] == 0:
-        raise ValueError(f"X has shape {X.shape}; it needs at least one row and one sensor")
+    if X.shape[0] == 0 or X.shape[1] < min_columns:
+        raise ValueError(
+            f"X has shape {X.shape}; it needs at least one row and {min_columns} sensor column(s)"
+        )
     frame = X.astype(float)
     if not np.isfinite(frame.to_numpy()).all():
         raise ValueError("X holds NaN or infinite temperatures; drop or repair those rows first")

@@ -92,6 +92,7 @@ def correlation_grouping(
         }
     ).sort_values(["group", "abs_r_leader"], ascending=[True, False], kind="stable")
     evidence = pd.concat([evidence, inputs.status_rows()], ignore_index=True)
+    evidence["group"] = evidence["group"].astype("Int64")
     sensors = [used[i] for i in leaders]
     details: dict[str, int | float | str] = {
         "threshold": float(threshold),

@@ -282,7 +282,9 @@ def fc_grd(
     best = evidence.sort_values(["grd"], ascending=False, kind="stable").groupby("group").head(1)
     evidence["chosen"] = evidence.index.isin(best.index)
     sensors = list(best["sensor"])
+    evidence = evidence.sort_values(["group", "grd"], ascending=[True, False], kind="stable")
     evidence = pd.concat([evidence, inputs.status_rows()], ignore_index=True)
+    evidence["group"] = evidence["group"].astype("Int64")
     details: dict[str, int | float | str] = {
         "lambda": float(chosen_level["lambda"]),
         "n_groups": int(chosen_level["n_groups"]),

@@ -69,6 +69,7 @@ def gra_top_k(
         {"sensor": used, "grd": degrees, "rank": rank, "chosen": rank <= k, "status": STATUS_USED}
     ).sort_values("rank", kind="stable")
     evidence = pd.concat([evidence, inputs.status_rows()], ignore_index=True)
+    evidence["rank"] = evidence["rank"].astype("Int64")
     sensors = [used[i] for i in order[:k]]
     details: dict[str, int | float | str] = {
         "k": int(k),

@@ -277,6 +277,7 @@ def parent_record(
     params: Mapping[str, Any],
     tags: Mapping[str, str],
     selected: Mapping[str, Mapping[str, Mapping[str, Any]]] | None = None,
+    axis_model: Mapping[str, Any] | None = None,
 ) -> RunRecord:
     """Build the parent record: overall scores, every parameter, provenance tags.
 
@@ -294,6 +295,9 @@ def parent_record(
     selected : mapping, optional
         ``reports/selection/selected.json`` ``methods``; each method's choice on each training
         unit becomes a parameter ``selected.<method>.<unit>`` (comma-separated sensors).
+    axis_model : mapping, optional
+        ``metrics/axis_model.json`` (linear-axis composite model); each number becomes a metric
+        ``axis_model.<key>`` (um).
     """
     metrics = {}
     for model, selections in cross_season.items():
@@ -304,6 +308,7 @@ def parent_record(
                         number = _as_metric(value)
                         if number is not None:
                             metrics[safe_key(model, selection, mode, scheme, key)] = number
+    metrics.update(_entry_metrics(axis_model or {}, "axis_model"))
     flat = {
         safe_key(key): _text(value, MAX_PARAM_LENGTH, f"params.yaml {key}")
         for key, value in flatten(params).items()
