@@ -27,12 +27,17 @@ def _number(value: object) -> str:
 
 
 def score_table(summary: pd.DataFrame, champion: Mapping[str, str]) -> str:
-    """Markdown table of every candidate, best validation Mn first; the champion in bold."""
+    """Markdown table of every candidate; the champion in bold.
+
+    Candidates that run from temperatures alone (``static``, ``free_run``) come first, then the
+    ``one_step`` ones (which need the measured error online), each block by validation Mn.
+    """
     columns = [c for c in TABLE_COLUMNS if c in summary]
     header = "| model | selection | mode | " + " | ".join(TABLE_COLUMNS[c] for c in columns) + " |"
     lines = [header, "|" + "---|" * (3 + len(columns))]
-    order = summary.sort_values(
-        ["Mn_val_um" if "Mn_val_um" in summary else "Mn_um", "model"], na_position="last"
+    order = summary.assign(online=summary["mode"] == "one_step").sort_values(
+        ["online", "Mn_val_um" if "Mn_val_um" in summary else "Mn_um", "model"],
+        na_position="last",
     )
     for _, row in order.iterrows():
         is_champion = all(row[k] == champion[k] for k in ("model", "selection", "mode"))

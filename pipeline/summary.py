@@ -26,18 +26,28 @@ def summary_lines(root: Path) -> list[str]:
             f"{len(validation['quarantined'])} quarantined "
             f"{', '.join(validation['quarantined'])}"
         )
-    metrics = root / paths.CROSS_SEASON_METRICS
-    if metrics.is_file():
-        for model, selections in json.loads(metrics.read_text()).items():
-            for selection, entry in selections.items():
-                o = entry["overall"]
-                lines.append(
-                    f"  scores           {paths.CROSS_SEASON_METRICS}: {model}/{selection} "
-                    f"S {o['S_um']} um, Mn {o['Mn_um']} um, Sd {o['Sd_um']} um, "
-                    f"Mn_val {o['Mn_val_um']} um (residual std); Mn_rms {o['Mn_rms_um']} um"
-                )
+    champion = root / paths.CHAMPION_CARD
+    if champion.is_file():
+        card = json.loads(champion.read_text())
+        scores = card["scores_um"]
+        lines.append(
+            f"  champion         {card['model']}/{card['selection']}/{card['mode']} on "
+            f"{', '.join(card['sensors']) or 'no sensor'}: S {scores.get('S_um')} um, "
+            f"Mn {scores.get('Mn_um')} um, Sd {scores.get('Sd_um')} um, "
+            f"Mn_val {scores.get('Mn_val_um')} um (residual std)"
+        )
+    axis = root / paths.AXIS_MODEL_METRICS
+    if axis.is_file():
+        figures = json.loads(axis.read_text())
+        lines.append(
+            f"  axis model       {paths.AXIS_MODEL_REPORT}: validation residual "
+            f"{figures.get('residual_min_um')} to {figures.get('residual_max_um')} um"
+        )
     lines += [
-        f"  matrix           {paths.MATRIX_CSV}, {paths.MATRIX_PNG}",
+        f"  comparison       {paths.MODEL_COMPARISON} (every model, scores, heat-maps, plots)",
+        f"  selection        {paths.SELECTION}/ (sensitive points, evidence, stability)",
+        f"  scores           {paths.CANDIDATE_SCORES}, {paths.SCORES_LONG}, "
+        f"{paths.CROSS_SEASON_METRICS}",
         f"  thermal error    {paths.SPINDLE_THERMAL_ERROR}",
         f"  axis separation  {paths.AXIS_SLOPES}, {paths.SEPARATION_PLOTS}/*.png",
         "  plots            .venv/bin/dvc plots show  (writes dvc_plots/index.html)",
@@ -51,6 +61,10 @@ def summary_lines(root: Path) -> list[str]:
             f"  MLflow           experiment '{tracking.get('experiment')}', parent run "
             f"{tracking.get('parent_run_id')} at {uri}"
         )
+        if tracking.get("champion_uri"):
+            lines.append(
+                f"  champion model   mlflow.pyfunc.load_model(\"{tracking['champion_uri']}\")"
+            )
     if uri.startswith("sqlite:"):
         lines += [
             "",

@@ -628,9 +628,12 @@ def test_cross_season_scores_model_checks_roles():
         {
             "model": ["mlr", "mlr"],
             "selection": ["all", "all"],
-            "train_campaign": ["K01", "K01"],
+            "mode": ["static", "static"],
+            "scheme": ["campaign", "campaign"],
+            "train_unit": ["K01", "K01"],
             "test_campaign": ["K01", "K02"],
             "test_split": ["train", "train"],
+            "test_season": ["winter", "spring"],
             "role": ["fit", "fit"],  # the second should be "prediction"
             "n_samples": np.array([10, 10], dtype="int64"),
             "rmse_um": [1.0, 2.0],
@@ -641,6 +644,11 @@ def test_cross_season_scores_model_checks_roles():
         schemas.CrossSeasonScoresModel.validate(scores, lazy=True)
     fixed = scores.assign(role=["fit", "prediction"])
     schemas.CrossSeasonScoresModel.validate(fixed)
+    validation = fixed.assign(test_split=["train", "validation"])
+    with pytest.raises(SchemaErrors, match="role_consistent"):
+        schemas.CrossSeasonScoresModel.validate(validation, lazy=True)
+    season = fixed.assign(scheme="season", train_unit="not_winter", role=["fit", "prediction"])
+    schemas.CrossSeasonScoresModel.validate(season)
 
 
 def test_spindle_thermal_error_model_with_sensor_columns():
