@@ -4,7 +4,8 @@ It also times best-subset selection against a naive loop of least-squares fits
 (:mod:`pipeline.selection_bench`). The repository (tracked files, the shipped demo campaigns) is
 copied to a temporary folder and ``dvc repro`` runs there from scratch against a fresh local
 MLflow store, so that the figures do not depend on caches. In a second fresh copy each stage's
-command (from ``dvc.yaml``) is run alone, in order, to time it. Machines are noisy: read the shares rather than absolute seconds.
+command (from ``dvc.yaml``) is run alone, in order, to time it. Machines are noisy: read the
+shares rather than absolute seconds.
 """
 
 from __future__ import annotations

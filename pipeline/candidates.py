@@ -27,7 +27,7 @@ NO_SELECTION = "none"
 def candidate_list(
     pairs: Mapping[str, str], selections: Mapping[str, object], full_grid: bool
 ) -> list[Candidate]:
-    """The candidates to score.
+    """Return the candidates to score.
 
     Parameters
     ----------
@@ -70,7 +70,7 @@ def candidate_list(
 def unit_sensors(
     candidate: Candidate, unit: TrainingUnit, selected: Mapping[str, Mapping[str, Mapping]]
 ) -> list[str]:
-    """The sensors the selection chose on this training unit (none for series-only models)."""
+    """Return the sensors chosen on this training unit (none for series-only models)."""
     if candidate.selection == NO_SELECTION:
         return []
     return list(selected[candidate.selection][unit.name]["sensors"])

@@ -54,9 +54,7 @@ def rank_candidates(summary: pd.DataFrame) -> tuple[pd.DataFrame, str]:
     return ranked.sort_values([column, "model", "selection"]).reset_index(drop=True), column
 
 
-def champion_card(
-    best: pd.Series, column: str, result: UnitResult, features: str
-) -> dict:
+def champion_card(best: pd.Series, column: str, result: UnitResult, features: str) -> dict:
     """JSON-ready description of the champion (``data/models/champion/champion.json``).
 
     Parameters
@@ -122,11 +120,15 @@ def temperature_features(table: pd.DataFrame, card: dict) -> pd.DataFrame:
             f"temperature table lacks sensor column(s) {missing} (found {list(table.columns)}); "
             f"the champion {card['model']}/{card['selection']} needs {sensors}, in degC"
         )
-    runs = table["campaign_id"].astype(str) if "campaign_id" in table else pd.Series(
-        "run", index=table.index
+    runs = (
+        table["campaign_id"].astype(str)
+        if "campaign_id" in table
+        else pd.Series("run", index=table.index)
     )
-    elapsed = table["elapsed_s"] if "elapsed_s" in table else pd.Series(
-        range(len(table)), index=table.index, dtype=float
+    elapsed = (
+        table["elapsed_s"]
+        if "elapsed_s" in table
+        else pd.Series(range(len(table)), index=table.index, dtype=float)
     )
     values = table[sensors].astype(float)
     if card["features"] == "temperature_rise":

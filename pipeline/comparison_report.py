@@ -66,7 +66,7 @@ def render(
     n_campaigns: Mapping[str, int],
     synthetic: bool,
 ) -> str:
-    """The whole report.
+    """Render the whole report as Markdown.
 
     Parameters
     ----------

@@ -92,7 +92,7 @@ def _plain(value):
 
 
 def pooled_result(results: list[UnitResult], model: str, selection: str) -> UnitResult:
-    """The candidate's fit on all training campaigns."""
+    """Return the candidate's fit on all training campaigns."""
     return next(
         r for r in results
         if r.unit.name == POOLED_UNIT and (r.candidate.model, r.candidate.selection)
@@ -190,11 +190,19 @@ def write_outputs(
         panels, labels, f"Validation campaigns, models built on all training campaigns ({origin})",
         figure,
     )  # fmt: skip
-    n_campaigns = {split: sum(s.split == split for s in series) for split in ("train", "validation")}
+    n_campaigns = {
+        split: sum(s.split == split for s in series) for split in ("train", "validation")
+    }
     paths.MODEL_COMPARISON.write_text(
         comparison_report.render(
-            summary, card, selected, heatmaps, figure.relative_to(paths.REPORTS).as_posix(),
-            labels, n_campaigns, synthetic,
+            summary,
+            card,
+            selected,
+            heatmaps,
+            figure.relative_to(paths.REPORTS).as_posix(),
+            labels,
+            n_campaigns,
+            synthetic,
         )  # fmt: skip
     )
 

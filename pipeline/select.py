@@ -142,10 +142,7 @@ def selected_record(features: str, selections: dict[str, dict[str, Selection]]) 
 
 
 def _plain(details: dict) -> dict:
-    return {
-        str(k): (v.item() if hasattr(v, "item") else v)
-        for k, v in details.items()
-    }
+    return {str(k): (v.item() if hasattr(v, "item") else v) for k, v in details.items()}
 
 
 def write_outputs(
@@ -190,7 +187,9 @@ def main(argv: list[str] | None = None) -> int:
     series = campaign_series(table, sensor_columns(table), feature_prefix(features))
     units = training_units(series)
     selections = select_all(series, units, methods)
-    write_outputs(features, selections, units, sensor_columns(table), bool(table["synthetic"].any()))
+    write_outputs(
+        features, selections, units, sensor_columns(table), bool(table["synthetic"].any())
+    )
     for method, by_unit in selections.items():
         LOGGER.info(
             "%s: all training campaigns -> %s", method, ", ".join(by_unit["all_training"].sensors)

@@ -81,10 +81,11 @@ def report_lines(rows: list[dict]) -> list[str]:
     """Human-readable table of :func:`compare`."""
     lines = [f"{'m':>3}{'subsets':>10}{'fast s':>9}{'naive s':>10}{'naive/fast':>12}  note"]
     for row in rows:
-        note = "naive extrapolated from a sample" if row["naive_extrapolated"] else (
-            "same winner" if row["same_winner"] else "DIFFERENT winner")
+        note = (
+            "naive extrapolated from a sample"
+            if row["naive_extrapolated"]
+            else ("same winner" if row["same_winner"] else "DIFFERENT winner")
+        )
         lines.append(f"{row['m']:>3}{row['subsets']:>10}{row['fast_s']:>9.2f}"
                      f"{row['naive_s']:>10.2f}{row['ratio']:>12.1f}  {note}")  # fmt: skip
     return lines
-
-

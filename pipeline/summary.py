@@ -63,7 +63,7 @@ def summary_lines(root: Path) -> list[str]:
         )
         if tracking.get("champion_uri"):
             lines.append(
-                f"  champion model   mlflow.pyfunc.load_model(\"{tracking['champion_uri']}\")"
+                f'  champion model   mlflow.pyfunc.load_model("{tracking["champion_uri"]}")'
             )
     if uri.startswith("sqlite:"):
         lines += [

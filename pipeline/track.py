@@ -72,7 +72,12 @@ ENV_TRACKING_URI = "MLFLOW_TRACKING_URI"
 DEFAULT_TRACKING_URI = "sqlite:///mlflow.db"
 DEFAULT_ARTIFACT_DIR = "mlartifacts"
 SCORE_FILES = (
-    SCORES_LONG, CROSS_SEASON_METRICS, FITTED_MODELS, SELECTED, CHAMPION_CARD, AXIS_MODEL_METRICS
+    SCORES_LONG,
+    CROSS_SEASON_METRICS,
+    FITTED_MODELS,
+    SELECTED,
+    CHAMPION_CARD,
+    AXIS_MODEL_METRICS,
 )
 DEFAULT_REGISTERED_MODEL = "thermal-error-spindle"
 
@@ -252,8 +257,8 @@ def _parse_args(argv: list[str]) -> argparse.Namespace:
         prog="thermal track",
         description=(
             "Log the evaluate outputs to MLflow: one parent run per pipeline execution, one "
-            f"child per candidate model/selection/mode, and register the champion. Store: ${ENV_TRACKING_URI} or "
-            f"{DEFAULT_TRACKING_URI}; writes {TRACKING_RECORD}."
+            "child per candidate model/selection/mode, and register the champion. Store: "
+            f"${ENV_TRACKING_URI} or {DEFAULT_TRACKING_URI}; writes {TRACKING_RECORD}."
         ),
     )
     parser.add_argument("--params", default=str(DEFAULT_PARAMS), help="params file (params.yaml)")
@@ -292,14 +297,18 @@ def prepare(params_path: Path) -> Prepared:
     )
     children = records.child_records(fitted, score_rows, cross_season, {"synthetic": synthetic})
     parent = records.parent_record(
-        f"pipeline-{run_identity.value[:12]}", cross_season, all_params, tags, selected,
+        f"pipeline-{run_identity.value[:12]}",
+        cross_season,
+        all_params,
+        tags,
+        selected,
         axis_model,
     )
     return Prepared(run_identity, synthetic, commit, parent, children)
 
 
 def champion_hook(tracking_uri: str, registered: str):
-    """Callback logging and registering the champion on the parent run (``None`` without one)."""
+    """Return a callback that logs and registers the champion (``None`` without one)."""
     if not (CHAMPION_ESTIMATOR.is_file() and CHAMPION_CARD.is_file()):
         logger.warning("%s not found: no champion model to register", CHAMPION_ESTIMATOR)
         return None

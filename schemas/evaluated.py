@@ -52,7 +52,7 @@ class CrossSeasonScoresModel(pa.DataFrameModel):
     @pa.dataframe_check
     @classmethod
     def role_consistent(cls, df: pd.DataFrame) -> Series[bool]:
-        """Check roles: validation split is validation; in the campaign scheme fit = own campaign."""
+        """Check roles: validation split -> validation; campaign scheme: fit = own campaign."""
         validation = df["test_split"] == "validation"
         own = df["train_unit"] == df["test_campaign"]
         per_campaign = df["scheme"] == "campaign"

@@ -12,8 +12,12 @@ from pipeline.training_units import campaign_series, training_units
 def _table(n=40):
     rng = np.random.default_rng(3)
     frames = []
-    for campaign, split, season in [("K1", "train", "winter"), ("K2", "train", "summer"),
-                                    ("K3", "train", "summer"), ("V1", "validation", "autumn")]:
+    for campaign, split, season in [
+        ("K1", "train", "winter"),
+        ("K2", "train", "summer"),
+        ("K3", "train", "summer"),
+        ("V1", "validation", "autumn"),
+    ]:
         t = np.arange(n) * 180.0
         heat = 1 - np.exp(-t / 3000)
         rises = {f"rise_T{j}": g * heat + rng.normal(0, 0.05, n)

@@ -44,7 +44,9 @@ class ChampionModel(mlflow.pyfunc.PythonModel):
     def predict(self, context, model_input: pd.DataFrame, params=None) -> pd.Series:
         """Thermal error, um, one value per row of ``model_input``."""
         X = temperature_features(pd.DataFrame(model_input), self.card)
-        return pd.Series(self.estimator.predict(X), index=model_input.index, name="thermal_error_um")
+        return pd.Series(
+            self.estimator.predict(X), index=model_input.index, name="thermal_error_um"
+        )
 
 
 def log_and_register(
