@@ -205,7 +205,10 @@ def read_scores(path: Path) -> list[dict[str, Any]]:
             f"{path} not found: the track stage logs the evaluate outputs; run `dvc repro "
             "evaluate` (or `thermal evaluate`) first"
         )
-    text_columns = [*records.KEY_COLUMNS, "test_campaign", "test_split", "role"]
+    text_columns = [
+        *records.KEY_COLUMNS, "scheme", "train_unit", "test_campaign", "test_split",
+        "test_season", "role",
+    ]  # fmt: skip
     nan_text = ["", "nan", "NaN"]
     table = pd.read_csv(
         path,

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import json
 import logging
+import os
 from pathlib import Path
 
 import joblib
@@ -23,6 +24,7 @@ from pipeline.champion import temperature_features
 logger = logging.getLogger(__name__)
 
 ALIAS = "champion"
+TRACKING_URI_ENV = "MLFLOW_TRACKING_URI"
 REQUIREMENTS = (
     "numpy==2.4.6",
     "pandas==3.1.1",
@@ -59,9 +61,13 @@ def log_and_register(
     str
         The registered model version.
     """
-    mlflow.set_tracking_uri(tracking_uri)
+    previous_uri = os.environ.get(TRACKING_URI_ENV)
     package = Path(__file__).resolve().parents[1]
-    with mlflow.start_run(run_id=run_id, nested=False):
+    mlflow.set_tracking_uri(tracking_uri)
+    # Not ``with start_run``: leaving the block would mark the parent run FINISHED before the
+    # rest of the pipeline execution is logged; the run is handed back still RUNNING.
+    mlflow.start_run(run_id=run_id)
+    try:
         info = mlflow.pyfunc.log_model(
             name=ALIAS,
             python_model=ChampionModel(),
@@ -70,6 +76,10 @@ def log_and_register(
             pip_requirements=list(REQUIREMENTS),
             registered_model_name=registered_name,
         )
+    finally:
+        mlflow.end_run(status="RUNNING")
+        # set_tracking_uri also sets the environment variable: restore the caller's.
+        mlflow.set_tracking_uri(previous_uri)
     version = str(info.registered_model_version)
     MlflowClient(tracking_uri=tracking_uri).set_registered_model_alias(
         registered_name, ALIAS, version

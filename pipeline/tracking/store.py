@@ -180,7 +180,7 @@ def log_pipeline(
     children: Sequence[RunRecord],
     artifacts: Sequence[tuple[Path, str]],
     batch_size: int,
-    before_finish: Callable[[str], None] | None = None,
+    with_parent: Callable[[str], None] | None = None,
 ) -> str:
     """Log the parent run, its child runs and the parent's artifacts.
 
@@ -201,17 +201,21 @@ def log_pipeline(
         Local file and the artifact folder it goes to on the parent (e.g. ``"reports"``).
     batch_size : int
         Most metrics per ``log_batch`` call.
-    before_finish : callable, optional
-        Called with the parent run id after everything else is logged and before the parent is
-        marked finished (the champion model is logged and registered there).
+    with_parent : callable, optional
+        Called with the parent run id right after the parent is created, before its metrics are
+        logged (the champion model is logged and registered there: MLflow links a logged model
+        to every metric its run already has, one request per metric).
 
     Returns
     -------
     str
         The parent run id.
     """
-    parent_id = _log_one(client, experiment_id, parent, batch_size, {})
+    parent_id = _create_run(client, experiment_id, parent, batch_size, {})
     try:
+        if with_parent is not None:
+            with_parent(parent_id)
+        log_record(client, parent_id, parent, batch_size)
         for child in children:
             child_id = _log_one(
                 client, experiment_id, child, batch_size, {PARENT_RUN_TAG: parent_id}
@@ -219,8 +223,6 @@ def log_pipeline(
             client.set_terminated(child_id)
         for path, folder in artifacts:
             client.log_artifact(parent_id, str(path), artifact_path=folder or None)
-        if before_finish is not None:
-            before_finish(parent_id)
     except BaseException:
         client.set_terminated(parent_id, RunStatus.to_string(RunStatus.FAILED))
         raise
