@@ -146,7 +146,7 @@ class ReducedOrderAR(ErrorFeedbackMixin, RegressorMixin, BaseEstimator):
             "dominant_frequencies": _join(dominant),
             "kept_frequencies": _join(kept),
         }
-        logger.info(
+        logger.debug(
             "AR(%d) reduced to AR(%d) (knee %d); kept frequencies %s of %s",
             max_order,
             order,

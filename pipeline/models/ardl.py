@@ -143,7 +143,7 @@ class AutoregressiveDistributedLag(ErrorFeedbackMixin, RegressorMixin, BaseEstim
             "ic_value": float(best["ic"]),
             "hold_back": hold_back,
         }
-        logger.info("ARDL(%d, %d) on %s", p, q, self.columns_)
+        logger.debug("ARDL(%d, %d) on %s", p, q, self.columns_)
         return self
 
     def predict(self, X: pd.DataFrame, y_history: np.ndarray | None = None) -> np.ndarray:

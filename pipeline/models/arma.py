@@ -175,7 +175,7 @@ class ARMAErrorModel(ErrorFeedbackMixin, RegressorMixin, BaseEstimator):
             "ic_value": float(best["mle_ic"]),
             "mean_um": self.mean_,
         }
-        logger.info("ARMA error model: order %s (%s)", self.order_, self.identification_.kind)
+        logger.debug("ARMA error model: order %s (%s)", self.order_, self.identification_.kind)
         return self
 
     def predict(self, X: pd.DataFrame, y_history: np.ndarray | None = None) -> np.ndarray:

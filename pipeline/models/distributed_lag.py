@@ -154,7 +154,7 @@ def expedient_lag_order(
     check_lag_feasible(len(y), len(sensors), 0)
     top = min(max_lag, max_feasible_lag(len(y), len(sensors)))
     if top < max_lag:
-        logger.info(
+        logger.debug(
             "expedient lag search capped at order %d (max_lag=%d) by %d samples / %d sensors",
             top,
             max_lag,

@@ -139,7 +139,7 @@ class PrincipalComponentDistributedLag(LaggedLinearModel):
                 "PCR needs temperatures that change"
             )
         if not varying.all():
-            logger.info("PCDL: %d constant lagged columns get coefficient 0", (~varying).sum())
+            logger.debug("PCDL: %d constant lagged columns get coefficient 0", (~varying).sum())
         standardised = (design[:, varying] - mean[varying]) / scale[varying]
         correlation = standardised.T @ standardised / (len(target) - 1)
         components, ratios = leading_components(correlation, self.variance_threshold)

@@ -166,7 +166,7 @@ class EmbeddedSVR(ErrorFeedbackMixin, RegressorMixin, BaseEstimator):
             "n_folds": len(folds),
             "cv": "leave-campaigns-out" if len(segs) > 1 else "forward-chaining blocks",
         }
-        logger.info("SVR: embedding %d, %s", self.embedding_, self.chosen_params_)
+        logger.debug("SVR: embedding %d, %s", self.embedding_, self.chosen_params_)
         return self
 
     def predict(self, X: pd.DataFrame, y_history: np.ndarray | None = None) -> np.ndarray:

@@ -191,7 +191,7 @@ class TimeSeriesBPHybrid(ErrorFeedbackMixin, RegressorMixin, BaseEstimator):
             "arma_q": q,
             "bp_epochs": int(self.bp_.n_epochs_),
         }
-        logger.info("TS-BP weights k_TS = %.3f, k_BP = %.3f", self.k_ts_, self.k_bp_)
+        logger.debug("TS-BP weights k_TS = %.3f, k_BP = %.3f", self.k_ts_, self.k_bp_)
         return self
 
     def predict(self, X: pd.DataFrame, y_history: np.ndarray | None = None) -> np.ndarray:

@@ -501,7 +501,7 @@ def _selection(
     }
     if criterion == "parsimonious":
         details["delta_aicc"] = float(delta_aicc)
-    logger.info("%s (%s): %s; %s", method, rule, sensors, search.description)
+    logger.debug("%s (%s): %s; %s", method, rule, sensors, search.description)
     return Selection(method, sensors, evidence, details)
 
 

@@ -103,5 +103,5 @@ def correlation_grouping(
         "n_sensors_used": len(used),
         "n_sensors_ignored": len(inputs.ignored),
     }
-    logger.info("correlation_grouping: %d groups -> %s", len(leaders), sensors)
+    logger.debug("correlation_grouping: %d groups -> %s", len(leaders), sensors)
     return Selection("correlation_grouping", sensors, evidence, details)

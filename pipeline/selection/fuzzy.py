@@ -297,5 +297,5 @@ def fc_grd(
         "n_sensors_used": len(used),
         "n_sensors_ignored": len(inputs.ignored),
     }
-    logger.info("fc_grd: %d groups at lambda=%.4f -> %s", len(best), details["lambda"], sensors)
+    logger.debug("fc_grd: %d groups at lambda=%.4f -> %s", len(best), details["lambda"], sensors)
     return Selection("fc_grd", sensors, evidence, details)

@@ -79,5 +79,5 @@ def gra_top_k(
         "n_sensors_used": len(used),
         "n_sensors_ignored": len(inputs.ignored),
     }
-    logger.info("gra_top_k: top %d of %d -> %s", k, len(used), sensors)
+    logger.debug("gra_top_k: top %d of %d -> %s", k, len(used), sensors)
     return Selection("gra_top_k", sensors, evidence, details)

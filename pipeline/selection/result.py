@@ -190,7 +190,7 @@ def clean_inputs(temperatures: pd.DataFrame, error: np.ndarray, min_rows: int = 
     if np.ptp(y_used) == 0.0:
         raise ValueError("the thermal error is constant; no sensor can be related to it")
     if ignored:
-        logger.info("ignored sensors: %s", ignored)
+        logger.debug("ignored sensors: %s", ignored)
     return CleanInputs(
         temperatures=rows[used],
         error=y_used,
