@@ -15,6 +15,10 @@ from pipeline import paths
 LOCAL_STORE = "sqlite:///mlflow.db"
 
 
+def _um(value: float | None) -> str:
+    return "-" if value is None else f"{value:.2f}"
+
+
 def summary_lines(root: Path) -> list[str]:
     """Lines describing the outputs found under ``root`` (the repository)."""
     lines = ["", "Results of dvc repro:"]
@@ -41,7 +45,7 @@ def summary_lines(root: Path) -> list[str]:
         figures = json.loads(axis.read_text())
         lines.append(
             f"  axis model       {paths.AXIS_MODEL_REPORT}: validation residual "
-            f"{figures.get('residual_min_um')} to {figures.get('residual_max_um')} um"
+            f"{_um(figures.get('residual_min_um'))} to {_um(figures.get('residual_max_um'))} um"
         )
     lines += [
         f"  comparison       {paths.MODEL_COMPARISON} (every model, scores, heat-maps, plots)",
