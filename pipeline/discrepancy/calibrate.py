@@ -1,0 +1,388 @@
+"""Bounded least-squares calibration of a :class:`~pipeline.discrepancy.model.TwinModel`.
+
+Residuals over all campaigns: each temperature sensor's (K) divided by its noise floor, and the
+Z drift's (um) divided by the probe's noise floor, both estimated from the data (robust
+standard deviation of second differences, which removes slow drifts). The Z residual of each
+campaign is taken about its mean (the zero of ``z_um`` is the noisy first reading; the constant
+is a nuisance parameter per campaign, counted in ``n_params``). Strictly positive parameters
+are fitted in log space; ``scipy.optimize.least_squares`` (``trf``, bounded).
+
+AICc and BIC use the Gaussian likelihood with the residual scale estimated:
+``n ln(SSE/n) + 2k + 2k(k+1)/(n-k-1)`` and ``n ln(SSE/n) + k ln n``, SSE of the weighted
+residuals, n observations, k parameters.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+import pandas as pd
+from scipy.optimize import least_squares
+from threadpoolctl import threadpool_limits
+
+from pipeline.discrepancy.data import MeasuredCampaign
+from pipeline.discrepancy.model import Simulation, TwinModel, sensor_offsets
+
+logger = logging.getLogger(__name__)
+
+MIN_SIGMA_K = 0.005
+"""Lowest temperature noise floor used, K (a perfectly quiet or quantised sensor)."""
+MIN_SIGMA_UM = 0.02
+"""Lowest displacement noise floor used, um."""
+
+
+@dataclass(frozen=True)
+class NoiseFloor:
+    """Noise floors used to weight the residuals.
+
+    Attributes
+    ----------
+    temperature_K : dict of str to float
+        Sensor name -> standard deviation of its reading noise, K.
+    z_um : float
+        Standard deviation of the probe noise, um.
+    """
+
+    temperature_K: dict[str, float]  # noqa: N815 (unit K)
+    z_um: float
+
+
+@dataclass
+class Calibration:
+    """Result of :func:`calibrate`.
+
+    Attributes
+    ----------
+    effects : frozenset of str
+        Effects of the calibrated model.
+    theta : ndarray of shape (n_theta,)
+        Calibrated parameters in ``model.param_specs`` order.
+    params : dict of str to (float, str)
+        Name -> (value, unit).
+    residuals : dict of str to dict
+        Campaign id -> ``{"z_um": ndarray (n,), "temperatures_K": DataFrame (n, sensors)}``,
+        measured minus calibrated twin (Z about its per-campaign mean).
+    sse : float
+        Sum of squared weighted residuals.
+    n_obs : int
+        Number of finite observations used.
+    n_params : int
+        Parameters fitted: ``theta`` plus one Z zero per campaign.
+    aicc, bic : float
+    rmse_z_um : float
+        RMS of the Z residual over all campaigns, um.
+    rmse_T_K : float
+        RMS of all temperature residuals, K.
+    converged : bool
+        ``least_squares`` reported success.
+    noise : NoiseFloor
+    offsets : dict of str to float
+        Sensor offset per role used for the initial state, K (:func:`sensor_offsets`).
+    at_bounds : list of str
+        Parameters ending within 0.1 % (of the range, in the fitted space) of a bound.
+    message : str
+    nfev : int
+    seconds : float
+    """
+
+    effects: frozenset[str]
+    theta: np.ndarray
+    params: dict[str, tuple[float, str]]
+    residuals: dict[str, dict]
+    sse: float
+    n_obs: int
+    n_params: int
+    aicc: float
+    bic: float
+    rmse_z_um: float
+    rmse_T_K: float  # noqa: N815 (spec name, unit K)
+    converged: bool
+    noise: NoiseFloor
+    offsets: dict[str, float] = field(default_factory=dict)
+    at_bounds: list[str] = field(default_factory=list)
+    message: str = ""
+    nfev: int = 0
+    seconds: float = 0.0
+
+
+def noise_sd(values: np.ndarray) -> float:
+    """Noise standard deviation of a slowly varying signal, in its unit; NaN if too short.
+
+    ``sqrt(mean(d2^2) / 6)`` of the second differences ``d2``, after removing differences
+    beyond 4 of those deviations twice (speed steps, quantisation jumps).
+    """
+    x = np.asarray(values, dtype=float)
+    x = x[np.isfinite(x)]
+    if x.size < 5:
+        return float("nan")
+    d2 = np.diff(x, 2)
+    kept = d2
+    for _ in range(3):
+        sd = float(np.sqrt(np.mean(kept**2)))
+        if sd == 0.0:
+            break
+        kept = d2[np.abs(d2) <= 4.0 * sd]
+    return float(np.sqrt(np.mean(kept**2) / 6.0)) if kept.size else 0.0
+
+
+def estimate_noise(campaigns: Sequence[MeasuredCampaign]) -> NoiseFloor:
+    """Noise floors from the data: median over campaigns of each sensor's and of Z's."""
+    per_sensor: dict[str, list[float]] = {}
+    z = []
+    for c in campaigns:
+        z.append(noise_sd(c.z_um))
+        for s in c.temperatures.columns:
+            per_sensor.setdefault(s, []).append(noise_sd(c.temperatures[s].to_numpy()))
+    temp = {
+        s: max(float(np.nanmedian(v)), MIN_SIGMA_K) if np.any(np.isfinite(v)) else MIN_SIGMA_K
+        for s, v in per_sensor.items()
+    }
+    z_sd = float(np.nanmedian(z)) if np.any(np.isfinite(z)) else MIN_SIGMA_UM
+    return NoiseFloor(temperature_K=temp, z_um=max(z_sd, MIN_SIGMA_UM))
+
+
+@dataclass
+class _Target:
+    campaign: MeasuredCampaign
+    sensors: list[str]
+    node_index: np.ndarray  # (k,) node each sensor reads
+    first: np.ndarray  # (k,)
+    measured: np.ndarray  # (n, k)
+    mask_t: np.ndarray  # (n, k) finite
+    w_t: np.ndarray  # (k,) 1 / sigma * weight
+    z: np.ndarray
+    mask_z: np.ndarray
+    w_z: float
+
+
+def _targets(
+    model: TwinModel, campaigns: Sequence[MeasuredCampaign], noise: NoiseFloor, weights: Mapping
+) -> list[_Target]:
+    idx = {node: i for i, node in enumerate(model.nodes)}
+    out = []
+    for c in campaigns:
+        prep = model.prepare(c)
+        pairs = [(s, node) for node, ss in prep.role_sensors.items() for s in ss]
+        sensors = [s for s, _ in pairs]
+        measured = c.temperatures[sensors].to_numpy(dtype=float).reshape(c.t_s.size, len(pairs))
+        sig = np.array([noise.temperature_K.get(s, MIN_SIGMA_K) for s in sensors])
+        out.append(
+            _Target(
+                campaign=c,
+                sensors=sensors,
+                node_index=np.array([idx[n] for _, n in pairs], dtype=int),
+                first=np.array([prep.first[s] for s in sensors]),
+                measured=measured,
+                mask_t=np.isfinite(measured),
+                w_t=float(weights.get("temperature", 1.0)) / sig,
+                z=c.z_um,
+                mask_z=np.isfinite(c.z_um),
+                w_z=float(weights.get("z", 1.0)) / noise.z_um,
+            )
+        )
+    return out
+
+
+def _raw_residuals(
+    model: TwinModel, theta: np.ndarray, targets: list[_Target], offsets: Mapping[str, float]
+) -> list[tuple]:
+    """Per campaign: (T residual measured - model (n, k), Z residual about its mean (n,))."""
+    raws = model.run(theta, [t.campaign for t in targets], offsets)
+    out = []
+    for t, raw in zip(targets, raws, strict=True):
+        read = raw["readings"][:, t.node_index]
+        pred = t.first + (read - read[0])
+        rT = np.where(t.mask_t, t.measured - pred, 0.0)
+        rz = np.where(t.mask_z, t.z - raw["z_um"], 0.0)
+        if t.mask_z.any():
+            rz = np.where(t.mask_z, rz - rz[t.mask_z].mean(), 0.0)
+        out.append((rT, rz))
+    return out
+
+
+def _to_x(theta: np.ndarray, logs: np.ndarray) -> np.ndarray:
+    return np.where(logs, np.log(np.where(logs, theta, 1.0)), theta)
+
+
+def _to_theta(x: np.ndarray, logs: np.ndarray) -> np.ndarray:
+    return np.where(logs, np.exp(np.where(logs, x, 0.0)), x)
+
+
+def calibrate(
+    model: TwinModel,
+    campaigns: Sequence[MeasuredCampaign],
+    weights: Mapping[str, float] | None = None,
+    *,
+    noise: NoiseFloor | None = None,
+    start: Mapping[str, float] | None = None,
+    n_starts: int = 1,
+    seed: int = 0,
+    max_nfev: int = 400,
+    tol: float = 1e-6,
+) -> Calibration:
+    """Fit the model's bounded parameters to the campaigns by least squares.
+
+    Parameters
+    ----------
+    model : TwinModel
+    campaigns : sequence of MeasuredCampaign
+        At least one; each needs at least one sensor on a node of the model.
+    weights : mapping, optional
+        ``{"temperature": w_t, "z": w_z}`` multipliers of the noise-normalised residuals
+        (default 1 each).
+    noise : NoiseFloor, optional
+        Noise floors; default estimated from the data (:func:`estimate_noise`).
+    start : mapping of str to float, optional
+        Starting values by parameter name (e.g. a previous calibration's), clipped into the
+        bounds; the others start at their spec's ``initial``.
+    n_starts : int
+        Number of starts (the first from ``start``/initial, the others perturbed by a factor
+        of up to ~3 in log space); the lowest SSE wins.
+    seed : int
+        Seed of the perturbed starts.
+    max_nfev : int
+        Limit on function evaluations per start.
+    tol : float
+        ``ftol`` and ``xtol`` of ``least_squares`` (relative change of the cost / of the
+        parameters at which it stops).
+
+    Returns
+    -------
+    Calibration
+
+    Raises
+    ------
+    ValueError
+        No campaign, or a starting value for an unknown parameter.
+    """
+    if not campaigns:
+        raise ValueError("calibrate: give at least one campaign")
+    weights = dict(weights or {})
+    unknown = set(weights) - {"temperature", "z"}
+    if unknown:
+        raise ValueError(f"calibrate: unknown weights {sorted(unknown)}; use 'temperature', 'z'")
+    t0 = time.perf_counter()
+    noise = noise or estimate_noise(campaigns)
+    targets = _targets(model, campaigns, noise, weights)
+    offsets = sensor_offsets(model, campaigns)
+    specs = model.param_specs
+    logs = np.array([p.log for p in specs])
+    lo, hi = model.bounds()
+    theta0 = model.initial()
+    if start:
+        bad = set(start) - set(model.names)
+        if bad:
+            raise ValueError(
+                f"calibrate: start has unknown parameters {sorted(bad)}; the model's are "
+                f"{', '.join(model.names)}"
+            )
+        theta0 = np.array([float(start.get(p.name, p.initial)) for p in specs])
+    x_lo, x_hi = _to_x(lo, logs), _to_x(hi, logs)
+    margin = 1e-6 * (x_hi - x_lo)
+    x0 = np.clip(_to_x(np.clip(theta0, lo, hi), logs), x_lo + margin, x_hi - margin)
+    x_scale = np.where(logs, 1.0, np.maximum(np.abs(theta0), (hi - lo) / 20.0))
+
+    def fun(x: np.ndarray) -> np.ndarray:
+        theta = np.clip(_to_theta(x, logs), lo, hi)
+        parts = []
+        for t, (rT, rz) in zip(
+            targets, _raw_residuals(model, theta, targets, offsets), strict=True
+        ):
+            parts.append((rT * t.w_t).ravel())
+            parts.append(rz * t.w_z)
+        return np.concatenate(parts)
+
+    rng = np.random.default_rng(seed)
+    best = None
+    limiter = threadpool_limits(limits=1)  # BLAS threads only slow down these small matrices
+    for k in range(max(1, int(n_starts))):
+        xs = x0 if k == 0 else np.clip(
+            x0 + np.where(logs, rng.normal(0.0, 0.5, x0.size), 0.0), x_lo + margin, x_hi - margin
+        )  # fmt: skip
+        res = least_squares(
+            fun,
+            xs,
+            bounds=(x_lo, x_hi),
+            x_scale=x_scale,
+            method="trf",
+            max_nfev=max_nfev,
+            ftol=tol,
+            xtol=tol,
+        )
+        logger.debug("calibration start %d: cost %.4g, nfev %d", k, res.cost, res.nfev)
+        if best is None or res.cost < best.cost:
+            best = res
+    assert best is not None
+    theta = np.clip(_to_theta(best.x, logs), lo, hi)
+    raw = _raw_residuals(model, theta, targets, offsets)
+    limiter.restore_original_limits()
+    n_obs = int(sum(t.mask_t.sum() + t.mask_z.sum() for t in targets))
+    sse = float(np.sum(best.fun**2))
+    k = len(theta) + len(targets)
+    aic = n_obs * np.log(max(sse, 1e-300) / n_obs) + 2 * k
+    aicc = aic + (2 * k * (k + 1) / (n_obs - k - 1) if n_obs - k - 1 > 0 else np.inf)
+    bic = n_obs * np.log(max(sse, 1e-300) / n_obs) + k * np.log(n_obs)
+    z_all = np.concatenate([rz[t.mask_z] for t, (_, rz) in zip(targets, raw, strict=True)])
+    t_all = np.concatenate([rT[t.mask_t] for t, (rT, _) in zip(targets, raw, strict=True)])
+    residuals = {
+        t.campaign.campaign_id: {
+            "z_um": np.where(t.mask_z, rz, np.nan),
+            "temperatures_K": pd.DataFrame(np.where(t.mask_t, rT, np.nan), columns=t.sensors),
+        }
+        for t, (rT, rz) in zip(targets, raw, strict=True)
+    }
+    span = x_hi - x_lo
+    near = (best.x - x_lo < 1e-3 * span) | (x_hi - best.x < 1e-3 * span)
+    at_bounds = [p.name for p, b in zip(specs, near, strict=True) if b]
+    seconds = time.perf_counter() - t0
+    logger.info(
+        "calibrated twin (%s) on %d campaigns: rmse Z %.3f um, T %.3f K, %d evaluations, %.1f s%s",
+        ", ".join(sorted(model.effects)) or "baseline",
+        len(targets),
+        float(np.sqrt(np.mean(z_all**2))) if z_all.size else float("nan"),
+        float(np.sqrt(np.mean(t_all**2))) if t_all.size else float("nan"),
+        best.nfev,
+        seconds,
+        f"; at bounds: {', '.join(at_bounds)}" if at_bounds else "",
+    )
+    return Calibration(
+        effects=model.effects,
+        theta=theta,
+        params={p.name: (float(v), p.unit) for p, v in zip(specs, theta, strict=True)},
+        residuals=residuals,
+        sse=sse,
+        n_obs=n_obs,
+        n_params=k,
+        aicc=float(aicc),
+        bic=float(bic),
+        rmse_z_um=float(np.sqrt(np.mean(z_all**2))) if z_all.size else float("nan"),
+        rmse_T_K=float(np.sqrt(np.mean(t_all**2))) if t_all.size else float("nan"),
+        converged=bool(best.success),
+        noise=noise,
+        offsets=offsets,
+        at_bounds=at_bounds,
+        message=str(best.message),
+        nfev=int(best.nfev),
+        seconds=seconds,
+    )
+
+
+def predict(model: TwinModel, calibration: Calibration, campaign: MeasuredCampaign) -> Simulation:
+    """Simulate ``campaign`` with the calibrated parameters.
+
+    Raises
+    ------
+    ValueError
+        If the calibration was made with another model (parameter names differ).
+    """
+    names = list(calibration.params)
+    if names != model.names:
+        raise ValueError(
+            "predict: the calibration's parameters do not match the model's "
+            f"({len(names)} vs {len(model.names)}); calibrate this model first"
+        )
+    return model.simulate(calibration.theta, campaign, calibration.offsets)

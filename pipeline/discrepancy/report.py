@@ -1,0 +1,358 @@
+"""Write the discrepancy outputs: ``discrepancy.json``, ``discrepancy.md``, figures, MLflow run.
+
+The report states, in an engineer's words, where the calibrated baseline twin disagrees with the
+measurements (:mod:`pipeline.discrepancy.localise`), which effects the forward search named
+(:mod:`pipeline.discrepancy.search`), with what evidence, and how far the held-out displacement
+residual shrinks. Figures use matplotlib's Agg backend (as :mod:`pipeline.plots`); mlflow is
+imported only when a run is logged.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+from pipeline.discrepancy.localise import Localisation  # noqa: E402
+from pipeline.discrepancy.search import SearchResult, SearchSettings  # noqa: E402
+
+logger = logging.getLogger(__name__)
+
+JSON_FILE = "discrepancy.json"
+MARKDOWN_FILE = "discrepancy.md"
+FIT_FIGURE = "heldout_fit.png"
+RESIDUAL_FIGURE = "residuals.png"
+LOCALISATION_CSV = "localisation.csv"
+
+EFFECT_WORDS = {
+    "ambient_variation": "the workshop air temperature varies and the structure follows it",
+    "centrifugal_growth": "the spindle nose shifts instantly with speed squared (centrifugal)",
+    "nonlinear_bearing_heat": "bearing friction heat grows faster than linearly with speed",
+    "sensor_lag": "the sensors read their locations through a first-order lag",
+    "thermal_bending": "the column bends when its front and rear differ in temperature",
+    "motor_heat": "the spindle motor heats the headstock",
+}
+"""One line per effect, for the report."""
+
+
+def build_document(
+    result: SearchResult,
+    before: Localisation,
+    after: Localisation | None,
+    settings: SearchSettings,
+    *,
+    synthetic: bool,
+    campaign_ids: Sequence[str],
+    quarantined: Sequence[str] = (),
+) -> dict[str, Any]:
+    """Assemble the content of ``discrepancy.json``.
+
+    Fields: ``named_effects``, ``rmse_um_before``, ``rmse_um_after`` (held-out Z RMS, um),
+    ``rmse_T_K_before/after``, ``per_campaign``, ``steps`` (effect, evidence, RMS before/after,
+    calibrated parameters with units), ``candidates_by_step`` (evidence of every candidate at
+    every step), ``untestable`` (effect -> missing roles), ``localisation`` (findings, ambient
+    lag, before and after), ``thresholds``, ``campaigns``, ``quarantined``, ``synthetic``.
+    """
+    doc = result.to_dict()
+    doc["localisation"] = {
+        "before": {
+            "findings": before.findings,
+            "ambient_correlation": _num(before.ambient_correlation),
+            "ambient_lag_min": _num(before.ambient_lag_min),
+        }
+    }
+    if after is not None:
+        doc["localisation"]["after"] = {
+            "findings": after.findings,
+            "ambient_correlation": _num(after.ambient_correlation),
+            "ambient_lag_min": _num(after.ambient_lag_min),
+        }
+    doc["thresholds"] = {
+        "min_heldout_reduction": settings.min_heldout_reduction,
+        "min_heldout_temperature_reduction": settings.min_heldout_t_reduction,
+        "max_delta_bic": settings.max_delta_bic,
+        "n_folds": settings.n_folds,
+    }
+    doc["campaigns"] = list(campaign_ids)
+    doc["quarantined"] = list(quarantined)
+    doc["synthetic"] = bool(synthetic)
+    return doc
+
+
+def _num(x: float) -> float | None:
+    x = float(x)
+    return round(x, 4) if np.isfinite(x) else None
+
+
+def _fmt(x: float | None, digits: int = 2) -> str:
+    return "n/a" if x is None or not np.isfinite(x) else f"{x:.{digits}f}"
+
+
+def _pct(x: float | None) -> str:
+    return "n/a" if x is None or not np.isfinite(x) else f"{100 * x:.0f} %"
+
+
+def markdown(doc: Mapping[str, Any], figures: Sequence[str]) -> str:
+    """Write the engineer's report (``discrepancy.md``) from the JSON document."""
+    named = doc["named_effects"]
+    source = "synthetic campaigns (not measurements)" if doc["synthetic"] else "measured campaigns"
+    lines = [
+        "# Where the twin and the measurements disagree",
+        "",
+        f"Data: {len(doc['campaigns'])} spindle campaigns, {source}"
+        + (
+            f"; quarantined and left out: {', '.join(doc['quarantined'])}"
+            if doc["quarantined"]
+            else ""
+        )
+        + ".",
+        f"Held-out = displacement residual on campaigns not used for calibration "
+        f"({len(doc['folds'])}-fold cross-validation across campaigns).",
+        "",
+        "## What the baseline twin misses",
+        "",
+    ]
+    lines += [f"- {f}" for f in doc["localisation"]["before"]["findings"]]
+    lines += ["", "## What is missing", ""]
+    if named:
+        lines.append(
+            f"The search names **{len(named)}** effect(s), in order: "
+            + ", ".join(f"`{e}`" for e in named)
+            + "."
+        )
+        lines.append("")
+        for step in doc["steps"]:
+            ev = step["evidence"]
+            lines.append(
+                f"- adding `{step['effect']}` ({EFFECT_WORDS.get(step['effect'], '')}) reduces the "
+                f"held-out Z residual from {_fmt(step['rmse_um_before'])} um to "
+                f"{_fmt(step['rmse_um_after'])} um RMS ({_pct(ev['heldout_reduction'])}), "
+                f"temperatures from {_fmt(step['rmse_T_K_before'])} K to "
+                f"{_fmt(step['rmse_T_K_after'])} K; BIC changes by {_fmt(ev['delta_bic'], 1)}."
+            )
+            own = step["effect_parameters"]
+            shown = ", ".join(f"{k} = {_fmt(v['value'], 4)} {v['unit']}" for k, v in own.items())
+            shown = shown or "none (it uses the measured signals)"
+            lines.append(
+                f"  - its own calibrated parameters: {shown} (all parameters in discrepancy.json)"
+            )
+    else:
+        lines.append(
+            "No candidate effect passes the thresholds: the baseline twin explains the data "
+            "within what the cross-validation can tell apart. Nothing is named."
+        )
+    lines += [
+        "",
+        f"Overall held-out Z residual: **{_fmt(doc['rmse_um_before'])} um** with the baseline, "
+        f"**{_fmt(doc['rmse_um_after'])} um** with "
+        + (f"the twin + {', '.join(named)}" if named else "no effect added")
+        + f"; temperatures {_fmt(doc['rmse_T_K_before'])} K -> {_fmt(doc['rmse_T_K_after'])} K.",
+        "",
+        "| campaign | Z before (um) | Z after (um) | T before (K) | T after (K) |",
+        "|---|---:|---:|---:|---:|",
+    ]
+    for cid, row in doc["per_campaign"].items():
+        b, a = row["before"], row["after"]
+        lines.append(
+            f"| {cid} | {_fmt(b.get('z_um'))} | {_fmt(a.get('z_um'))} | "
+            f"{_fmt(b.get('t_k'))} | {_fmt(a.get('t_k'))} |"
+        )
+    if "after" in doc["localisation"] and named:
+        lines += ["", "## What remains after adding the named effects", ""]
+        lines += [f"- {f}" for f in doc["localisation"]["after"]["findings"]]
+    lines += ["", "## Evidence of every candidate", ""]
+    lines.append(
+        f"An effect is named when it reduces the held-out Z RMS by at least "
+        f"{100 * doc['thresholds']['min_heldout_reduction']:.0f} % or the held-out temperature "
+        f"RMS by at least {100 * doc['thresholds']['min_heldout_temperature_reduction']:.0f} %, "
+        f"and changes BIC by at most {doc['thresholds']['max_delta_bic']:g}; the candidate with "
+        "the lowest BIC among those is added and the search repeats."
+    )
+    for entry in doc["candidates_by_step"]:
+        lines += [
+            "",
+            f"Step {entry['step']}:",
+            "",
+            "| effect | held-out Z RMS (um) | Z reduction | held-out T RMS (K) | T reduction "
+            "| delta BIC | delta AICc | passes |",
+            "|---|---:|---:|---:|---:|---:|---:|---|",
+        ]
+        for c in entry["candidates"]:
+            lines.append(
+                f"| `{c['effect']}` | {_fmt(c['rmse_heldout_um'])} | "
+                f"{_pct(c['heldout_reduction'])} | {_fmt(c['rmse_heldout_T_K'], 3)} | "
+                f"{_pct(c['heldout_T_reduction'])} | "
+                f"{_fmt(c['delta_bic'], 1)} | {_fmt(c['delta_aicc'], 1)} | "
+                f"{'yes' if c['passes'] else 'no'} |"
+            )
+    if doc["untestable"]:
+        lines += ["", "## Effects that cannot be tested on these data", ""]
+        for effect, roles in doc["untestable"].items():
+            lines.append(
+                f"- `{effect}`: no sensor with role {' / '.join(roles)}; map one in campaign.yaml "
+                "to test it."
+            )
+    if figures:
+        lines += ["", "## Figures", ""]
+        lines += [f"![{Path(f).stem}]({Path(f).name})" for f in figures]
+    return "\n".join(lines) + "\n"
+
+
+def _prediction(campaign, residual: np.ndarray) -> np.ndarray:
+    return np.asarray(campaign.z_um, dtype=float) - np.asarray(residual, dtype=float)
+
+
+def plot_heldout_fit(
+    campaigns: Sequence, result: SearchResult, title: str, out: Path, max_panels: int = 3
+) -> None:
+    """Measured Z vs held-out baseline and augmented twin, a few campaigns.
+
+    Parameters
+    ----------
+    campaigns : sequence of MeasuredCampaign
+    result : SearchResult
+    title : str
+    out : Path
+        PNG path; parent folders are created.
+    max_panels : int
+        Campaigns shown (those with the largest baseline residual).
+    """
+    base = result.baseline.heldout.z_residual_um
+    final = result.final.heldout.z_residual_um
+    by_id = {c.campaign_id: c for c in campaigns}
+    ranked = sorted(base, key=lambda c: -float(np.sqrt(np.nanmean(base[c] ** 2))))[:max_panels]
+    fig, axes = plt.subplots(1, len(ranked), figsize=(5 * len(ranked), 3.6), squeeze=False)
+    label = "twin + " + ", ".join(result.named_effects) if result.named_effects else "twin (same)"
+    for ax, cid in zip(axes[0], ranked, strict=True):
+        c = by_id[cid]
+        minutes = np.asarray(c.t_s, dtype=float) / 60.0
+        ax.plot(minutes, c.z_um, "k.", ms=3, label="measured")
+        ax.plot(minutes, _prediction(c, base[cid]), "-", label="baseline twin")
+        ax.plot(minutes, _prediction(c, final[cid]), "--", label=label)
+        ax.set(title=f"{cid} (held out)", xlabel="time (min)", ylabel="Z drift (um)")
+        speed = ax.twinx()
+        speed.step(minutes, c.rpm, where="post", color="0.7", lw=0.8)
+        speed.set_ylabel("spindle speed (rpm)", color="0.5")
+    axes[0][0].legend(fontsize=7)
+    fig.suptitle(title, fontsize=10)
+    fig.tight_layout()
+    out.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(out, dpi=100)
+    plt.close(fig)
+
+
+def plot_residuals(campaigns: Sequence, result: SearchResult, title: str, out: Path) -> None:
+    """Held-out Z residuals before and after, every campaign, and RMS per campaign."""
+    before = result.baseline.heldout.z_residual_um
+    after = result.final.heldout.z_residual_um
+    by_id = {c.campaign_id: c for c in campaigns}
+    fig, axes = plt.subplots(1, 3, figsize=(16, 4.2))
+    lim = max(float(np.nanmax(np.abs(v))) for v in before.values()) * 1.05
+    for ax, series, name in (
+        (axes[0], before, "baseline twin"),
+        (axes[1], after, "augmented twin"),
+    ):
+        for cid, r in series.items():
+            ax.plot(np.asarray(by_id[cid].t_s) / 60.0, r, lw=1, label=cid)
+        ax.axhline(0, color="k", lw=0.5)
+        ax.set(title=f"held-out residual, {name}", xlabel="time (min)",
+               ylabel="measured - twin Z (um)", ylim=(-lim, lim))  # fmt: skip
+    axes[0].legend(fontsize=6, ncol=2)
+    ids = list(before)
+    rms_b = [float(np.sqrt(np.nanmean(before[c] ** 2))) for c in ids]
+    rms_a = [float(np.sqrt(np.nanmean(after[c] ** 2))) for c in ids]
+    x = np.arange(len(ids))
+    axes[2].bar(x - 0.2, rms_b, 0.4, label="baseline")
+    axes[2].bar(x + 0.2, rms_a, 0.4, label="augmented")
+    axes[2].set_xticks(x, ids, rotation=90, fontsize=7)
+    axes[2].set(title="held-out Z RMS per campaign", ylabel="um")
+    axes[2].legend(fontsize=7)
+    fig.suptitle(title, fontsize=10)
+    fig.tight_layout()
+    out.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(out, dpi=100)
+    plt.close(fig)
+
+
+def write_outputs(
+    out_dir: Path,
+    doc: Mapping[str, Any],
+    campaigns: Sequence,
+    result: SearchResult,
+    before: Localisation,
+) -> list[Path]:
+    """Write JSON, figures, localisation table and Markdown into ``out_dir``; return the files."""
+    out_dir.mkdir(parents=True, exist_ok=True)
+    data = "synthetic data" if doc["synthetic"] else "measured data"
+    fit_png, res_png = out_dir / FIT_FIGURE, out_dir / RESIDUAL_FIGURE
+    plot_heldout_fit(campaigns, result, f"Z drift on held-out campaigns ({data})", fit_png)
+    plot_residuals(campaigns, result, f"Displacement residual before and after ({data})", res_png)
+    table = out_dir / LOCALISATION_CSV
+    before.table.to_csv(table, index=False, float_format="%.4g")
+    json_path = out_dir / JSON_FILE
+    json_path.write_text(json.dumps(doc, indent=2, ensure_ascii=False) + "\n", encoding="utf-8")
+    md_path = out_dir / MARKDOWN_FILE
+    md_path.write_text(markdown(doc, [str(fit_png), str(res_png)]), encoding="utf-8")
+    logger.info("wrote %s, %s and figures to %s", JSON_FILE, MARKDOWN_FILE, out_dir)
+    return [json_path, md_path, fit_png, res_png, table]
+
+
+def log_mlflow(files: Sequence[Path], doc: Mapping[str, Any], settings: Mapping[str, Any]) -> str:
+    """Log one MLflow run with the metrics, the named effects and the report files.
+
+    Parameters
+    ----------
+    files : sequence of Path
+        Report files, logged as artifacts under ``discrepancy/``.
+    doc : mapping
+        The ``discrepancy.json`` content.
+    settings : mapping
+        ``experiment``, ``default_tracking_uri``, ``local_artifact_dir`` of the discrepancy
+        params section; ``$MLFLOW_TRACKING_URI`` wins over the default store.
+
+    Returns
+    -------
+    str
+        The run id.
+    """
+    from pipeline.track import absolute_store_uri, local_artifact_location, resolve_tracking_uri
+    from pipeline.tracking.store import ensure_experiment, make_client
+
+    uri = absolute_store_uri(resolve_tracking_uri(settings))
+    experiment = str(settings.get("experiment") or "thermal-discrepancy")
+    client = make_client(uri)
+    location = local_artifact_location(
+        uri, str(settings.get("local_artifact_dir") or "mlartifacts"), experiment
+    )
+    experiment_id = ensure_experiment(client, experiment, location)
+    tags = {
+        "stage": "discrepancy",
+        "synthetic": str(bool(doc["synthetic"])).lower(),
+        "named_effects": ",".join(doc["named_effects"]) or "none",
+    }
+    run = client.create_run(experiment_id, tags=tags, run_name="discrepancy")
+    run_id = run.info.run_id
+    try:
+        for key in ("rmse_um_before", "rmse_um_after", "rmse_T_K_before", "rmse_T_K_after"):
+            if doc.get(key) is not None:
+                client.log_metric(run_id, key, float(doc[key]))
+        client.log_param(run_id, "named_effects", ",".join(doc["named_effects"]) or "none")
+        for name, value in doc["thresholds"].items():
+            client.log_param(run_id, name, str(value))
+        client.log_param(run_id, "campaigns", ",".join(doc["campaigns"])[:500])
+        for path in files:
+            client.log_artifact(run_id, str(path), artifact_path="discrepancy")
+    except BaseException:
+        client.set_terminated(run_id, "FAILED")
+        raise
+    client.set_terminated(run_id)
+    logger.info("logged MLflow run %s in experiment '%s'", run_id, experiment)
+    return run_id

@@ -1,0 +1,622 @@
+"""Forward selection of the physical effects the twin is missing.
+
+Start from the baseline twin (no effect). At each step, for every candidate effect not yet in
+the model whose sensor roles are present: add it, recalibrate (starting from the current
+model's calibrated values), and measure its evidence
+
+* ``delta_bic`` (and ``delta_aicc``): change of the information criterion of the calibration
+  on all campaigns against the current model (negative = better);
+* ``rmse_heldout_um`` / ``rmse_heldout_T_K``: displacement RMS (um) and temperature RMS (K) on
+  campaigns *not used for calibration*, pooled over cross-validation folds across campaigns
+  (leave-one-campaign-out up to ``n_folds`` campaigns, else ``n_folds`` folds dealt
+  round-robin), and their relative reductions ``heldout_reduction`` (Z) and
+  ``heldout_T_reduction`` against the current model.
+
+An effect *passes* when ``delta_bic <= max_delta_bic`` and the held-out Z RMS falls by at least
+``min_heldout_reduction`` or the held-out temperature RMS by at least
+``min_heldout_temperature_reduction`` (an effect of the sensors alone, such as ``sensor_lag``, shows in
+the temperatures first). Candidates are ranked by ``delta_bic``; the best passing one is added
+and the search repeats until none passes. The calibrations of a step run in parallel (joblib,
+``n_jobs``).
+
+The search works through an *evaluator*: ``evaluator(effects, train_ids, test_ids, start) ->
+FitResult`` (``start``: parameter name -> starting value, or None). :class:`TwinEvaluator`
+builds, calibrates and predicts the twin of :mod:`pipeline.discrepancy.model` /
+:mod:`pipeline.discrepancy.calibrate`; tests may pass a fake one with known evidence.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+logger = logging.getLogger(__name__)
+
+CANDIDATE_EFFECTS = (
+    "ambient_variation",
+    "centrifugal_growth",
+    "nonlinear_bearing_heat",
+    "sensor_lag",
+    "thermal_bending",
+    "motor_heat",
+)
+"""The effect vocabulary of issue 4, in the order they are reported."""
+
+
+@dataclass(frozen=True)
+class SearchSettings:
+    """Thresholds and resources of the search (``params.yaml`` ``discrepancy:``).
+
+    Attributes
+    ----------
+    candidates : tuple of str
+        Effects offered, names from :data:`CANDIDATE_EFFECTS`.
+    min_heldout_reduction : float
+        Relative reduction of the held-out Z RMS that qualifies an effect, 0..1.
+    min_heldout_t_reduction : float
+        Relative reduction of the held-out temperature RMS that qualifies an effect, 0..1
+        (> 1 disables this route).
+    max_delta_bic : float
+        Largest change of BIC for an effect to be named (negative = the data prefer it).
+    n_folds : int
+        Cross-validation folds across campaigns (leave-one-campaign-out when there are at most
+        this many campaigns).
+    n_jobs : int
+        Parallel calibrations (joblib processes); 1 = serial.
+    max_effects : int
+        Stop after naming this many effects.
+    """
+
+    candidates: tuple[str, ...] = CANDIDATE_EFFECTS
+    min_heldout_reduction: float = 0.2
+    min_heldout_t_reduction: float = 0.2
+    max_delta_bic: float = -10.0
+    n_folds: int = 4
+    n_jobs: int = 2
+    max_effects: int = 6
+
+    @classmethod
+    def from_params(cls, section: Mapping[str, Any]) -> SearchSettings:
+        """Build from the ``discrepancy`` section; unknown effect names raise KeyError."""
+        candidates = tuple(section.get("candidates") or CANDIDATE_EFFECTS)
+        unknown = [c for c in candidates if c not in CANDIDATE_EFFECTS]
+        if unknown:
+            raise KeyError(
+                f"params.yaml discrepancy.candidates: unknown effect(s) {unknown}; "
+                f"use names from {list(CANDIDATE_EFFECTS)}"
+            )
+        return cls(
+            candidates=candidates,
+            min_heldout_reduction=float(section.get("min_heldout_reduction", 0.2)),
+            min_heldout_t_reduction=float(section.get("min_heldout_temperature_reduction", 0.2)),
+            max_delta_bic=float(section.get("max_delta_bic", -10.0)),
+            n_folds=int(section.get("n_folds", 4)),
+            n_jobs=int(section.get("n_jobs", 2)),
+            max_effects=int(section.get("max_effects", len(candidates))),
+        )
+
+
+@dataclass
+class FitResult:
+    """One calibration and its predictions on some campaigns.
+
+    Attributes
+    ----------
+    bic, aicc : float
+        Information criteria of the calibration (on its training campaigns).
+    params : dict
+        Parameter name -> (value, unit).
+    z_residual_um : dict
+        Predicted campaign id -> measured minus twin Z, ndarray (n,), um.
+    t_residual_k : dict
+        Predicted campaign id -> measured minus twin temperatures, DataFrame (n, sensors), K.
+    converged : bool
+    seconds : float
+        Wall time of the calibration and predictions, s.
+    """
+
+    bic: float
+    aicc: float
+    params: dict[str, tuple[float, str]]
+    z_residual_um: dict[str, np.ndarray]
+    t_residual_k: dict[str, pd.DataFrame] = field(default_factory=dict)
+    converged: bool = True
+    seconds: float = 0.0
+
+
+Evaluator = Callable[[frozenset, tuple, tuple, Mapping[str, float] | None], FitResult]
+
+
+@dataclass
+class ModelEvidence:
+    """Full calibration and cross-validation of one set of effects.
+
+    Attributes
+    ----------
+    effects : frozenset of str
+    full : FitResult
+        Calibrated on all campaigns, predicted on all (in-sample).
+    heldout : FitResult-like
+        ``z_residual_um`` / ``t_residual_k`` of every campaign predicted by the fold that held
+        it out; ``bic``/``aicc`` NaN.
+    folds : list of FitResult
+        The calibration of each fold (starting values of the next step's fold fits).
+    """
+
+    effects: frozenset[str]
+    full: FitResult
+    heldout: FitResult
+    folds: list[FitResult] = field(default_factory=list)
+
+    @property
+    def rmse_heldout_um(self) -> float:
+        """Held-out Z RMS pooled over all samples of all campaigns, um."""
+        return pooled_rms(self.heldout.z_residual_um.values())
+
+    @property
+    def rmse_heldout_t_k(self) -> float:
+        """Held-out temperature RMS pooled over all sensors and campaigns, K."""
+        return pooled_rms(
+            f.to_numpy(dtype=float).ravel() for f in self.heldout.t_residual_k.values()
+        )
+
+    def per_campaign(self) -> dict[str, dict[str, float]]:
+        """Held-out RMS per campaign: ``{id: {"z_um": .., "t_k": ..}}``."""
+        out = {}
+        for cid, z in self.heldout.z_residual_um.items():
+            t = self.heldout.t_residual_k.get(cid)
+            out[cid] = {
+                "z_um": pooled_rms([z]),
+                "t_k": pooled_rms([t.to_numpy(dtype=float).ravel()])
+                if t is not None
+                else float("nan"),
+            }
+        return out
+
+
+@dataclass(frozen=True)
+class Candidate:
+    """Evidence of one candidate effect at one step.
+
+    Attributes
+    ----------
+    effect : str
+    delta_bic, delta_aicc : float
+        Criterion of the augmented model minus the current one (all campaigns).
+    rmse_heldout_um : float
+        Held-out Z RMS of the augmented model, um.
+    heldout_reduction : float
+        ``1 - rmse_heldout_um / current held-out RMS``.
+    rmse_heldout_t_k : float
+        Held-out temperature RMS of the augmented model, K.
+    heldout_t_reduction : float
+        ``1 - rmse_heldout_t_k / current held-out temperature RMS``.
+    passes : bool
+        Both thresholds met.
+    converged : bool
+    """
+
+    effect: str
+    delta_bic: float
+    delta_aicc: float
+    rmse_heldout_um: float
+    heldout_reduction: float
+    rmse_heldout_t_k: float
+    heldout_t_reduction: float
+    passes: bool
+    converged: bool
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready fields."""
+        return {
+            "effect": self.effect,
+            "delta_bic": _num(self.delta_bic),
+            "delta_aicc": _num(self.delta_aicc),
+            "rmse_heldout_um": _num(self.rmse_heldout_um),
+            "heldout_reduction": _num(self.heldout_reduction),
+            "rmse_heldout_T_K": _num(self.rmse_heldout_t_k),
+            "heldout_T_reduction": _num(self.heldout_t_reduction),
+            "passes": bool(self.passes),
+            "converged": bool(self.converged),
+        }
+
+
+@dataclass
+class Step:
+    """One named effect.
+
+    Attributes
+    ----------
+    effect : str
+    evidence : Candidate
+    before, after : ModelEvidence
+        The model before and after adding the effect.
+    """
+
+    effect: str
+    evidence: Candidate
+    before: ModelEvidence
+    after: ModelEvidence
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready fields: evidence, held-out RMS before/after, calibrated parameters."""
+        return {
+            "effect": self.effect,
+            "evidence": self.evidence.to_dict(),
+            "rmse_um_before": _num(self.before.rmse_heldout_um),
+            "rmse_um_after": _num(self.after.rmse_heldout_um),
+            "rmse_T_K_before": _num(self.before.rmse_heldout_t_k),
+            "rmse_T_K_after": _num(self.after.rmse_heldout_t_k),
+            "per_campaign_before": self.before.per_campaign(),
+            "per_campaign_after": self.after.per_campaign(),
+            "parameters": {
+                k: {"value": _num(v), "unit": u} for k, (v, u) in self.after.full.params.items()
+            },
+            "effect_parameters": {
+                k: {"value": _num(v), "unit": u}
+                for k, (v, u) in self.after.full.params.items()
+                if k not in self.before.full.params
+            },
+        }
+
+
+@dataclass
+class SearchResult:
+    """Outcome of :func:`forward_search`.
+
+    Attributes
+    ----------
+    named_effects : list of str
+        Effects added, in order; empty when none passed.
+    baseline, final : ModelEvidence
+    steps : list of Step
+    rounds : list of list of Candidate
+        Evidence of every candidate tried at every step (the last round is the one where none
+        passed, or the search hit ``max_effects``).
+    untestable : dict
+        Effect -> roles it needs that no campaign has.
+    folds : list of list of str
+        Held-out campaigns of each fold.
+    seconds : float
+        Wall time, s.
+    """
+
+    named_effects: list[str]
+    baseline: ModelEvidence
+    final: ModelEvidence
+    steps: list[Step]
+    rounds: list[list[Candidate]]
+    untestable: dict[str, list[str]]
+    folds: list[list[str]]
+    seconds: float
+
+    @property
+    def rmse_um_before(self) -> float:
+        """Held-out Z RMS of the baseline, um."""
+        return self.baseline.rmse_heldout_um
+
+    @property
+    def rmse_um_after(self) -> float:
+        """Held-out Z RMS of the final model, um."""
+        return self.final.rmse_heldout_um
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready summary (``discrepancy.json`` without the localisation)."""
+        return {
+            "named_effects": list(self.named_effects),
+            "rmse_um_before": _num(self.rmse_um_before),
+            "rmse_um_after": _num(self.rmse_um_after),
+            "rmse_T_K_before": _num(self.baseline.rmse_heldout_t_k),
+            "rmse_T_K_after": _num(self.final.rmse_heldout_t_k),
+            "per_campaign": {
+                cid: {
+                    "before": before,
+                    "after": self.final.per_campaign().get(cid, {}),
+                }
+                for cid, before in self.baseline.per_campaign().items()
+            },
+            "steps": [s.to_dict() for s in self.steps],
+            "candidates_by_step": [
+                {"step": i + 1, "candidates": [c.to_dict() for c in r]}
+                for i, r in enumerate(self.rounds)
+            ],
+            "untestable": {k: list(v) for k, v in self.untestable.items()},
+            "baseline_parameters": {
+                k: {"value": _num(v), "unit": u} for k, (v, u) in self.baseline.full.params.items()
+            },
+            "final_parameters": {
+                k: {"value": _num(v), "unit": u} for k, (v, u) in self.final.full.params.items()
+            },
+            "folds": self.folds,
+            "seconds": round(self.seconds, 1),
+        }
+
+
+def _num(x: float) -> float | None:
+    x = float(x)
+    return round(x, 6) if np.isfinite(x) else None
+
+
+def pooled_rms(arrays) -> float:
+    """RMS of the finite values of several arrays together (NaN if none)."""
+    parts = [np.asarray(a, dtype=float).ravel() for a in arrays]
+    v = np.concatenate(parts) if parts else np.array([])
+    v = v[np.isfinite(v)]
+    return float(np.sqrt(np.mean(v**2))) if v.size else float("nan")
+
+
+def make_folds(campaign_ids: Sequence[str], n_folds: int) -> list[list[str]]:
+    """Split campaigns into held-out folds.
+
+    Leave-one-campaign-out when there are at most ``n_folds`` campaigns, else ``n_folds``
+    folds dealt round-robin in the given order (campaigns are usually named by date, so each
+    fold spans the seasons).
+
+    Raises
+    ------
+    ValueError
+        With fewer than 2 campaigns (nothing to hold out).
+    """
+    ids = list(campaign_ids)
+    if len(ids) < 2:
+        raise ValueError(
+            f"the discrepancy search needs at least 2 valid spindle campaigns to hold one out; "
+            f"got {len(ids)}; add campaigns to the raw folder"
+        )
+    k = min(max(int(n_folds), 2), len(ids))
+    return [ids[i::k] for i in range(k)]
+
+
+def _run(
+    evaluator: Evaluator, effects: frozenset, train: tuple, test: tuple, start: Mapping | None
+) -> FitResult:
+    t0 = time.perf_counter()
+    result = evaluator(effects, train, test, start)
+    result.seconds = time.perf_counter() - t0
+    return result
+
+
+def evaluate_many(
+    evaluator: Evaluator,
+    effect_sets: Sequence[frozenset],
+    campaign_ids: Sequence[str],
+    folds: Sequence[Sequence[str]],
+    n_jobs: int = 1,
+    current: ModelEvidence | None = None,
+) -> list[ModelEvidence]:
+    """Full calibration plus cross-validation of several effect sets, in parallel.
+
+    Parameters
+    ----------
+    evaluator : callable
+        ``evaluator(effects, train_ids, test_ids) -> FitResult``.
+    effect_sets : sequence of frozenset
+    campaign_ids : sequence of str
+        All campaigns.
+    folds : sequence of sequence of str
+        Held-out campaigns of each fold.
+    n_jobs : int
+        joblib processes; 1 runs in this process.
+    current : ModelEvidence, optional
+        Calibrations whose values start the new ones (full fit and the same fold).
+
+    Returns
+    -------
+    list of ModelEvidence
+        One per effect set, same order.
+    """
+    ids = tuple(campaign_ids)
+    tasks = []
+    starts = [None] * (1 + len(folds))
+    if current is not None:
+        starts = [current.full.params] + [f.params for f in current.folds]
+        starts = [{k: v for k, (v, _) in p.items()} or None for p in starts]
+    for effects in effect_sets:
+        tasks.append((effects, ids, ids, starts[0]))
+        for k, fold in enumerate(folds):
+            train = tuple(c for c in ids if c not in set(fold))
+            tasks.append((effects, train, tuple(fold), starts[1 + k]))
+    if n_jobs == 1 or len(tasks) == 1:
+        results = [_run(evaluator, *t) for t in tasks]
+    else:
+        from joblib import Parallel, delayed
+
+        results = Parallel(n_jobs=n_jobs)(delayed(_run)(evaluator, *t) for t in tasks)
+    out = []
+    per = 1 + len(folds)
+    for i, effects in enumerate(effect_sets):
+        chunk = results[i * per : (i + 1) * per]
+        full, cv = chunk[0], chunk[1:]
+        heldout = FitResult(
+            bic=float("nan"),
+            aicc=float("nan"),
+            params={},
+            z_residual_um={k: v for r in cv for k, v in r.z_residual_um.items()},
+            t_residual_k={k: v for r in cv for k, v in r.t_residual_k.items()},
+            converged=all(r.converged for r in cv),
+        )
+        out.append(ModelEvidence(frozenset(effects), full, heldout, list(cv)))
+    return out
+
+
+def candidate_evidence(
+    effect: str, current: ModelEvidence, augmented: ModelEvidence, settings: SearchSettings
+) -> Candidate:
+    """Compare an augmented model with the current one and apply the thresholds."""
+    before = current.rmse_heldout_um
+    after = augmented.rmse_heldout_um
+    reduction = 1.0 - after / before if before > 0 else 0.0
+    t_before, t_after = current.rmse_heldout_t_k, augmented.rmse_heldout_t_k
+    t_reduction = 1.0 - t_after / t_before if t_before > 0 else float("nan")
+    qualifies = (np.isfinite(reduction) and reduction >= settings.min_heldout_reduction) or (
+        np.isfinite(t_reduction) and t_reduction >= settings.min_heldout_t_reduction
+    )
+    delta_bic = augmented.full.bic - current.full.bic
+    delta_aicc = augmented.full.aicc - current.full.aicc
+    passes = bool(qualifies and np.isfinite(delta_bic) and delta_bic <= settings.max_delta_bic)
+    return Candidate(
+        effect=effect,
+        delta_bic=float(delta_bic),
+        delta_aicc=float(delta_aicc),
+        rmse_heldout_um=float(after),
+        heldout_reduction=float(reduction),
+        rmse_heldout_t_k=float(t_after),
+        heldout_t_reduction=float(t_reduction),
+        passes=passes,
+        converged=bool(augmented.full.converged and augmented.heldout.converged),
+    )
+
+
+def forward_search(
+    evaluator: Evaluator,
+    campaign_ids: Sequence[str],
+    settings: SearchSettings,
+    untestable: Mapping[str, Sequence[str]] | None = None,
+) -> SearchResult:
+    """Name the missing effects by forward selection (see the module docstring).
+
+    Parameters
+    ----------
+    evaluator : callable
+        ``evaluator(effects, train_ids, test_ids) -> FitResult``.
+    campaign_ids : sequence of str
+    settings : SearchSettings
+    untestable : mapping, optional
+        Effect -> missing roles; these are never tried.
+
+    Returns
+    -------
+    SearchResult
+    """
+    start = time.perf_counter()
+    untestable = {k: list(v) for k, v in (untestable or {}).items() if v}
+    for effect, roles in untestable.items():
+        logger.warning(
+            "effect %s cannot be tested: no sensor with role %s; map a sensor to it in "
+            "campaign.yaml to test it",
+            effect,
+            " / ".join(roles),
+        )
+    folds = make_folds(campaign_ids, settings.n_folds)
+    (current,) = evaluate_many(evaluator, [frozenset()], campaign_ids, folds, settings.n_jobs)
+    baseline = current
+    logger.info("baseline twin: held-out Z RMS %.2f um", baseline.rmse_heldout_um)
+    named: list[str] = []
+    steps: list[Step] = []
+    rounds: list[list[Candidate]] = []
+    while len(named) < settings.max_effects:
+        pool = [e for e in settings.candidates if e not in named and e not in untestable]
+        if not pool:
+            break
+        sets = [current.effects | {e} for e in pool]
+        models = evaluate_many(evaluator, sets, campaign_ids, folds, settings.n_jobs, current)
+        tried = [
+            candidate_evidence(e, current, m, settings) for e, m in zip(pool, models, strict=True)
+        ]
+        order = np.argsort([c.delta_bic for c in tried], kind="stable")
+        ranked = [tried[i] for i in order]
+        rounds.append(ranked)
+        for c in ranked:
+            logger.info(
+                "step %d: %-22s held-out Z RMS %.2f um (%+.0f %%), T RMS %.3f K (%+.0f %%), "
+                "delta BIC %+.1f%s",
+                len(rounds),
+                c.effect,
+                c.rmse_heldout_um,
+                -100 * c.heldout_reduction,
+                c.rmse_heldout_t_k,
+                -100 * c.heldout_t_reduction,
+                c.delta_bic,
+                " passes" if c.passes else "",
+            )
+        best = next((c for c in ranked if c.passes), None)
+        if best is None:
+            break
+        after = models[pool.index(best.effect)]
+        steps.append(Step(best.effect, best, current, after))
+        named.append(best.effect)
+        current = after
+    return SearchResult(
+        named_effects=named,
+        baseline=baseline,
+        final=current,
+        steps=steps,
+        rounds=rounds,
+        untestable=untestable,
+        folds=[list(f) for f in folds],
+        seconds=time.perf_counter() - start,
+    )
+
+
+class TwinEvaluator:
+    """Evaluator over the calibrated twin of :mod:`pipeline.discrepancy`.
+
+    Parameters
+    ----------
+    campaigns : sequence of MeasuredCampaign
+    roles : set of str, optional
+        Roles the model is built for; default the union of the campaigns' roles.
+    """
+
+    def __init__(self, campaigns: Sequence, roles: set[str] | None = None) -> None:
+        self.campaigns = {c.campaign_id: c for c in campaigns}
+        self.roles = set(roles) if roles is not None else campaign_roles(campaigns)
+
+    def __call__(
+        self, effects: frozenset, train: tuple, test: tuple, start: Mapping | None = None
+    ) -> FitResult:
+        """Calibrate ``effects`` on ``train`` (from ``start`` values); residuals on ``test``."""
+        from pipeline.discrepancy.calibrate import calibrate, predict
+        from pipeline.discrepancy.model import build_model
+
+        model = build_model(self.roles, frozenset(effects))
+        start = {k: v for k, v in (start or {}).items() if k in set(model.names)} or None
+        fit = calibrate(model, [self.campaigns[c] for c in train], start=start)
+        z_res, t_res = {}, {}
+        for cid in test:
+            campaign = self.campaigns[cid]
+            sim = predict(model, fit, campaign)
+            z_res[cid] = np.asarray(campaign.z_um, dtype=float) - np.asarray(sim.z_um, dtype=float)
+            cols = [c for c in sim.temperatures.columns if c in campaign.temperatures.columns]
+            t_res[cid] = campaign.temperatures[cols].reset_index(drop=True) - sim.temperatures[
+                cols
+            ].reset_index(drop=True)
+        return FitResult(
+            bic=float(fit.bic),
+            aicc=float(fit.aicc),
+            params={k: (float(v), str(u)) for k, (v, u) in fit.params.items()},
+            z_residual_um=z_res,
+            t_residual_k=t_res,
+            converged=bool(fit.converged),
+        )
+
+
+def campaign_roles(campaigns: Sequence) -> set[str]:
+    """Union of the sensor roles of the campaigns."""
+    return {r for c in campaigns for r in c.roles.values()}
+
+
+def untestable_effects(candidates: Sequence[str], roles: set[str]) -> dict[str, list[str]]:
+    """Effect -> missing roles, for the candidates that cannot be tested with ``roles``."""
+    from pipeline.discrepancy.model import missing_roles
+
+    out = {}
+    for effect in candidates:
+        missing = list(missing_roles(effect, roles))
+        if missing:
+            out[effect] = missing
+    return out
+
+
+def search_twin(campaigns: Sequence, settings: SearchSettings) -> SearchResult:
+    """Run :func:`forward_search` on measured campaigns with the calibrated twin."""
+    roles = campaign_roles(campaigns)
+    evaluator = TwinEvaluator(campaigns, roles)
+    ids = [c.campaign_id for c in campaigns]
+    return forward_search(evaluator, ids, settings, untestable_effects(settings.candidates, roles))

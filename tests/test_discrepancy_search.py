@@ -1,0 +1,443 @@
+"""Tests of the discrepancy search: forward selection, localisation, hidden effects, the stage.
+
+Hidden-effect tests generate "measured" campaigns with the project's twin
+(:func:`pipeline.twin.campaigns.simulate_spindle_campaign`) with chosen effects switched on and
+random plausible parameters, write them in the raw contract and run the workflow on the folder.
+The generator's truth (its effects and parameters) is used only in the assertions.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, replace
+from datetime import datetime, timedelta
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from pipeline.discrepancy.localise import (
+    LocaliseSettings,
+    ambient_lag,
+    localise,
+    noise_floor,
+    phase_labels,
+)
+from pipeline.discrepancy.search import (
+    CANDIDATE_EFFECTS,
+    FitResult,
+    SearchSettings,
+    forward_search,
+    make_folds,
+)
+from pipeline.twin.campaigns import SpindlePlan, simulate_spindle_campaign
+from pipeline.twin.params import SpindleParams
+from pipeline.twin.program import Program, Segment
+from pipeline.twin.writer import write_campaign
+
+# ------------------------------------------------------------------ phase split, noise floor
+
+
+def test_phase_labels_follow_the_speed_program():
+    t = np.arange(0, 330, 3.0) * 60.0
+    rpm = np.select(
+        [t < 30 * 60, t < 150 * 60, t < 240 * 60],
+        [0.0, 4000.0, 6000.0],
+        default=0.0,
+    )
+    labels = phase_labels(t, rpm, warmup_min=60.0, transient_min=30.0)
+    minute = t / 60.0
+
+    def at(m):
+        return labels[np.flatnonzero(minute == m)[0]]
+
+    assert at(0) == "rest" and at(27) == "rest"
+    assert at(30) == "warm-up" and at(87) == "warm-up"
+    assert at(90) == "steady" and at(147) == "steady"
+    assert at(150) == "speed change" and at(177) == "speed change"
+    assert at(180) == "steady"
+    assert at(240) == "cool-down" and at(327) == "cool-down"
+
+
+def test_phase_labels_start_running_is_warm_up():
+    t = np.arange(0, 10) * 600.0
+    labels = phase_labels(t, np.full(10, 2000.0), warmup_min=30.0)
+    assert list(labels[:3]) == ["warm-up"] * 3
+    assert set(labels[3:]) == {"steady"}
+
+
+def test_noise_floor_ignores_a_slow_drift():
+    rng = np.random.default_rng(0)
+    t = np.arange(200)
+    x = 0.05 * t + 10 * (1 - np.exp(-t / 50)) + 0.3 * rng.standard_normal(t.size)
+    assert noise_floor(x) == pytest.approx(0.3, rel=0.25)
+
+
+def test_noise_floor_of_a_quantised_quiet_signal_is_not_zero():
+    rng = np.random.default_rng(1)
+    x = np.round((20 + 0.02 * rng.standard_normal(300)) / 0.0625) * 0.0625
+    assert 0 < noise_floor(x) < 0.1
+
+
+def test_ambient_lag_finds_the_delay():
+    t = np.arange(0, 400) * 180.0
+    amb = 2.0 * np.sin(2 * np.pi * t / (8 * 3600))
+    lag_steps = 13  # 39 min
+    res = np.r_[np.zeros(lag_steps), amb[:-lag_steps]] * 1.5
+    rho, lag = ambient_lag({"A": res}, {"A": amb + 20}, {"A": t}, max_lag_min=90)
+    assert lag == pytest.approx(39.0)
+    assert rho > 0.95
+
+
+@dataclass
+class _Campaign:
+    campaign_id: str
+    t_s: np.ndarray
+    rpm: np.ndarray
+    temperatures: pd.DataFrame
+    roles: dict
+    z_um: np.ndarray
+
+
+def test_localise_reports_the_cool_down_bias_in_words():
+    rng = np.random.default_rng(2)
+    t = np.arange(0, 330, 3.0) * 60.0
+    rpm = np.where(t < 240 * 60, 4000.0, 0.0)
+    z = 20 * (1 - np.exp(-t / 4000)) + 0.3 * rng.standard_normal(t.size)
+    temps = pd.DataFrame({"T1": 20 + 0.03 * rng.standard_normal(t.size)})
+    c = _Campaign("K1", t, rpm, temps, {"T1": "headstock"}, z)
+    z_res = np.where(rpm == 0, 6.0, 0.0) + 0.3 * rng.standard_normal(t.size)
+    t_res = pd.DataFrame({"T1": 0.03 * rng.standard_normal(t.size)})
+    out = localise([c], {"K1": z_res}, {"K1": t_res}, LocaliseSettings())
+    cool = out.table.query("signal == 'Z' and split == 'phase' and level == 'cool-down'")
+    assert cool["mean"].iloc[0] == pytest.approx(6.0, abs=0.3)
+    assert any("under-predicts the drift during cool-down by 6" in f for f in out.findings)
+    assert not any("warm-up" in f for f in out.findings)
+
+
+# ------------------------------------------------------------------ forward selection (fake)
+
+
+class FakeEvaluator:
+    """Known evidence: each missing true effect adds ``gain`` um of held-out residual.
+
+    Effects outside ``truth`` improve nothing but cost BIC (``penalty`` per parameter set) and
+    reduce the residual by ``spurious`` um (overfitting the noise).
+    """
+
+    def __init__(self, truth, gain=None, spurious=0.0, penalty=8.0, noise=0.5):
+        self.truth = frozenset(truth)
+        self.gain = gain or dict.fromkeys(truth, 5.0)
+        self.spurious = spurious
+        self.penalty = penalty
+        self.noise = noise
+        self.calls = []
+
+    def __call__(self, effects, train, test, start=None):
+        self.calls.append((frozenset(effects), tuple(train), tuple(test)))
+        missing = sum(self.gain[e] for e in self.truth - effects)
+        extra = len(effects - self.truth)
+        level = self.noise + missing - self.spurious * extra
+        bic = 100.0 * missing**2 + self.penalty * len(effects)
+        z = {c: np.full(50, level) for c in test}
+        t = {c: pd.DataFrame({"T1": np.full(50, 0.1)}) for c in test}
+        params = {f"p_{e}": (1.0, "um") for e in sorted(effects)}
+        return FitResult(bic, bic, params, z, t)
+
+
+IDS = [f"K{i:02d}" for i in range(1, 9)]
+SETTINGS = SearchSettings(n_jobs=1, n_folds=4)
+
+
+def test_forward_selection_names_the_true_effects_in_order_of_evidence():
+    fake = FakeEvaluator({"motor_heat", "sensor_lag"}, {"motor_heat": 6.0, "sensor_lag": 3.0})
+    result = forward_search(fake, IDS, SETTINGS)
+    assert result.named_effects == ["motor_heat", "sensor_lag"]
+    assert result.rmse_um_before == pytest.approx(9.5)
+    assert result.rmse_um_after == pytest.approx(0.5)
+    assert [s.effect for s in result.steps] == ["motor_heat", "sensor_lag"]
+    assert result.steps[0].to_dict()["rmse_um_after"] == pytest.approx(3.5)
+    assert result.steps[1].to_dict()["effect_parameters"] == {
+        "p_sensor_lag": {"value": 1.0, "unit": "um"}
+    }
+    # every remaining candidate was tried at every step; the last round names nothing
+    assert [len(r) for r in result.rounds] == [6, 5, 4]
+    assert not any(c.passes for c in result.rounds[-1])
+    doc = result.to_dict()
+    assert doc["candidates_by_step"][0]["candidates"][0]["effect"] == "motor_heat"
+
+
+def test_forward_selection_names_nothing_without_a_missing_effect():
+    fake = FakeEvaluator(set(), spurious=0.05)
+    result = forward_search(fake, IDS, SETTINGS)
+    assert result.named_effects == []
+    assert result.rmse_um_before == result.rmse_um_after
+    assert len(result.rounds) == 1 and len(result.rounds[0]) == len(CANDIDATE_EFFECTS)
+
+
+def test_an_effect_that_fails_the_bic_threshold_is_not_named():
+    fake = FakeEvaluator({"motor_heat"}, {"motor_heat": 0.6}, penalty=50.0)
+    result = forward_search(fake, IDS, SETTINGS)
+    top = result.rounds[0][0]
+    assert top.effect == "motor_heat" and top.heldout_reduction > 0.2
+    assert top.delta_bic > -10
+    assert result.named_effects == []
+
+
+def test_untestable_effects_are_never_calibrated_and_are_reported():
+    fake = FakeEvaluator({"motor_heat"})
+    result = forward_search(fake, IDS, SETTINGS, untestable={"motor_heat": ["spindle_motor"]})
+    assert result.named_effects == []
+    assert all("motor_heat" not in effects for effects, _, _ in fake.calls)
+    assert result.to_dict()["untestable"] == {"motor_heat": ["spindle_motor"]}
+
+
+def test_held_out_residuals_come_from_folds_that_did_not_see_the_campaign():
+    fake = FakeEvaluator({"motor_heat"})
+    forward_search(fake, IDS, SETTINGS)
+    for _, train, test in fake.calls:
+        if set(test) != set(IDS):
+            assert not set(train) & set(test)
+    folds = make_folds(IDS, 4)
+    assert sorted(c for f in folds for c in f) == sorted(IDS) and len(folds) == 4
+    assert make_folds(IDS[:3], 4) == [["K01"], ["K02"], ["K03"]]
+    with pytest.raises(ValueError, match="at least 2 valid spindle campaigns"):
+        make_folds(IDS[:1], 4)
+
+
+def test_parallel_and_serial_searches_agree():
+    fake = FakeEvaluator({"thermal_bending"})
+    serial = forward_search(fake, IDS, SETTINGS)
+    parallel = forward_search(fake, IDS, replace(SETTINGS, n_jobs=2))
+    assert serial.to_dict()["candidates_by_step"] == parallel.to_dict()["candidates_by_step"]
+
+
+def test_settings_reject_unknown_effects():
+    with pytest.raises(KeyError, match="unknown effect"):
+        SearchSettings.from_params({"candidates": ["spindle_wobble"]})
+
+
+# ------------------------------------------------------------------ hidden effects (real twin)
+
+
+@dataclass(frozen=True)
+class SteppedPlan(SpindlePlan):
+    """A spindle test with speed steps: ``steps`` = ((from_min, rpm), ...), then a cool-down."""
+
+    steps: tuple[tuple[float, float], ...] = ((0.0, 4000.0),)
+
+    def program(self) -> Program:
+        """Steps up to ``run_min``, then 0 rpm (open-ended)."""
+        ends = [s[0] for s in self.steps[1:]] + [self.run_min]
+        segments = [Segment(a, b, v) for (a, v), b in zip(self.steps, ends, strict=True)]
+        segments.append(Segment(self.run_min, None, 0.0))
+        return Program(tuple(segments), key="rpm")
+
+
+PROGRAMS = (
+    ((0.0, 2000.0), (120.0, 6000.0)),
+    ((0.0, 4000.0), (90.0, 2000.0), (180.0, 6000.0)),
+    ((0.0, 6000.0), (150.0, 3000.0)),
+    ((0.0, 3000.0), (100.0, 5000.0)),
+    ((0.0, 5000.0), (120.0, 2000.0), (200.0, 4000.0)),
+    ((0.0, 2500.0), (80.0, 4500.0), (160.0, 6000.0)),
+    ((0.0, 6000.0), (60.0, 4000.0)),
+    ((0.0, 4000.0), (140.0, 6000.0)),
+)
+"""Speed steps of the 8 hidden-effect campaigns (run 270 min, then 60 min stopped)."""
+
+
+def hidden_params(rng: np.random.Generator) -> SpindleParams:
+    """Random plausible machine parameters (every effect's own parameter drawn)."""
+    base = SpindleParams()
+    tau = rng.uniform(0.7, 1.6)
+    sensors = tuple(
+        replace(s, tau_s=None if s.tau_s is None else s.tau_s * tau) for s in base.sensors
+    )
+    return replace(
+        base,
+        front_bearing_heat_w=base.front_bearing_heat_w * rng.uniform(0.8, 1.2),
+        rear_bearing_heat_w=base.rear_bearing_heat_w * rng.uniform(0.8, 1.2),
+        bearing_heat_exponent=rng.uniform(1.5, 1.9),
+        motor_heat_w=rng.uniform(30.0, 50.0),
+        centrifugal_um=-rng.uniform(2.0, 4.0),
+        spindle_overhang_mm=rng.uniform(300.0, 450.0),
+        sensors=sensors,
+        probe_noise_um=rng.uniform(0.2, 0.4),
+    )
+
+
+def write_hidden_campaigns(folder: Path, effects: frozenset, seed: int, n: int = 8) -> None:
+    """Write ``n`` stepped campaigns spread over a year, generated with ``effects`` on."""
+    rng = np.random.default_rng(seed)
+    params = hidden_params(rng)
+    start = datetime(2024, 1, 10, 8, 30)
+    for i in range(n):
+        plan = SteppedPlan(
+            f"H{i + 1:02d}",
+            start + timedelta(days=int(45 * i)),
+            rpm=0.0,
+            steps=PROGRAMS[i % len(PROGRAMS)],
+            run_min=270.0,
+            cooldown_min=60.0,
+        )
+        campaign = simulate_spindle_campaign(
+            plan, seed=seed, params=params, effects=effects, preset="hidden-effect test"
+        )
+        write_campaign(campaign, folder)
+
+
+def run_workflow(folder: Path, out: Path, n_jobs: int = 2) -> dict:
+    """The stage on a raw folder (no MLflow); return discrepancy.json."""
+    from pipeline.discrepancy_stage import read_raw, run
+
+    validate = {
+        "temperature_range_degC": [-20.0, 80.0],
+        "ds18b20_power_on_degC": 85.0,
+        "ds18b20_disconnected_degC": -127.0,
+        "interval_tolerance": 0.2,
+        "stuck_min_samples": 20,
+        "stuck_min_other_change_degC": 0.5,
+        "spike_threshold_degC": 3.0,
+        "displacement_range_um": [-500.0, 500.0],
+        "laser_target_tolerance_mm": 0.01,
+    }
+    campaigns, quarantined, synthetic = read_raw(folder, 200.0, validate)
+    assert quarantined == [] and synthetic
+    run(campaigns, {"n_jobs": n_jobs, "n_folds": 4}, out, synthetic=synthetic, mlflow=False)
+    return json.loads((out / "discrepancy.json").read_text(encoding="utf-8"))
+
+
+def _check_named(doc: dict, truth: frozenset) -> None:
+    assert set(doc["named_effects"]) == set(truth), doc["candidates_by_step"]
+    if truth:
+        assert doc["rmse_um_after"] <= 0.5 * doc["rmse_um_before"]
+
+
+def test_smoke_one_hidden_effect_is_named_and_reported(tmp_path):
+    truth = frozenset({"motor_heat"})
+    write_hidden_campaigns(tmp_path / "raw", truth, seed=11)
+    doc = run_workflow(tmp_path / "raw", tmp_path / "out")
+    _check_named(doc, truth)
+    md = (tmp_path / "out" / "discrepancy.md").read_text(encoding="utf-8")
+    assert "`motor_heat`" in md and "held-out" in md
+    assert (tmp_path / "out" / "heldout_fit.png").stat().st_size > 10_000
+    assert (tmp_path / "out" / "residuals.png").stat().st_size > 10_000
+    step = doc["steps"][0]
+    assert step["effect"] == "motor_heat" and step["parameters"]
+    assert all("unit" in p for p in step["parameters"].values())
+    assert len(doc["candidates_by_step"][0]["candidates"]) == len(CANDIDATE_EFFECTS)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("seed", [1, 2, 3])
+@pytest.mark.parametrize("effect", CANDIDATE_EFFECTS)
+def test_each_hidden_effect_is_named(tmp_path, effect, seed):
+    truth = frozenset({effect})
+    write_hidden_campaigns(tmp_path / "raw", truth, seed=seed)
+    _check_named(run_workflow(tmp_path / "raw", tmp_path / "out"), truth)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("seed", [1, 2])
+def test_nothing_named_without_a_hidden_effect(tmp_path, seed):
+    write_hidden_campaigns(tmp_path / "raw", frozenset(), seed=seed)
+    assert run_workflow(tmp_path / "raw", tmp_path / "out")["named_effects"] == []
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(
+    "pair", [("ambient_variation", "motor_heat"), ("centrifugal_growth", "thermal_bending")]
+)
+def test_two_hidden_effects_are_both_named(tmp_path, pair):
+    truth = frozenset(pair)
+    write_hidden_campaigns(tmp_path / "raw", truth, seed=5)
+    _check_named(run_workflow(tmp_path / "raw", tmp_path / "out"), truth)
+
+
+def test_untestable_effects_are_reported_when_roles_are_missing(tmp_path):
+    """Drop the motor and column sensors from campaign.yaml/temperature.csv: said, not tried."""
+    write_hidden_campaigns(tmp_path / "raw", frozenset(), seed=3, n=3)
+    for folder in (tmp_path / "raw").iterdir():
+        yaml_text = (folder / "campaign.yaml").read_text(encoding="utf-8").splitlines()
+        drop = {"T3", "T5", "T6"}
+        kept = [ln for ln in yaml_text if ln.strip().split(":")[0] not in drop]
+        (folder / "campaign.yaml").write_text("\n".join(kept) + "\n", encoding="utf-8")
+        temps = pd.read_csv(folder / "temperature.csv").drop(columns=sorted(drop))
+        temps.to_csv(folder / "temperature.csv", index=False)
+    doc = run_workflow(tmp_path / "raw", tmp_path / "out", n_jobs=1)
+    assert doc["untestable"]["motor_heat"] == ["spindle_motor"]
+    assert set(doc["untestable"]["thermal_bending"]) == {"column_front", "column_rear"}
+    tried = {c["effect"] for r in doc["candidates_by_step"] for c in r["candidates"]}
+    assert not tried & {"motor_heat", "thermal_bending"}
+    md = (tmp_path / "out" / "discrepancy.md").read_text(encoding="utf-8")
+    assert "cannot be tested" in md and "spindle_motor" in md
+
+
+# ------------------------------------------------------------------ report and MLflow (fake search)
+
+
+def _fake_report(tmp_path):
+    from pipeline.discrepancy.report import build_document, write_outputs
+
+    ids = IDS[:4]
+    t = np.arange(0, 110) * 180.0
+    rpm = np.where(t < 270 * 60, 4000.0, 0.0)
+    campaigns = [
+        _Campaign(
+            c,
+            t,
+            rpm,
+            pd.DataFrame({"T1": np.full(t.size, 20.0)}),
+            {"T1": "headstock"},
+            -10 * (1 - np.exp(-t / 5000)),
+        )  # fmt: skip
+        for c in ids
+    ]
+
+    class Evaluator(FakeEvaluator):
+        def __call__(self, effects, train, test, start=None):
+            fit = super().__call__(effects, train, test, start)
+            fit.z_residual_um = {c: v * np.sin(t / 3000) for c, v in fit.z_residual_um.items()}
+            fit.t_residual_k = {c: v.iloc[: t.size].reindex(range(t.size), fill_value=0.1)
+                                for c, v in fit.t_residual_k.items()}  # fmt: skip
+            return fit
+
+    result = forward_search(Evaluator({"motor_heat"}), ids, SETTINGS, {"sensor_lag": ["x"]})
+    settings = LocaliseSettings()
+    before = localise(campaigns, result.baseline.full.z_residual_um,
+                      result.baseline.full.t_residual_k, settings)  # fmt: skip
+    doc = build_document(result, before, None, SETTINGS, synthetic=True, campaign_ids=ids)
+    files = write_outputs(tmp_path / "out", doc, campaigns, result, before)
+    return doc, files
+
+
+def test_report_files_say_what_was_named_and_the_gap(tmp_path):
+    doc, files = _fake_report(tmp_path)
+    saved = json.loads((tmp_path / "out" / "discrepancy.json").read_text(encoding="utf-8"))
+    assert saved["named_effects"] == ["motor_heat"]
+    assert saved["rmse_um_after"] < saved["rmse_um_before"]
+    assert saved["steps"][0]["effect_parameters"] == {"p_motor_heat": {"value": 1.0, "unit": "um"}}
+    md = (tmp_path / "out" / "discrepancy.md").read_text(encoding="utf-8")
+    assert "adding `motor_heat`" in md and "synthetic" in md
+    assert "`sensor_lag`: no sensor with role x" in md
+    assert "![heldout_fit](heldout_fit.png)" in md
+    assert {f.name for f in files} >= {"discrepancy.json", "heldout_fit.png", "residuals.png"}
+
+
+def test_mlflow_run_holds_the_metrics_and_figures(tmp_path, monkeypatch):
+    from mlflow.tracking import MlflowClient
+
+    from pipeline.discrepancy.report import log_mlflow
+
+    doc, files = _fake_report(tmp_path)
+    uri = f"sqlite:///{(tmp_path / 'mlflow.db').as_posix()}"
+    monkeypatch.setenv("MLFLOW_TRACKING_URI", uri)
+    run_id = log_mlflow(files, doc, {"experiment": "discrepancy-test"})
+    client = MlflowClient(tracking_uri=uri)
+    run = client.get_run(run_id)
+    assert run.data.metrics["rmse_um_before"] == pytest.approx(doc["rmse_um_before"])
+    assert run.data.params["named_effects"] == "motor_heat"
+    names = {a.path for a in client.list_artifacts(run_id, "discrepancy")}
+    assert "discrepancy/heldout_fit.png" in names and "discrepancy/discrepancy.md" in names
