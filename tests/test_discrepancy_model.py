@@ -155,14 +155,14 @@ def test_an_effect_adds_its_parameters_with_units_and_bounds():
         assert [(p.name, p.unit) for p in added] == names
         for p in added:
             assert p.effect == effect
-            assert p.lower < p.initial < p.upper or p.lower <= p.initial <= p.upper
+            assert p.lower <= p.initial <= p.upper
     lag = build_model(ALL_ROLES, frozenset({"sensor_lag"})).param_specs[-1]
-    assert (lag.lower, lag.upper) == (30.0, 3600.0)
+    assert (lag.lower, lag.upper) == (180.0, 3600.0)
     exponent = build_model(ALL_ROLES, frozenset({"nonlinear_bearing_heat"})).param_specs[-1]
     assert (exponent.lower, exponent.upper) == (1.05, 2.5)
     # baseline: no effect parameter, every name carries its unit
     assert all(p.effect is None for p in base.param_specs)
-    assert all(p.name.endswith(("_J_per_K", "_W_per_K", "_W_per_krpm", "_um_per_K"))
+    assert all(p.name.endswith(("_J_per_K", "_W_per_K", "_W_per_krpm", "_um_per_K", "_to_shaft"))
                for p in base.param_specs)  # fmt: skip
 
 

@@ -421,6 +421,7 @@ def _findings(
             f"(correlation {rho:+.2f})"
         )
     temps = table[(table["unit"] == "K") & (table["split"] == "phase")]
+    temps = temps[np.isfinite(temps["rms_over_floor"].to_numpy(dtype=float))]
     if len(temps):
         worst = temps.loc[temps["rms_over_floor"].idxmax()]
         if worst["rms_over_floor"] > settings.min_floor_ratio:

@@ -12,7 +12,8 @@ Baseline physics (``C dT/dt = -K T + h T_amb + q``)::
 
     q_front_bearing = q_fb * rpm / 1000      (into the front-bearing node, else the shaft)
     q_rear_bearing  = q_rb * rpm / 1000      (into the rear-bearing node, else the shaft;
-                                              one q_bearing into the shaft without either)
+                                              one q_bearing into the shaft without either);
+                      a share s (bearing_heat_to_shaft) of it enters the shaft instead
     T_amb           = the ambient sensor's reading at the start (constant; mean of its first
                       15 min, :data:`AMBIENT_START_S`), or the mean first reading of all
                       sensors without an ambient sensor
@@ -256,8 +257,9 @@ def effect_specs(effect: str, nodes: Sequence[str]) -> list[ParamSpec]:
       ((rpm/1000)^2 - (rpm0/1000)^2); +-72 um at 6000 rpm at the bounds);
     - ``nonlinear_bearing_heat``: ``bearing_exponent`` in [1.05, 2.5] (q ~ rpm^a, equal to
       the linear law at :data:`REFERENCE_RPM`);
-    - ``sensor_lag``: ``sensor_lag_s`` in [30, 3600] s, one first-order time constant shared
-      by all sensors;
+    - ``sensor_lag``: ``sensor_lag_s`` in [180, 3600] s, one first-order time constant shared
+      by all sensors (a lag shorter than the 3-min sampling is indistinguishable from the
+      network's own fast dynamics);
     - ``thermal_bending``: ``bending_um_per_K`` in [-50, 50] um/K on the column front-rear
       rise difference;
     - ``motor_heat``: ``q_motor_W_per_krpm`` in [0, 200] W per 1000 rpm into the motor node.
@@ -295,7 +297,7 @@ def effect_specs(effect: str, nodes: Sequence[str]) -> list[ParamSpec]:
             _spec(
                 "sensor_lag_s",
                 "s",
-                30.0,
+                180.0,
                 3600.0,
                 300.0,
                 e,
@@ -428,8 +430,12 @@ class TwinModel:
         cinv = 1.0 / cap
         A[:n, :n] = -cinv[:, None] * K
         B[:n, 0] = cinv * conv
+        share = p.get("bearing_heat_to_shaft", 0.0)
+        shaft = idx["spindle_shaft"]
         for source, node in self.heat_nodes.items():
-            B[idx[node], 1] += cinv[idx[node]] * p[f"q_{source}_W_per_krpm"]
+            q = p[f"q_{source}_W_per_krpm"]
+            B[idx[node], 1] += cinv[idx[node]] * q * (1.0 - share)
+            B[shaft, 1] += cinv[shaft] * q * share
         if "motor" in self.nodes and "q_motor_W_per_krpm" in p:
             B[idx["motor"], 2] = cinv[idx["motor"]] * p["q_motor_W_per_krpm"]
         if m:
@@ -759,6 +765,17 @@ def baseline_specs(
     if "front_bearing" in nodes or "rear_bearing" in nodes:
         for b in ("front_bearing", "rear_bearing"):
             heat_nodes[b] = b if b in nodes else "spindle_shaft"
+        specs.append(
+            _spec(
+                "bearing_heat_to_shaft",
+                "1",
+                0.0,
+                0.9,
+                0.3,
+                description="share of the bearing friction heat entering the shaft through "
+                "the inner rings (the rest heats the bearing housings)",
+            )
+        )
     else:
         heat_nodes["bearing"] = "spindle_shaft"
     for source, node in heat_nodes.items():
