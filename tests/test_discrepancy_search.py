@@ -317,12 +317,32 @@ def _check_named(doc: dict, truth: frozenset) -> None:
 
 
 def test_smoke_one_hidden_effect_is_named_and_reported(tmp_path):
-    """Four campaigns, three candidates, two folds: the plumbing, in about a minute."""
+    """The CLI on 4 campaigns + 1 broken one, three candidates, two folds (about a minute)."""
+    import yaml
+
+    from pipeline.config import load_section
+    from pipeline.discrepancy_stage import main
+
     truth = frozenset({"motor_heat"})
     write_hidden_campaigns(tmp_path / "raw", truth, seed=11, n=4)
-    candidates = ["centrifugal_growth", "sensor_lag", "motor_heat"]
-    doc = run_workflow(tmp_path / "raw", tmp_path / "out", candidates=candidates, n_folds=2)
+    broken = tmp_path / "raw" / "H99"
+    broken.mkdir()
+    (broken / "campaign.yaml").write_text("campaign_id: H99\nkind: spindle_drift\n")
+    params = {
+        "ingest": load_section("ingest"),
+        "validate": load_section("validate"),
+        "discrepancy": {
+            "candidates": ["centrifugal_growth", "sensor_lag", "motor_heat"],
+            "n_folds": 2,
+            "n_jobs": 2,
+        },
+    }
+    (tmp_path / "params.yaml").write_text(yaml.safe_dump(params), encoding="utf-8")
+    argv = ["--raw", str(tmp_path / "raw"), "--out", str(tmp_path / "out")]
+    assert main([*argv, "--params", str(tmp_path / "params.yaml"), "--no-mlflow"]) == 0
+    doc = json.loads((tmp_path / "out" / "discrepancy.json").read_text(encoding="utf-8"))
     assert doc["named_effects"] == ["motor_heat"]
+    assert doc["quarantined"] == ["H99"] and "H99" not in doc["campaigns"]
     md = (tmp_path / "out" / "discrepancy.md").read_text(encoding="utf-8")
     assert "`motor_heat`" in md and "held-out" in md
     assert (tmp_path / "out" / "heldout_fit.png").stat().st_size > 10_000

@@ -14,10 +14,10 @@ model's calibrated values), and measure its evidence
 
 An effect *passes* when ``delta_bic <= max_delta_bic`` and the held-out Z RMS falls by at least
 ``min_heldout_reduction`` or the held-out temperature RMS by at least
-``min_heldout_temperature_reduction`` (an effect of the sensors alone, such as ``sensor_lag``, shows in
-the temperatures first). Candidates are ranked by ``delta_bic``; the best passing one is added
-and the search repeats until none passes. The calibrations of a step run in parallel (joblib,
-``n_jobs``).
+``min_heldout_temperature_reduction`` (an effect of the sensors alone, such as ``sensor_lag``,
+shows in the temperatures first). Candidates are ranked by ``delta_bic``; the best passing one
+is added and the search repeats until none passes. The calibrations of a step run in parallel
+(joblib, ``n_jobs``).
 
 The search works through an *evaluator*: ``evaluator(effects, train_ids, test_ids, start) ->
 FitResult`` (``start``: parameter name -> starting value, or None). :class:`TwinEvaluator`
