@@ -18,6 +18,7 @@ COMMANDS = {
     "model-axis": ("pipeline.model_axis", "linear-axis composite model (the patent)"),
     "select": ("pipeline.select", "sensitive temperature points by every selection method"),
     "evaluate": ("pipeline.evaluate", "fit models, score every campaign against every other"),
+    "discrepancy": ("pipeline.discrepancy_stage", "twin vs measurements: which effect is missing"),
     "track": ("pipeline.track", "log the scores to MLflow"),
     "summary": ("pipeline.summary", "print where the results are and how to open MLflow"),
     "bench": ("pipeline.bench", "time each stage of the default dvc repro"),
