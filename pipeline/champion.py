@@ -45,7 +45,7 @@ def rank_candidates(summary: pd.DataFrame) -> tuple[pd.DataFrame, str]:
     column = "Mn_val_um"
     if column not in deployable or not deployable[column].notna().any():
         column = "Mn_um"
-    ranked = deployable[deployable.get(column, pd.Series(dtype=float)).notna()]
+    ranked = deployable[deployable[column].notna()] if column in deployable else deployable[:0]
     if ranked.empty:
         raise ValueError(
             "no candidate running from temperatures alone (mode static or free_run) has a "

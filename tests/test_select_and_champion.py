@@ -65,6 +65,11 @@ def test_without_validation_campaigns_the_champion_is_chosen_on_mn():
     assert column == "Mn_um" and ranked.iloc[0]["model"] == "mlr"
 
 
+def test_without_any_prediction_score_there_is_no_champion_and_the_error_says_why():
+    with pytest.raises(ValueError, match="add a training campaign or a validation campaign"):
+        rank_candidates(_summary().drop(columns=["Mn_um", "Mn_val_um"]))
+
+
 def test_report_table_puts_online_only_candidates_last_and_the_champion_in_bold():
     text = score_table(_summary(), {"model": "dl", "selection": "all", "mode": "static"})
     rows = [line for line in text.splitlines()[2:]]
