@@ -6,7 +6,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: install run test test-fast bench lint simulate clean
+.PHONY: install run test test-fast bench trials lint simulate clean
 
 install: $(STAMP)
 
@@ -30,6 +30,9 @@ test-fast: install
 
 bench: install
 	PATH="$(CURDIR)/$(BIN):$$PATH" $(BIN)/thermal bench
+
+trials: install
+	$(BIN)/thermal discrepancy-trials --seeds 1 2 3 --out reports/discrepancy_trials
 
 lint: install
 	$(BIN)/ruff check .

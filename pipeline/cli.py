@@ -19,6 +19,10 @@ COMMANDS = {
     "select": ("pipeline.select", "sensitive temperature points by every selection method"),
     "evaluate": ("pipeline.evaluate", "fit models, score every campaign against every other"),
     "discrepancy": ("pipeline.discrepancy_stage", "twin vs measurements: which effect is missing"),
+    "discrepancy-trials": (
+        "pipeline.discrepancy.trials",
+        "rate of correct naming on campaigns with hidden effects",
+    ),
     "track": ("pipeline.track", "log the scores to MLflow"),
     "summary": ("pipeline.summary", "print where the results are and how to open MLflow"),
     "bench": ("pipeline.bench", "time each stage of the default dvc repro"),
@@ -27,7 +31,7 @@ COMMANDS = {
 
 def _usage() -> str:
     lines = ["usage: thermal <command> [options]", "", "commands:"]
-    lines += [f"  {name:<10} {text}" for name, (_, text) in COMMANDS.items()]
+    lines += [f"  {name:<19} {text}" for name, (_, text) in COMMANDS.items()]
     return "\n".join(lines)
 
 

@@ -26,6 +26,7 @@ from pipeline.discrepancy import (
 )
 from pipeline.discrepancy.calibrate import noise_sd
 from pipeline.discrepancy.data import campaigns_from_tables, program_steps
+from pipeline.discrepancy.model import ROLE_NODES
 from pipeline.ingest import ingest
 from pipeline.twin.campaigns import SpindlePlan, simulate_spindle_campaign
 from pipeline.twin.params import DS18B20, SpindleParams
@@ -143,7 +144,7 @@ def test_an_effect_adds_its_parameters_with_units_and_bounds():
         "ambient_variation": [],
         "centrifugal_growth": [("centrifugal_um_per_krpm2", "um/krpm^2")],
         "nonlinear_bearing_heat": [("bearing_exponent", "1")],
-        "sensor_lag": [("sensor_lag_s", "s")],
+        "sensor_lag": [(f"sensor_lag_{r}_s", "s") for r in ROLE_NODES if r in ALL_ROLES],
         "thermal_bending": [("bending_um_per_K", "um/K")],
         "motor_heat": [("q_motor_W_per_krpm", "W/krpm")],
     }
@@ -157,9 +158,9 @@ def test_an_effect_adds_its_parameters_with_units_and_bounds():
             assert p.effect == effect
             assert p.lower <= p.initial <= p.upper
     lag = build_model(ALL_ROLES, frozenset({"sensor_lag"})).param_specs[-1]
-    assert (lag.lower, lag.upper) == (180.0, 3600.0)
+    assert (lag.lower, lag.upper) == (60.0, 7200.0)
     exponent = build_model(ALL_ROLES, frozenset({"nonlinear_bearing_heat"})).param_specs[-1]
-    assert (exponent.lower, exponent.upper) == (1.05, 2.5)
+    assert (exponent.lower, exponent.upper) == (0.5, 3.0)
     # baseline: no effect parameter, every name carries its unit
     assert all(p.effect is None for p in base.param_specs)
     assert all(p.name.endswith(("_J_per_K", "_W_per_K", "_W_per_krpm", "_um_per_K", "_to_shaft"))
