@@ -7,6 +7,12 @@ One-step-ahead scores need the measured error online and are not eligible (they 
 trivially). Without validation campaigns the prediction Mn on the other training campaigns is
 used instead, and the card says so. The registered model is the candidate's fit on all training
 campaigns (unit ``all_training``).
+
+The physical twin (model ``twin``, :mod:`pipeline.twin_candidate`) is scored and ranked in the
+report but is not eligible: the champion is registered as an MLflow pyfunc that predicts from a
+table of temperatures (:func:`temperature_features`), and the twin needs another input (the
+spindle program, the sensor roles and each run's first readings); besides, its effect set was
+chosen by the ``discrepancy`` stage on every campaign, validation ones included.
 """
 
 from __future__ import annotations
@@ -19,6 +25,8 @@ from pipeline.cross_season import FREE_RUN, STATIC, UnitResult
 from pipeline.training_units import POOLED_UNIT
 
 DEPLOYABLE_MODES = (STATIC, FREE_RUN)
+NOT_REGISTRABLE_MODELS = ("twin",)
+"""Candidates never chosen as champion (see the module docstring)."""
 
 
 def rank_candidates(summary: pd.DataFrame) -> tuple[pd.DataFrame, str]:
@@ -32,7 +40,8 @@ def rank_candidates(summary: pd.DataFrame) -> tuple[pd.DataFrame, str]:
     Returns
     -------
     ranked : DataFrame
-        Rows of ``summary`` with a deployable mode and a finite score, best first.
+        Rows of ``summary`` with a deployable mode and a finite score, best first; models of
+        :data:`NOT_REGISTRABLE_MODELS` left out.
     column : str
         ``Mn_val_um`` or, without validation campaigns, ``Mn_um``.
 
@@ -41,7 +50,9 @@ def rank_candidates(summary: pd.DataFrame) -> tuple[pd.DataFrame, str]:
     ValueError
         If no deployable candidate has a finite score.
     """
-    deployable = summary[summary["mode"].isin(DEPLOYABLE_MODES)]
+    deployable = summary[
+        summary["mode"].isin(DEPLOYABLE_MODES) & ~summary["model"].isin(NOT_REGISTRABLE_MODELS)
+    ]
     column = "Mn_val_um"
     if column not in deployable or not deployable[column].notna().any():
         column = "Mn_um"

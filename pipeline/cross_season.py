@@ -52,7 +52,8 @@ class UnitResult:
     predictions : dict
         ``{(mode, campaign_id): ndarray of shape (n,)}``, um.
     estimator : RegressorMixin
-        The fitted estimator.
+        The fitted estimator (for the physical twin ``twin``, a
+        :class:`pipeline.twin_candidate.CalibratedTwin`).
     """
 
     candidate: Candidate
@@ -102,6 +103,39 @@ def _role(unit: TrainingUnit, test: CampaignSeries) -> str:
     return "fit" if test.campaign_id in unit.campaigns else "prediction"
 
 
+def score_row(
+    candidate: Candidate, unit: TrainingUnit, mode: str, test: CampaignSeries, predicted: np.ndarray
+) -> dict | None:
+    """One row of the long score table: ``predicted`` (um) scored against ``test``'s target.
+
+    Parameters
+    ----------
+    candidate : Candidate
+    unit : TrainingUnit
+        What the model was built on (sets ``scheme``, ``train_unit`` and the ``role``).
+    mode : str
+    test : CampaignSeries
+    predicted : ndarray of shape (n,)
+        Predicted thermal error of ``test``, um; NaN where there is no prediction.
+
+    Returns
+    -------
+    dict or None
+        Columns of ``schemas.CrossSeasonScoresModel``; ``None`` without any finite residual.
+    """
+    residual = test.target - predicted
+    n_samples = int(np.isfinite(residual).sum())
+    if n_samples == 0:
+        return None
+    return {
+        "model": candidate.model, "selection": candidate.selection, "mode": mode,
+        "scheme": unit.scheme, "train_unit": unit.name,
+        "test_campaign": test.campaign_id, "test_split": test.split,
+        "test_season": test.season, "role": _role(unit, test), "n_samples": n_samples,
+        "rmse_um": root_mean_square(residual), "resid_std_um": residual_std(residual),
+    }  # fmt: skip
+
+
 def fit_and_score(
     candidate: Candidate,
     unit: TrainingUnit,
@@ -125,17 +159,9 @@ def fit_and_score(
     for mode in modes_of(model):
         for test in campaigns:
             predicted = predict_campaign(model, test, sensors, mode)
-            residual = test.target - predicted
             predictions[(mode, test.campaign_id)] = predicted
-            n_samples = int(np.isfinite(residual).sum())
-            if n_samples == 0:
-                continue
-            rows.append({
-                "model": candidate.model, "selection": candidate.selection, "mode": mode,
-                "scheme": unit.scheme, "train_unit": unit.name,
-                "test_campaign": test.campaign_id, "test_split": test.split,
-                "test_season": test.season, "role": _role(unit, test), "n_samples": n_samples,
-                "rmse_um": root_mean_square(residual), "resid_std_um": residual_std(residual),
-            })  # fmt: skip
+            row = score_row(candidate, unit, mode, test, predicted)
+            if row is not None:
+                rows.append(row)
     chosen = dict(getattr(model, "chosen_params_", {}) or {})
     return UnitResult(candidate, unit, sensors, chosen, pd.DataFrame(rows), predictions, model)

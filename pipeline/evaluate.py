@@ -2,12 +2,15 @@
 
 Reads ``data/separated/spindle_thermal_error.parquet`` and the sensitive points of
 ``reports/selection/selected.json``. Runs each candidate (model x selection, see
-:mod:`pipeline.candidates`) on each training unit (each training campaign, each season left out,
-all training campaigns; :mod:`pipeline.training_units`) and scores it on every campaign
-(:mod:`pipeline.cross_season`, :mod:`pipeline.scoring`). Writes the long score table, one row
-of scores per candidate, ``metrics/cross_season.json`` (a DVC metric), the fitted-model record
-read by ``track``, the matrices (CSV, one heat-map per candidate), ``reports/model_comparison.md``
-with its figures, the champion model (``data/models/champion/``) and two DVC plot tables.
+:mod:`pipeline.candidates`; the physical twin ``twin``, see :mod:`pipeline.twin_candidate`, which
+also reads ``data/validated/spindle/campaigns.parquet`` for the sensor roles and spindle programs
+and ``reports/discrepancy/discrepancy.json`` for its effects) on each training unit (each
+training campaign, each season left out, all training campaigns; :mod:`pipeline.training_units`)
+and scores it on every campaign (:mod:`pipeline.cross_season`, :mod:`pipeline.scoring`).
+Writes the long score table, one row of scores per candidate, ``metrics/cross_season.json`` (a
+DVC metric), the fitted-model record read by ``track``, the matrices (CSV, one heat-map per
+candidate), ``reports/model_comparison.md`` with its figures, the champion model
+(``data/models/champion/``) and two DVC plot tables.
 """
 
 from __future__ import annotations
@@ -15,6 +18,7 @@ from __future__ import annotations
 import argparse
 import json
 import logging
+from dataclasses import replace
 
 import joblib
 import numpy as np
@@ -28,6 +32,14 @@ from pipeline.cross_season import UnitResult
 from pipeline.scoring import candidate_summary, metrics_tree, score_matrix
 from pipeline.select import feature_prefix, sensor_columns
 from pipeline.training_units import POOLED_UNIT, CampaignSeries, campaign_series, training_units
+from pipeline.twin_candidate import (
+    TWIN_MODEL,
+    TwinSetup,
+    named_effects,
+    run_twin,
+    split_twin,
+    twin_campaigns,
+)
 from schemas import CrossSeasonScoresModel
 
 LOGGER = logging.getLogger(__name__)
@@ -41,7 +53,7 @@ def label(row) -> str:
 
 
 def evaluate(
-    series: list[CampaignSeries], selected: dict, params: dict
+    series: list[CampaignSeries], selected: dict, params: dict, twin: TwinSetup | None = None
 ) -> tuple[pd.DataFrame, list[UnitResult]]:
     """Score every candidate on every training unit.
 
@@ -53,19 +65,35 @@ def evaluate(
         ``selected.json`` ``methods``: ``{method: {unit: {"sensors": [...], ...}}}``.
     params : dict
         The ``evaluate`` section: ``candidates``, ``full_grid``, ``model_params``, ``n_jobs``.
+    twin : TwinSetup, optional
+        Needed when ``candidates`` has ``twin: roles`` (:func:`read_twin_setup`).
 
     Returns
     -------
     scores : DataFrame
         Long score table (``schemas.CrossSeasonScoresModel``).
     results : list of UnitResult
+
+    Raises
+    ------
+    ValueError
+        If the twin is a candidate and ``twin`` is not given.
     """
     units = training_units(series)
-    candidates = candidate_list(params["candidates"], selected, bool(params.get("full_grid")))
-    results = run_all(
-        candidates, units, series, selected, params.get("model_params") or {},
-        int(params.get("n_jobs", 1)),
-    )  # fmt: skip
+    pairs, with_twin = split_twin(params["candidates"])
+    if with_twin and twin is None:
+        raise ValueError(
+            f"params.yaml evaluate.candidates has '{TWIN_MODEL}' but no TwinSetup was given; "
+            "build one with pipeline.evaluate.read_twin_setup"
+        )
+    candidates = candidate_list(pairs, selected, bool(params.get("full_grid")))
+    model_params = params.get("model_params") or {}
+    n_jobs = int(params.get("n_jobs", 1))
+    results = run_all(candidates, units, series, selected, model_params, n_jobs)
+    if with_twin:
+        settings = dict(model_params.get(TWIN_MODEL) or {})
+        setup = replace(twin, calibration={**twin.calibration, **settings})
+        results = results + run_twin(units, series, setup, n_jobs)
     scores = pd.concat([r.scores for r in results], ignore_index=True)
     return CrossSeasonScoresModel.validate(scores, lazy=True), results
 
@@ -162,8 +190,12 @@ def write_outputs(
     scores: pd.DataFrame,
     results: list[UnitResult],
     synthetic: bool,
+    twin_source: str | None = None,
 ) -> dict:
-    """Write every output declared for the stage in ``dvc.yaml``; return the champion card."""
+    """Write every output declared for the stage in ``dvc.yaml``; return the champion card.
+
+    ``twin_source`` says which twin the ``twin`` candidate is (report note); ``None`` without it.
+    """
     for path in (paths.SCORES_LONG, paths.CROSS_SEASON_METRICS, paths.PLOT_MODEL_SCORES):
         path.parent.mkdir(parents=True, exist_ok=True)
     scores.to_csv(paths.SCORES_LONG, index=False, float_format="%.6g")
@@ -203,6 +235,7 @@ def write_outputs(
             labels,
             n_campaigns,
             synthetic,
+            twin_source,
         )  # fmt: skip
     )
 
@@ -225,6 +258,33 @@ def _round(tree):
     return None if not np.isfinite(tree) else round(float(tree), 4)
 
 
+def read_twin_setup(table: pd.DataFrame, series: list[CampaignSeries]) -> TwinSetup:
+    """Everything the ``twin`` candidate reads besides the separated table.
+
+    The sensor roles and spindle programs from ``data/validated/spindle/campaigns.parquet``; the
+    effects from ``reports/discrepancy/discrepancy.json`` (absent: the baseline twin, with a
+    warning); the cold reference from ``params.yaml`` ``separate`` (``cold_reference``,
+    ``cold_n``), so that the twin's drift is referenced as the separation stage references the
+    measured one.
+    """
+    meta = pd.read_parquet(paths.VALIDATED_SPINDLE / paths.CAMPAIGNS_FILE)
+    document = None
+    if paths.DISCREPANCY_DOCUMENT.is_file():
+        document = json.loads(paths.DISCREPANCY_DOCUMENT.read_text(encoding="utf-8"))
+    effects, source = named_effects(document)
+    if document is None:
+        LOGGER.warning("%s not found: the twin candidate is the %s", paths.DISCREPANCY_DOCUMENT,
+                       source)  # fmt: skip
+    separate = load_section("separate")
+    return TwinSetup(
+        campaigns=twin_campaigns(table, meta, series),
+        effects=effects,
+        effects_source=source,
+        cold_reference=str(separate["cold_reference"]),
+        cold_n=int(separate["cold_n"]),
+    )
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run the stage with the ``evaluate`` section of ``params.yaml``."""
     parser = argparse.ArgumentParser(prog="thermal evaluate", description=__doc__.splitlines()[0])
@@ -238,9 +298,11 @@ def main(argv: list[str] | None = None) -> int:
     document = json.loads(paths.SELECTED.read_text())
     features, selected = str(document["features"]), document["methods"]
     series = campaign_series(table, sensor_columns(table), feature_prefix(features))
-    scores, results = evaluate(series, selected, params)
+    twin = read_twin_setup(table, series) if split_twin(params["candidates"])[1] else None
+    scores, results = evaluate(series, selected, params, twin)
     card = write_outputs(series, selected, features, scores, results,
-                         bool(table["synthetic"].any()))  # fmt: skip
+                         bool(table["synthetic"].any()),
+                         None if twin is None else twin.effects_source)  # fmt: skip
     LOGGER.info(
         "champion %s/%s/%s on %s: %s %.2f um; report %s", card["model"], card["selection"],
         card["mode"], ", ".join(card["sensors"]) or "no sensor", card["chosen_on"],

@@ -48,6 +48,8 @@ PLOTS = REPORTS / "plots"
 PLOT_MODEL_SCORES = PLOTS / "model_scores.csv"
 PLOT_PREDICTIONS = PLOTS / "predicted_vs_measured.csv"
 TRACKING_RECORD = REPORTS / "mlflow_run.json"
+DISCREPANCY = REPORTS / "discrepancy"
+DISCREPANCY_DOCUMENT = DISCREPANCY / "discrepancy.json"
 
 METRICS = Path("metrics")
 CROSS_SEASON_METRICS = METRICS / "cross_season.json"
