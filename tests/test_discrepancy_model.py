@@ -26,7 +26,6 @@ from pipeline.discrepancy import (
 )
 from pipeline.discrepancy.calibrate import noise_sd
 from pipeline.discrepancy.data import campaigns_from_tables, program_steps
-from pipeline.discrepancy.model import ROLE_NODES
 from pipeline.ingest import ingest
 from pipeline.twin.campaigns import SpindlePlan, simulate_spindle_campaign
 from pipeline.twin.params import DS18B20, SpindleParams
@@ -144,7 +143,7 @@ def test_an_effect_adds_its_parameters_with_units_and_bounds():
         "ambient_variation": [],
         "centrifugal_growth": [("centrifugal_um_per_krpm2", "um/krpm^2")],
         "nonlinear_bearing_heat": [("bearing_exponent", "1")],
-        "sensor_lag": [(f"sensor_lag_{r}_s", "s") for r in ROLE_NODES if r in ALL_ROLES],
+        "sensor_lag": [("sensor_lag_s", "s")],
         "thermal_bending": [("bending_um_per_K", "um/K")],
         "motor_heat": [("q_motor_W_per_krpm", "W/krpm")],
     }
