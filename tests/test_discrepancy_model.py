@@ -120,10 +120,10 @@ def test_calibrated_baseline_reproduces_baseline_data_to_the_noise_floor(baselin
     sim = predict(model, fit, c)
     res = c.z_um - sim.z_um
     assert np.allclose(res - res.mean(), fit.residuals[c.campaign_id]["z_um"])
-    assert list(sim.temperatures.columns) == ["T1", "T2", "T3", "T4", "T5", "T6", "T7"]
+    assert list(sim.temperatures.columns) == ["T1", "T2", "T3", "T4", "T5", "T6", "T7", "T8"]
     # the drift is large compared with the residual: the fit is not trivial
     assert np.ptp(c.z_um) > 20 * fit.rmse_z_um
-    assert fit.n_obs == sum(c.t_s.size * 8 for c in baseline_campaigns)
+    assert fit.n_obs == sum(c.t_s.size * 9 for c in baseline_campaigns)
     assert np.isfinite(fit.aicc) and np.isfinite(fit.bic)
 
 
@@ -232,7 +232,7 @@ def test_any_subset_of_roles_builds_simulates_and_fits(drop):
     model = build_model(roles, frozenset())
     assert "spindle_shaft" in model.nodes and "headstock" in model.nodes
     sim = model.simulate(model.initial(), campaigns[0])
-    not_nodes = ("ambient", "other", "ball_screw")
+    not_nodes = ("ambient", "other")
     node_sensors = [s for s, r in campaigns[0].roles.items() if r not in not_nodes]
     assert sorted(sim.temperatures.columns) == sorted(node_sensors)
     assert np.all(np.isfinite(sim.z_um)) and sim.z_um[0] == 0.0
@@ -287,7 +287,7 @@ def test_from_tables_reads_the_ingest_and_validate_outputs(tmp_path):
     sim = build_model(set(c.roles.values()), frozenset()).simulate(
         build_model(set(c.roles.values()), frozenset()).initial(), c
     )
-    assert sim.temperatures.shape == (c.t_s.size, 7)
+    assert sim.temperatures.shape == (c.t_s.size, 8)
 
 
 def test_noise_sd_ignores_slow_drift_and_steps():

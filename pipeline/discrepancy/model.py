@@ -2,10 +2,10 @@
 
 The baseline is a lumped thermal network whose nodes are the structure parts the campaign's
 sensors sit on (roles ``spindle_front_bearing``, ``spindle_rear_bearing``, ``spindle_motor``,
-``headstock``, ``column_front``, ``column_rear``, ``bed``) plus two nodes that exist even
-without a sensor: the rotating ``spindle_shaft`` (no sensor can sit on it; its growth is most of
-the Z drift) and the ``headstock`` carrying the spindle. It knows nothing of the machine that
-produced the data: every physical value is a bounded parameter fitted by
+``headstock``, ``column_front``, ``column_rear``, ``bed``, ``ball_screw``) plus two nodes that
+exist even without a sensor: the rotating ``spindle_shaft`` (no sensor can sit on it; its
+growth is most of the Z drift) and the ``headstock`` carrying the spindle. It knows nothing of
+the machine that produced the data: every physical value is a bounded parameter fitted by
 :func:`pipeline.discrepancy.calibrate.calibrate`.
 
 Baseline physics (``C dT/dt = -K T + h T_amb + q``)::
@@ -17,17 +17,22 @@ Baseline physics (``C dT/dt = -K T + h T_amb + q``)::
     T_amb           = the ambient sensor's reading at the start (constant; mean of its first
                       15 min, :data:`AMBIENT_START_S`), or the mean first reading of all
                       sensors without an ambient sensor
-    z = - alpha_spindle dT_shaft - alpha_headstock dT_headstock
+    z = - alpha_spindle dT_shaft - alpha_headstock dT_headstock - alpha_screw dT_ball_screw
         + alpha_column (dT_column_front + dT_column_rear) / 2          (um; rises since t0)
     reading = first reading + (T_node(t) - T_node(t0))                (direct sensors)
 
 Topology (links exist when both ends exist): bearings - shaft, bearings - headstock (shaft -
 headstock when no bearing node), motor - headstock, headstock - column (front, else rear),
-column front - rear, columns - bed (headstock - bed without column). The initial node
-temperatures are the first readings minus a per-role sensor offset (shared by all campaigns:
-the sensor's calibration offset relative to the ambient sensor, estimated from the data as the
-median over campaigns of first reading minus ambient reference: :func:`sensor_offsets`), so a
-campaign may start warm; an unsensed node starts at the mean of its neighbours.
+column front - rear, columns - bed (headstock - bed without column), ball screw - headstock
+and - column. The initial node temperatures are the sensors' first readings (the sensors read
+their node directly), so a campaign may start warm or out of balance with the air; an unsensed
+node starts at the mean of its neighbours.
+
+Deviation from issue 4's baseline: a sensor with role ``ball_screw`` brings in the Z ball screw
+(its growth moves the head towards the table on a semi-closed-loop Z axis). Without it, the
+screw's response to the air, which the data show, is left in every residual and masks the
+effects being looked for (held-out Z RMS after ``ambient_variation`` 1.0 um against a 0.6 um
+floor on trial data).
 
 Parameters are shared within node groups to stay identifiable on ~10 campaigns: one heat
 capacity for both bearings and one for both column halves; one convection conductance for the
@@ -78,6 +83,7 @@ ROLE_NODES = {
     "column_front": "column_front",
     "column_rear": "column_rear",
     "bed": "bed",
+    "ball_screw": "ball_screw",
 }
 """Sensor role -> network node; other roles (``ambient``, ``other``, ...) are not nodes."""
 
@@ -90,6 +96,7 @@ NODE_ORDER = (
     "column_front",
     "column_rear",
     "bed",
+    "ball_screw",
 )
 
 REQUIRED_ROLES = {
@@ -111,6 +118,7 @@ CAPACITY_GROUP = {
     "column_front": "column",
     "column_rear": "column",
     "bed": "bed",
+    "ball_screw": "ball_screw",
 }
 CONVECTION_GROUP = {
     "front_bearing": "spindle",
@@ -121,6 +129,7 @@ CONVECTION_GROUP = {
     "column_front": "column",
     "column_rear": "column",
     "bed": "bed",
+    "ball_screw": "ball_screw",
 }
 # generic magnitudes of a mid-size machining centre (mass x specific heat, h A), not fitted
 CAPACITY_INITIAL = {
@@ -130,8 +139,16 @@ CAPACITY_INITIAL = {
     "headstock": 1e5,
     "column": 3e5,
     "bed": 1e6,
+    "ball_screw": 5e3,
 }
-CONVECTION_INITIAL = {"spindle": 1.0, "motor": 2.0, "headstock": 5.0, "column": 10.0, "bed": 20.0}
+CONVECTION_INITIAL = {
+    "spindle": 1.0,
+    "motor": 2.0,
+    "headstock": 5.0,
+    "column": 10.0,
+    "bed": 20.0,
+    "ball_screw": 1.0,
+}
 LINK_INITIAL = {
     "bearing_shaft": 5.0,
     "bearing_headstock": 5.0,
@@ -141,6 +158,8 @@ LINK_INITIAL = {
     "column_front_rear": 10.0,
     "column_bed": 10.0,
     "headstock_bed": 10.0,
+    "screw_headstock": 2.0,
+    "screw_column": 2.0,
 }
 
 AMBIENT_START_S = 900.0
@@ -602,6 +621,8 @@ class TwinModel:
             z = -p["alpha_spindle_um_per_K"] * rise[:, idx["spindle_shaft"]]
             if "alpha_headstock_um_per_K" in p:
                 z = z - p["alpha_headstock_um_per_K"] * rise[:, idx["headstock"]]
+            if "alpha_ball_screw_um_per_K" in p:
+                z = z - p["alpha_ball_screw_um_per_K"] * rise[:, idx["ball_screw"]]
             columns = [idx[x] for x in ("column_front", "column_rear") if x in idx]
             if columns:
                 z = z + p["alpha_column_um_per_K"] * rise[:, columns].mean(axis=1)
@@ -668,22 +689,6 @@ class TwinModel:
         return self.simulate_many(theta, [campaign], offsets)[0]
 
 
-def sensor_offsets(model: TwinModel, campaigns: Sequence[MeasuredCampaign]) -> dict[str, float]:
-    """Offset of each sensed role's first reading from the ambient reference, K.
-
-    The median over campaigns of ``first reading - ambient reference`` (mean over the role's
-    sensors): the sensors' calibration offsets plus the usual state of the structure at the
-    start relative to the air. Robust to a minority of warm starts; 0 without campaigns.
-    """
-    diffs: dict[str, list[float]] = {}
-    for c in campaigns:
-        prep = model.prepare(c)
-        for node, sensors in prep.role_sensors.items():
-            first = float(np.mean([prep.first[s] for s in sensors]))
-            diffs.setdefault(_role(node), []).append(first - prep.ambient0)
-    return {role: float(np.median(v)) for role, v in diffs.items()}
-
-
 def _role(node: str) -> str:
     return {v: k for k, v in ROLE_NODES.items()}.get(node, node)
 
@@ -722,6 +727,10 @@ def _network(roles: set[str]) -> tuple[tuple[str, ...], tuple[tuple[str, str, st
             links.append((c, "bed", "column_bed"))
         if not columns:
             links.append(("headstock", "bed", "headstock_bed"))
+    if "ball_screw" in present:
+        links.append(("ball_screw", "headstock", "screw_headstock"))
+        if columns:
+            links.append(("ball_screw", columns[0], "screw_column"))
     return nodes, tuple(links)
 
 
@@ -812,6 +821,18 @@ def baseline_specs(
                 30.0,
                 3.0,
                 description="headstock growth towards the table per K",
+            )
+        )
+    if "ball_screw" in nodes:
+        specs.append(
+            _spec(
+                "alpha_ball_screw_um_per_K",
+                "um/K",
+                0.01,
+                30.0,
+                3.0,
+                description="Z ball-screw growth moving the head towards the table per K "
+                "(semi-closed-loop Z axis)",
             )
         )
     if "column_front" in nodes or "column_rear" in nodes:
