@@ -391,5 +391,14 @@ def test_mlflow_run_holds_the_metrics_and_figures(tmp_path, monkeypatch):
     run = client.get_run(run_id)
     assert run.data.metrics["rmse_um_before"] == pytest.approx(doc["rmse_um_before"])
     assert run.data.params["named_effects"] == "motor_heat"
+    history = client.get_metric_history(run_id, "heldout_rmse_um")
+    assert [(m.step, m.value) for m in history] == [
+        (0, pytest.approx(doc["rmse_um_before"])),
+        (1, pytest.approx(doc["steps"][0]["rmse_um_after"])),
+    ]
+    assert run.data.params["motor_heat.p_motor_heat_um"] == "1.0"
+    cid = next(iter(doc["per_campaign"]))
+    after = doc["per_campaign"][cid]["after"]["z_um"]
+    assert run.data.metrics[f"rmse_um_after.{cid}"] == pytest.approx(after)
     names = {a.path for a in client.list_artifacts(run_id, "discrepancy")}
     assert "discrepancy/heldout_fit.png" in names and "discrepancy/discrepancy.md" in names

@@ -344,6 +344,20 @@ def log_mlflow(files: Sequence[Path], doc: Mapping[str, Any], settings: Mapping[
         for key in ("rmse_um_before", "rmse_um_after", "rmse_T_K_before", "rmse_T_K_after"):
             if doc.get(key) is not None:
                 client.log_metric(run_id, key, float(doc[key]))
+        # the gap along the search: step 0 = baseline, step k = after the k-th named effect
+        client.log_metric(run_id, "heldout_rmse_um", float(doc["rmse_um_before"]), step=0)
+        for k, step in enumerate(doc["steps"], start=1):
+            client.log_metric(run_id, "heldout_rmse_um", float(step["rmse_um_after"]), step=k)
+            for name, value in step["effect_parameters"].items():
+                if value["value"] is not None:
+                    client.log_param(run_id, f"{step['effect']}.{name}_{value['unit']}",
+                                     value["value"])  # fmt: skip
+        for cid, pair in doc["per_campaign"].items():  # held-out, per campaign
+            for when in ("before", "after"):
+                for key, name in (("z_um", "rmse_um"), ("t_k", "rmse_T_K")):
+                    value = pair[when].get(key)
+                    if value is not None and np.isfinite(value):
+                        client.log_metric(run_id, f"{name}_{when}.{cid}", float(value))
         client.log_param(run_id, "named_effects", ",".join(doc["named_effects"]) or "none")
         for name, value in doc["thresholds"].items():
             client.log_param(run_id, name, str(value))
