@@ -155,21 +155,45 @@ SETTINGS = SearchSettings(n_jobs=1, n_folds=4)
 
 
 def test_forward_selection_names_the_true_effects_in_order_of_evidence():
-    fake = FakeEvaluator({"motor_heat", "sensor_lag"}, {"motor_heat": 6.0, "sensor_lag": 3.0})
+    fake = FakeEvaluator(
+        {"motor_heat", "thermal_bending"}, {"motor_heat": 6.0, "thermal_bending": 3.0}
+    )
     result = forward_search(fake, IDS, SETTINGS)
-    assert result.named_effects == ["motor_heat", "sensor_lag"]
+    assert result.named_effects == ["motor_heat", "thermal_bending"]
     assert result.rmse_um_before == pytest.approx(9.5)
     assert result.rmse_um_after == pytest.approx(0.5)
-    assert [s.effect for s in result.steps] == ["motor_heat", "sensor_lag"]
+    assert [s.effect for s in result.steps] == ["motor_heat", "thermal_bending"]
     assert result.steps[0].to_dict()["rmse_um_after"] == pytest.approx(3.5)
     assert result.steps[1].to_dict()["effect_parameters"] == {
-        "p_sensor_lag": {"value": 1.0, "unit": "um"}
+        "p_thermal_bending": {"value": 1.0, "unit": "um"}
     }
     # every remaining candidate was tried at every step; the last round names nothing
     assert [len(r) for r in result.rounds] == [6, 5, 4]
     assert not any(c.passes for c in result.rounds[-1])
     doc = result.to_dict()
     assert doc["candidates_by_step"][0]["candidates"][0]["effect"] == "motor_heat"
+
+
+def test_a_sensor_only_effect_is_named_on_its_temperature_evidence_only():
+    class LagEvaluator(FakeEvaluator):
+        """sensor_lag cuts the held-out Z by 3 um; it cuts the temperatures by ``t_cut``."""
+
+        def __init__(self, t_cut):
+            super().__init__({"sensor_lag"}, {"sensor_lag": 3.0})
+            self.t_cut = t_cut
+
+        def __call__(self, effects, train, test, start=None):
+            fit = super().__call__(effects, train, test, start)
+            scale = 1.0 - self.t_cut if "sensor_lag" in effects else 1.0
+            fit.t_residual_k = {c: t * scale for c, t in fit.t_residual_k.items()}
+            return fit
+
+    z_only = forward_search(LagEvaluator(t_cut=0.0), IDS, SETTINGS)
+    lag = next(c for c in z_only.rounds[0] if c.effect == "sensor_lag")
+    assert lag.heldout_reduction > 0.8 and lag.delta_bic < -10 and not lag.passes
+    assert z_only.named_effects == []
+    both = forward_search(LagEvaluator(t_cut=0.5), IDS, SETTINGS)
+    assert both.named_effects == ["sensor_lag"]
 
 
 def test_forward_selection_names_nothing_without_a_missing_effect():
