@@ -47,9 +47,11 @@ def _scores(work: Path) -> pd.DataFrame:
 
 
 def _fewer_candidates(work: Path, candidates: dict[str, str]) -> None:
-    """Keep the copy's pipeline short: only these candidates (all run in the MLflow test)."""
+    """Keep the copy's pipeline short: only these candidates, and two candidate effects in two
+    folds in the discrepancy search (everything runs in full in the MLflow test)."""
     params = yaml.safe_load((work / "params.yaml").read_text())
     params["evaluate"]["candidates"] = candidates
+    params["discrepancy"].update(candidates=["motor_heat", "centrifugal_growth"], n_folds=2)
     (work / "params.yaml").write_text(yaml.safe_dump(params, sort_keys=False))
 
 
@@ -66,8 +68,10 @@ def test_new_campaign_is_scored_old_scores_kept_unrelated_stages_skipped(tmp_pat
     output = _repro(work, env)
 
     assert "Stage 'separate_axis' didn't change, skipping" in output
-    for stage in ("ingest", "validate", "separate_spindle", "select", "evaluate"):
+    for stage in ("ingest", "validate", "separate_spindle", "select", "evaluate", "discrepancy"):
         assert f"Running stage '{stage}'" in output
+    disc = json.loads((work / "reports" / "discrepancy" / "discrepancy.json").read_text())
+    assert "K13" in disc["campaigns"]
     after = _scores(work)
     assert "K13" in set(after["train_unit"]) and "K13" in set(after["test_campaign"])
     assert len(after) > len(before)
@@ -112,6 +116,8 @@ def test_malformed_campaign_is_quarantined_while_the_others_are_scored(tmp_path)
     assert "K99" not in set(scores["test_campaign"])
     assert {f"K{i:02d}" for i in range(1, 13)} <= set(scores["train_unit"])
     assert {p: p.read_bytes() for p in bad.iterdir()} == raw_bytes
+    disc = json.loads((work / "reports" / "discrepancy" / "discrepancy.json").read_text())
+    assert "K99" not in disc["campaigns"] and "K01" in disc["campaigns"]
 
 
 def test_every_score_reaches_a_real_mlflow_server_once_and_the_champion_loads(tmp_path):
@@ -144,6 +150,18 @@ def test_every_score_reaches_a_real_mlflow_server_once_and_the_champion_loads(tm
         assert child.data.params["sensors.K01"]
         assert parents[0].data.tags.get("git_commit")
         assert (work / "reports" / "model_comparison.md").is_file()
+        twin = scores.query("model == 'twin'")
+        assert {"K01", "not_summer", "all_training"} <= set(twin["train_unit"])
+        assert twin["rmse_um"].notna().all()
+
+        disc = json.loads((work / "reports" / "discrepancy" / "discrepancy.json").read_text())
+        assert disc["rmse_um_after"] <= disc["rmse_um_before"]
+        assert (work / "reports" / "discrepancy" / "heldout_fit.png").stat().st_size > 10_000
+        discrepancy = client.get_experiment_by_name(params["discrepancy"]["experiment"])
+        (disc_run,) = client.search_runs([discrepancy.experiment_id])
+        assert disc_run.data.metrics["rmse_um_before"] == pytest.approx(disc["rmse_um_before"])
+        named = ",".join(disc["named_effects"]) or "none"
+        assert disc_run.data.params["named_effects"] == named
 
         record = json.loads((work / "reports" / "mlflow_run.json").read_text())
         card = json.loads((work / "data" / "models" / "champion" / "champion.json").read_text())
@@ -172,3 +190,4 @@ def test_every_score_reaches_a_real_mlflow_server_once_and_the_champion_loads(tm
         _repro(work, env)
         again = client.search_runs([experiment.experiment_id], max_results=1000)
         assert len(again) == len(runs)
+        assert len(client.search_runs([discrepancy.experiment_id])) == 1
