@@ -98,7 +98,7 @@ class CalibratedTwin:
         Roles the network was built for.
     effects : frozenset of str
     calibration : Calibration
-        Parameters (``params``: name -> (value, unit)), sensor offsets, fit diagnostics.
+        Parameters (``params``: name -> (value, unit)) and fit diagnostics.
     """
 
     roles: frozenset[str]

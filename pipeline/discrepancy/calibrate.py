@@ -80,8 +80,6 @@ class Calibration:
     converged : bool
         ``least_squares`` reported success.
     noise : NoiseFloor
-    offsets : dict of str to float
-        Sensor offset per role used for the initial state, K (:func:`sensor_offsets`).
     at_bounds : list of str
         Parameters ending within 0.1 % (of the range, in the fitted space) of a bound.
     message : str
@@ -102,7 +100,6 @@ class Calibration:
     rmse_T_K: float  # noqa: N815 (spec name, unit K)
     converged: bool
     noise: NoiseFloor
-    offsets: dict[str, float] = field(default_factory=dict)
     at_bounds: list[str] = field(default_factory=list)
     message: str = ""
     nfev: int = 0
@@ -187,11 +184,9 @@ def _targets(
     return out
 
 
-def _raw_residuals(
-    model: TwinModel, theta: np.ndarray, targets: list[_Target], offsets: Mapping[str, float]
-) -> list[tuple]:
+def _raw_residuals(model: TwinModel, theta: np.ndarray, targets: list[_Target]) -> list[tuple]:
     """Per campaign: (T residual measured - model (n, k), Z residual about its mean (n,))."""
-    raws = model.run(theta, [t.campaign for t in targets], offsets)
+    raws = model.run(theta, [t.campaign for t in targets])
     out = []
     for t, raw in zip(targets, raws, strict=True):
         read = raw["readings"][:, t.node_index]
@@ -268,7 +263,6 @@ def calibrate(
     t0 = time.perf_counter()
     noise = noise or estimate_noise(campaigns)
     targets = _targets(model, campaigns, noise, weights)
-    offsets: dict[str, float] = {}  # sensors read their node directly (the issue's baseline)
     specs = model.param_specs
     logs = np.array([p.log for p in specs])
     lo, hi = model.bounds()
@@ -289,9 +283,7 @@ def calibrate(
     def fun(x: np.ndarray) -> np.ndarray:
         theta = np.clip(_to_theta(x, logs), lo, hi)
         parts = []
-        for t, (rT, rz) in zip(
-            targets, _raw_residuals(model, theta, targets, offsets), strict=True
-        ):
+        for t, (rT, rz) in zip(targets, _raw_residuals(model, theta, targets), strict=True):
             parts.append((rT * t.w_t).ravel())
             parts.append(rz * t.w_z)
         return np.concatenate(parts)
@@ -318,7 +310,7 @@ def calibrate(
             best = res
     assert best is not None
     theta = np.clip(_to_theta(best.x, logs), lo, hi)
-    raw = _raw_residuals(model, theta, targets, offsets)
+    raw = _raw_residuals(model, theta, targets)
     limiter.restore_original_limits()
     n_obs = int(sum(t.mask_t.sum() + t.mask_z.sum() for t in targets))
     sse = float(np.sum(best.fun**2))
@@ -363,7 +355,6 @@ def calibrate(
         rmse_T_K=float(np.sqrt(np.mean(t_all**2))) if t_all.size else float("nan"),
         converged=bool(best.success),
         noise=noise,
-        offsets=offsets,
         at_bounds=at_bounds,
         message=str(best.message),
         nfev=int(best.nfev),
@@ -385,4 +376,4 @@ def predict(model: TwinModel, calibration: Calibration, campaign: MeasuredCampai
             "predict: the calibration's parameters do not match the model's "
             f"({len(names)} vs {len(model.names)}); calibrate this model first"
         )
-    return model.simulate(calibration.theta, campaign, calibration.offsets)
+    return model.simulate(calibration.theta, campaign)

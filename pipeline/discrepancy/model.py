@@ -53,7 +53,7 @@ per distinct step length and parameter vector and the campaigns are stepped toge
 from __future__ import annotations
 
 import logging
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -530,13 +530,10 @@ class TwinModel:
             return ref * (r / ref) ** p["bearing_exponent"]
         return r
 
-    def _initial_state(
-        self, prep: _Prepared, offsets: Mapping[str, float], n_states: int
-    ) -> np.ndarray:
+    def _initial_state(self, prep: _Prepared, n_states: int) -> np.ndarray:
         assigned: dict[str, float] = {}
         for node, sensors in prep.role_sensors.items():
-            first = sum(prep.first[s] for s in sensors) / len(sensors)
-            assigned[node] = first - float(offsets.get(_role(node), 0.0))
+            assigned[node] = sum(prep.first[s] for s in sensors) / len(sensors)
         for node in self.nodes:
             if node in assigned:
                 continue
@@ -548,16 +545,10 @@ class TwinModel:
             values += [assigned[node] for node in self.sensed_nodes]
         return np.array(values[:n_states])
 
-    def run(
-        self,
-        theta: np.ndarray,
-        campaigns: Sequence[MeasuredCampaign],
-        offsets: Mapping[str, float] | None = None,
-    ) -> list[dict]:
+    def run(self, theta: np.ndarray, campaigns: Sequence[MeasuredCampaign]) -> list[dict]:
         """Simulate several campaigns together; raw arrays (used by the calibration).
 
-        ``offsets`` (role -> K, see :func:`sensor_offsets`) place each sensed node's initial
-        temperature at its first reading minus the offset; default 0 for every role.
+        Each sensed node starts at its sensors' first reading.
 
         Returns
         -------
@@ -600,7 +591,7 @@ class TwinModel:
             W[c, :k] = np.einsum("kij,kj->ki", g0[H[c, :k]], u_left) + np.einsum(
                 "kij,kj->ki", g1[H[c, :k]], du
             )
-            X0[c] = self._initial_state(pr, offsets or {}, ns)
+            X0[c] = self._initial_state(pr, ns)
         X = np.empty((n_c, L, ns))
         X[:, 0] = X0
         uniform = bool(np.all(H == H[0, 0]))
@@ -649,14 +640,11 @@ class TwinModel:
         return pd.DataFrame({s: cols[s] for s in order}, index=range(campaign.t_s.size))
 
     def simulate_many(
-        self,
-        theta: np.ndarray,
-        campaigns: Sequence[MeasuredCampaign],
-        offsets: Mapping[str, float] | None = None,
+        self, theta: np.ndarray, campaigns: Sequence[MeasuredCampaign]
     ) -> list[Simulation]:
         """Simulate several campaigns with the same parameters (one discretisation)."""
         with threadpool_limits(limits=1):  # BLAS threads only slow down these small matrices
-            raws = self.run(theta, campaigns, offsets)
+            raws = self.run(theta, campaigns)
         return [
             Simulation(
                 temperatures=self.sensor_predictions(c, r),
@@ -666,12 +654,7 @@ class TwinModel:
             for c, r in zip(campaigns, raws, strict=True)
         ]
 
-    def simulate(
-        self,
-        theta: np.ndarray,
-        campaign: MeasuredCampaign,
-        offsets: Mapping[str, float] | None = None,
-    ) -> Simulation:
+    def simulate(self, theta: np.ndarray, campaign: MeasuredCampaign) -> Simulation:
         """Simulate one campaign.
 
         Parameters
@@ -679,14 +662,12 @@ class TwinModel:
         theta : ndarray of shape (n_params,)
             Parameter values in :attr:`param_specs` order, within their bounds.
         campaign : MeasuredCampaign
-        offsets : mapping of str to float, optional
-            Sensor offset per role, K (:func:`sensor_offsets`; a calibration's ``offsets``).
 
         Returns
         -------
         Simulation
         """
-        return self.simulate_many(theta, [campaign], offsets)[0]
+        return self.simulate_many(theta, [campaign])[0]
 
 
 def _role(node: str) -> str:
