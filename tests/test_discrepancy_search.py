@@ -248,7 +248,6 @@ def test_settings_reject_unknown_effects():
 
 # ------------------------------------------------------------------ hidden effects (real twin)
 
-VALIDATE = load_section("validate")
 SECTION = {**load_section("discrepancy"), "n_jobs": 2, "n_folds": 4}
 
 ABSORBED = {
