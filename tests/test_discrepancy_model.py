@@ -24,6 +24,7 @@ from pipeline.discrepancy import (
     missing_roles,
     predict,
 )
+from pipeline.discrepancy import model as model_module
 from pipeline.discrepancy.calibrate import noise_sd
 from pipeline.discrepancy.data import campaigns_from_tables, program_steps
 from pipeline.ingest import ingest
@@ -252,6 +253,41 @@ def test_speed_step_between_samples_is_integrated_exactly(baseline_campaigns):
     assert np.allclose(on_grid.z_um[:i], off_grid.z_um[:i])
     assert not np.allclose(on_grid.z_um[i + 1 :], off_grid.z_um[i + 1 :])
     assert model.prepare(shifted).grid.size == c.t_s.size + 1
+
+
+def _all_effects_and_mixed_grids(campaigns):
+    """A model with every effect, three parameter vectors, campaigns on uniform and non-uniform
+    step grids (a speed step between two samples)."""
+    mixed = [campaigns[0], replace_program(campaigns[1], 60.0), campaigns[2]]
+    model = build_model(_roles(mixed), frozenset(EFFECTS))
+    lo, hi = model.bounds()
+    rng = np.random.default_rng(5)
+    thetas = np.array([np.clip(model.initial() * rng.uniform(0.5, 2.0, lo.size), lo, hi)
+                       for _ in range(3)])  # fmt: skip
+    thetas[:, model.names.index("sensor_lag_s")] = [300.0, 900.0, 2400.0]
+    return model, thetas, mixed
+
+
+def test_batched_simulation_equals_one_simulation_per_parameter_vector(baseline_campaigns):
+    model, thetas, mixed = _all_effects_and_mixed_grids(baseline_campaigns)
+    batch = model.run_batch(thetas, mixed)
+    for p, theta in enumerate(thetas):
+        for c, single in enumerate(model.run(theta, mixed)):
+            for key in ("readings", "nodes", "z_um"):
+                assert np.allclose(batch[c][key][p], single[key], rtol=1e-10, atol=1e-9)
+    # the parameter vectors give different trajectories (the batch is not one vector repeated)
+    assert not np.allclose(batch[0]["z_um"][0], batch[0]["z_um"][1])
+
+
+def test_modal_stepping_equals_stepping_the_full_state(baseline_campaigns, monkeypatch):
+    model, thetas, mixed = _all_effects_and_mixed_grids(baseline_campaigns)
+    modal = model.run_batch(thetas, mixed)
+    monkeypatch.setattr(model_module, "MAX_MODAL_CONDITION", 0.0)  # never trust the eigenbasis
+    full = model.run_batch(thetas, mixed)
+    for m, f in zip(modal, full, strict=True):
+        assert np.max(np.abs(m["readings"] - f["readings"])) < 1e-8  # degC
+        assert np.max(np.abs(m["z_um"] - f["z_um"])) < 1e-8  # um
+    assert np.ptp(full[0]["z_um"]) > 1.0  # a real trajectory, not a flat line
 
 
 def replace_program(c: MeasuredCampaign, delay_s: float) -> MeasuredCampaign:

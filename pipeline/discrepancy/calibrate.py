@@ -184,19 +184,43 @@ def _targets(
     return out
 
 
-def _raw_residuals(model: TwinModel, theta: np.ndarray, targets: list[_Target]) -> list[tuple]:
-    """Per campaign: (T residual measured - model (n, k), Z residual about its mean (n,))."""
-    raws = model.run(theta, [t.campaign for t in targets])
+def _raw_residuals(model: TwinModel, thetas: np.ndarray, targets: list[_Target]) -> list[tuple]:
+    """Return per campaign the T residual (P, n, k) and the Z residual about its mean (P, n).
+
+    Residuals are measured minus model, for each of the P parameter vectors ``thetas``
+    (P, n_params).
+    """
+    raws = model.run_batch(thetas, [t.campaign for t in targets])
     out = []
     for t, raw in zip(targets, raws, strict=True):
-        read = raw["readings"][:, t.node_index]
-        pred = t.first + (read - read[0])
+        read = raw["readings"][:, :, t.node_index]
+        pred = t.first + (read - read[:, :1])
         rT = np.where(t.mask_t, t.measured - pred, 0.0)
         rz = np.where(t.mask_z, t.z - raw["z_um"], 0.0)
         if t.mask_z.any():
-            rz = np.where(t.mask_z, rz - rz[t.mask_z].mean(), 0.0)
+            rz = np.where(t.mask_z, rz - rz[:, t.mask_z].mean(axis=1, keepdims=True), 0.0)
         out.append((rT, rz))
     return out
+
+
+def _weighted(model: TwinModel, thetas: np.ndarray, targets: list[_Target]) -> np.ndarray:
+    """Weighted residual vectors, ndarray of shape (P, n_residuals)."""
+    parts = []
+    for t, (rT, rz) in zip(targets, _raw_residuals(model, thetas, targets), strict=True):
+        parts.append((rT * t.w_t).reshape(rT.shape[0], -1))
+        parts.append(rz * t.w_z)
+    return np.concatenate(parts, axis=1)
+
+
+def _forward_difference_steps(x: np.ndarray, x_hi: np.ndarray) -> np.ndarray:
+    """Return the steps of the forward-difference Jacobian, one per parameter.
+
+    As ``least_squares``' own '2-point' scheme: ``sqrt(eps) max(1, |x|)``, taken backwards
+    where the forward step would leave the bounds.
+    """
+    h = np.sqrt(np.finfo(float).eps) * np.maximum(1.0, np.abs(x))
+    h = np.where(x + h > x_hi, -h, h)
+    return (x + h) - x
 
 
 def _to_x(theta: np.ndarray, logs: np.ndarray) -> np.ndarray:
@@ -281,12 +305,14 @@ def calibrate(
     x_scale = np.where(logs, 1.0, np.maximum(np.abs(theta0), (hi - lo) / 20.0))
 
     def fun(x: np.ndarray) -> np.ndarray:
-        theta = np.clip(_to_theta(x, logs), lo, hi)
-        parts = []
-        for t, (rT, rz) in zip(targets, _raw_residuals(model, theta, targets), strict=True):
-            parts.append((rT * t.w_t).ravel())
-            parts.append(rz * t.w_z)
-        return np.concatenate(parts)
+        return _weighted(model, np.clip(_to_theta(x, logs), lo, hi)[None, :], targets)[0]
+
+    def jac(x: np.ndarray) -> np.ndarray:
+        # all perturbed parameter vectors and the base point in one batched simulation
+        h = _forward_difference_steps(x, x_hi)
+        xs = np.vstack([x, x + np.diag(h)])
+        r = _weighted(model, np.clip(_to_theta(xs, logs), lo, hi), targets)
+        return ((r[1:] - r[0]) / h[:, None]).T
 
     rng = np.random.default_rng(seed)
     best = None
@@ -298,6 +324,7 @@ def calibrate(
         res = least_squares(
             fun,
             xs,
+            jac=jac,
             bounds=(x_lo, x_hi),
             x_scale=x_scale,
             method="trf",
@@ -310,7 +337,7 @@ def calibrate(
             best = res
     assert best is not None
     theta = np.clip(_to_theta(best.x, logs), lo, hi)
-    raw = _raw_residuals(model, theta, targets)
+    raw = [(rT[0], rz[0]) for rT, rz in _raw_residuals(model, theta[None, :], targets)]
     limiter.restore_original_limits()
     n_obs = int(sum(t.mask_t.sum() + t.mask_z.sum() for t in targets))
     sse = float(np.sum(best.fun**2))

@@ -47,7 +47,9 @@ Candidate effects (:data:`EFFECTS`), each adding bounded parameters (see :func:`
 Integration is exact for the piecewise-constant speed and piecewise-linear ambient
 (first-order-hold matrix exponential, as :func:`pipeline.twin.network.integrate_foh`), on a
 grid of the sample instants and the program's speed steps; the discretisation is computed once
-per distinct step length and parameter vector and the campaigns are stepped together.
+per distinct step length and parameter vector, and the campaigns and parameter vectors are
+stepped together in the modes of the network (:func:`_propagate`). The calibration's
+finite-difference Jacobian is one such batched run (:meth:`TwinModel.run_batch`).
 """
 
 from __future__ import annotations
@@ -237,6 +239,7 @@ class _Prepared:
     first: dict[str, float]  # sensor -> first valid reading
     role_sensors: dict[str, list[str]]  # node -> sensors of the campaign on it
     rpm_samples: np.ndarray  # (n,)
+    x0: np.ndarray | None = None  # (ns,) initial state, degC, set on the first run
 
 
 def missing_roles(effect: str, roles: Iterable[str]) -> list[str]:
@@ -523,7 +526,7 @@ class TwinModel:
 
     # ------------------------------------------------------------------ simulation
 
-    def _bearing_law(self, rpm: np.ndarray, p: dict[str, float]) -> np.ndarray:
+    def _bearing_law(self, rpm: np.ndarray, p: dict[str, np.ndarray]) -> np.ndarray:
         r = rpm / 1000.0
         if "nonlinear_bearing_heat" in self.effects:
             ref = REFERENCE_RPM / 1000.0
@@ -554,24 +557,50 @@ class TwinModel:
         -------
         list of dict
             Per campaign: ``readings`` (n, n_nodes) degC of the state each node's sensors read
-            (lagged with ``sensor_lag``), ``nodes`` (n, n_nodes) degC, ``z_um`` (n,).
+            (lagged with ``sensor_lag``), ``nodes`` (n, n_nodes) degC, ``z_um`` (n,) um.
         """
         theta = self.check_theta(theta)
-        p = self.values(theta)
+        return [
+            {key: value[0] for key, value in raw.items()}
+            for raw in self.run_batch(theta[None, :], campaigns)
+        ]
+
+    def run_batch(self, thetas: np.ndarray, campaigns: Sequence[MeasuredCampaign]) -> list[dict]:
+        """Simulate several campaigns for several parameter vectors in one vectorised pass.
+
+        The calibration's finite-difference Jacobian needs one simulation per parameter; doing
+        them together costs a few single simulations (one batched matrix exponential, one time
+        loop over the stacked states) instead of one Python time loop each.
+
+        Parameters
+        ----------
+        thetas : ndarray of shape (P, n_params)
+            Parameter vectors, each within the bounds (not checked here).
+        campaigns : sequence of MeasuredCampaign
+
+        Returns
+        -------
+        list of dict
+            Per campaign: ``readings`` and ``nodes`` (P, n, n_nodes) degC, ``z_um`` (P, n) um.
+        """
+        thetas = np.atleast_2d(np.asarray(thetas, dtype=float))
+        n_p = thetas.shape[0]
+        ps = [self.values(th) for th in thetas]
+        p = {name: thetas[:, i, None] for i, name in enumerate(self.names)}  # (P, 1) each
         preps = [self.prepare(c) for c in campaigns]
-        A, B, lag_nodes = self._matrices(p)
+        mats = [self._matrices(q) for q in ps]
+        A = np.stack([m[0] for m in mats])
+        B = np.stack([m[1] for m in mats])
+        lag_nodes = mats[0][2]
         n = len(self.nodes)
-        ns = A.shape[0]
+        ns, ni = B.shape[1:]
         hs = np.unique(np.concatenate([pr.h for pr in preps]))
-        phi = np.empty((hs.size, ns, ns))
-        g0 = np.empty((hs.size, ns, B.shape[1]))
-        g1 = np.empty((hs.size, ns, B.shape[1]))
-        for i, hv in enumerate(hs):
-            phi[i], g0[i], g1[i] = _foh(A, B, float(hv))
+        phi, g0, g1 = _foh_batch(A, B, hs)  # (P, n_h, ns, ns), (P, n_h, ns, ni) x 2
         n_c = len(preps)
         L = max(pr.grid.size for pr in preps)
         H = np.zeros((n_c, L - 1), dtype=int)
-        W = np.zeros((n_c, L - 1, ns))
+        U = np.zeros((n_p, L - 1, n_c, ni))
+        dU = np.zeros((L - 1, n_c, ni))
         X0 = np.empty((n_c, ns))
         motor = "q_motor_W_per_krpm" in p
         for c, pr in enumerate(preps):
@@ -582,49 +611,39 @@ class TwinModel:
                 if "ambient_variation" in self.effects and np.all(np.isfinite(pr.ambient_grid))
                 else np.full(pr.grid.size, pr.ambient0)
             )
-            u_left = np.column_stack(
-                [amb[:-1], self._bearing_law(pr.rpm_steps, p),
-                 pr.rpm_steps / 1000.0 if motor else np.zeros(k)]
-            )  # fmt: skip
-            du = np.zeros_like(u_left)
-            du[:, 0] = np.diff(amb)
-            W[c, :k] = np.einsum("kij,kj->ki", g0[H[c, :k]], u_left) + np.einsum(
-                "kij,kj->ki", g1[H[c, :k]], du
-            )
-            X0[c] = self._initial_state(pr, ns)
-        X = np.empty((n_c, L, ns))
-        X[:, 0] = X0
-        uniform = bool(np.all(H == H[0, 0]))
-        for k in range(L - 1):
-            if uniform:
-                X[:, k + 1] = X[:, k] @ phi[H[0, 0]].T + W[:, k]
-            else:
-                X[:, k + 1] = np.einsum("cij,cj->ci", phi[H[:, k]], X[:, k]) + W[:, k]
+            U[:, :k, c, 0] = amb[:-1]
+            U[:, :k, c, 1] = self._bearing_law(pr.rpm_steps[None, :], p)
+            if motor:
+                U[:, :k, c, 2] = pr.rpm_steps / 1000.0
+            dU[:k, c, 0] = np.diff(amb)
+            if pr.x0 is None:
+                pr.x0 = self._initial_state(pr, ns)
+            X0[c] = pr.x0
+        X = _propagate(A, phi, g0, g1, U, dU, X0, H, hs)  # (P, L, n_c, ns)
         out = []
         idx = {node: i for i, node in enumerate(self.nodes)}
+        columns = [idx[x] for x in ("column_front", "column_rear") if x in idx]
         for c, pr in enumerate(preps):
-            xs = X[c, pr.sample_idx]
-            nodes = xs[:, :n]
+            xs = X[:, pr.sample_idx, c]
+            nodes = xs[:, :, :n]
             readings = nodes.copy()
-            for k, j in enumerate(lag_nodes):
-                readings[:, j] = xs[:, n + k]
+            readings[:, :, lag_nodes] = xs[:, :, n : n + lag_nodes.size]
             rise = nodes - X0[c, :n]
-            z = -p["alpha_spindle_um_per_K"] * rise[:, idx["spindle_shaft"]]
+            z = -p["alpha_spindle_um_per_K"] * rise[:, :, idx["spindle_shaft"]]
             if "alpha_headstock_um_per_K" in p:
-                z = z - p["alpha_headstock_um_per_K"] * rise[:, idx["headstock"]]
+                z = z - p["alpha_headstock_um_per_K"] * rise[:, :, idx["headstock"]]
             if "alpha_ball_screw_um_per_K" in p:
-                z = z - p["alpha_ball_screw_um_per_K"] * rise[:, idx["ball_screw"]]
-            columns = [idx[x] for x in ("column_front", "column_rear") if x in idx]
+                z = z - p["alpha_ball_screw_um_per_K"] * rise[:, :, idx["ball_screw"]]
             if columns:
-                z = z + p["alpha_column_um_per_K"] * rise[:, columns].mean(axis=1)
+                z = z + p["alpha_column_um_per_K"] * rise[:, :, columns].mean(axis=2)
             if "bending_um_per_K" in p:
                 z = z + p["bending_um_per_K"] * (
-                    rise[:, idx["column_front"]] - rise[:, idx["column_rear"]]
+                    rise[:, :, idx["column_front"]] - rise[:, :, idx["column_rear"]]
                 )
             if "centrifugal_um_per_krpm2" in p:
                 r2 = (pr.rpm_samples / 1000.0) ** 2
                 z = z + p["centrifugal_um_per_krpm2"] * (r2 - r2[0])
-            out.append({"readings": readings, "nodes": nodes, "z_um": z, "x0": X0[c, :n]})
+            out.append({"readings": readings, "nodes": nodes, "z_um": z})
         return out
 
     def sensor_predictions(self, campaign: MeasuredCampaign, raw: dict) -> pd.DataFrame:
@@ -674,15 +693,109 @@ def _role(node: str) -> str:
     return {v: k for k, v in ROLE_NODES.items()}.get(node, node)
 
 
-def _foh(A: np.ndarray, B: np.ndarray, h: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Exact discretisation over ``h`` for inputs linear within the step (FOH)."""
-    ns, ni = B.shape
-    M = np.zeros((ns + 2 * ni, ns + 2 * ni))
-    M[:ns, :ns] = A * h
-    M[:ns, ns : ns + ni] = B * h
-    M[ns : ns + ni, ns + ni :] = np.eye(ni)
+MAX_MODAL_CONDITION = 1e6
+"""Largest condition number of the eigenvector matrix for which :func:`_propagate` steps in
+modal coordinates; above it (near-coincident time constants) it steps the full state."""
+
+
+def _propagate(
+    A: np.ndarray,
+    phi: np.ndarray,
+    g0: np.ndarray,
+    g1: np.ndarray,
+    U: np.ndarray,
+    dU: np.ndarray,
+    X0: np.ndarray,
+    H: np.ndarray,
+    hs: np.ndarray,
+) -> np.ndarray:
+    """Step ``x[k+1] = phi[h_k] x[k] + g0[h_k] u[k] + g1[h_k] du[k]`` for all P and campaigns.
+
+    ``A`` is similar to a symmetric matrix on the nodes (``-C^-1 K``) with the sensor-lag states
+    below it, so it has real eigenvalues and, unless a lag equals a node time constant, a
+    well-conditioned eigenbasis ``A = V diag(mu) V^-1``. Then ``phi[h] = V diag(exp(mu h))
+    V^-1`` and the recurrence decouples into one scalar recurrence per mode, stepped as an
+    element-wise product (no small matrix product per step). Where the eigenbasis is
+    ill-conditioned or complex, the full state is stepped with ``phi``.
+
+    Parameters
+    ----------
+    A : ndarray of shape (P, ns, ns), 1/s
+    phi : ndarray of shape (P, n_h, ns, ns)
+        Transition matrices for the step lengths ``hs``.
+    g0, g1 : ndarray of shape (P, n_h, ns, ni)
+        Input matrices of the first-order hold for the step lengths ``hs``.
+    U : ndarray of shape (P, L - 1, n_c, ni)
+        Inputs at the start of each step.
+    dU : ndarray of shape (L - 1, n_c, ni)
+        Change of the inputs over each step.
+    X0 : ndarray of shape (n_c, ns), degC
+    H : ndarray of shape (n_c, L - 1), int
+        Index in ``hs`` of each step's length.
+    hs : ndarray of shape (n_h,), s
+
+    Returns
+    -------
+    ndarray of shape (P, L, n_c, ns), degC
+    """
+    n_p, n_steps, n_c, ni = U.shape
+    ns = A.shape[1]
+    mu, V = np.linalg.eig(A)
+    modal = bool(np.all(np.abs(mu.imag) <= 1e-12 * np.abs(mu).max())) and bool(
+        np.all(np.linalg.cond(V) < MAX_MODAL_CONDITION)
+    )
+    V = V.real
+    basis_t = np.swapaxes(np.linalg.inv(V), 1, 2) if modal else np.eye(ns)[None]
+    # each step's input contribution in the stepping basis
+    m0 = np.swapaxes(g0, 2, 3) @ basis_t[:, None]  # (P, n_h, ni, ns)
+    m1 = np.swapaxes(g1, 2, 3) @ basis_t[:, None]
+    if hs.size == 1:
+        w = U.reshape(n_p, -1, ni) @ m0[:, 0] + dU.reshape(-1, ni) @ m1[:, 0]
+        w = w.reshape(n_p, n_steps, n_c, ns)
+    else:
+        w = np.empty((n_p, n_steps, n_c, ns))
+        for i in range(hs.size):
+            k_idx, c_idx = np.nonzero(H.T == i)
+            w[:, k_idx, c_idx] = U[:, k_idx, c_idx] @ m0[:, i] + dU[k_idx, c_idx] @ m1[:, i]
+    Y = np.empty((n_p, n_steps + 1, n_c, ns))
+    Y[:, 0] = X0 @ basis_t
+    if modal:
+        decay = np.exp(mu.real[:, None, :] * hs[None, :, None])  # (P, n_h, ns)
+        for k in range(n_steps):
+            d = decay[:, :1] if hs.size == 1 else decay[:, H[:, k]]
+            Y[:, k + 1] = d * Y[:, k] + w[:, k]
+        X = (Y.reshape(n_p, -1, ns) @ np.swapaxes(V, 1, 2)).reshape(Y.shape)
+        X[:, 0] = X0  # exactly, not through the round trip of the basis change
+        return X
+    phi_t = np.swapaxes(phi, 2, 3)
+    for k in range(n_steps):
+        Y[:, k + 1] = np.einsum("pcj,pcji->pci", Y[:, k], phi_t[:, H[:, k]]) + w[:, k]
+    return Y
+
+
+def _foh_batch(
+    A: np.ndarray, B: np.ndarray, hs: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Exact discretisation over each step length for inputs linear within the step (FOH).
+
+    Parameters
+    ----------
+    A : ndarray of shape (P, ns, ns), 1/s
+    B : ndarray of shape (P, ns, ni)
+    hs : ndarray of shape (n_h,), s
+
+    Returns
+    -------
+    phi, g0, g1 : ndarray of shape (P, n_h, ns, ns), (P, n_h, ns, ni), (P, n_h, ns, ni)
+        ``x[k+1] = phi x[k] + g0 u[k] + g1 (u[k+1] - u[k])``.
+    """
+    n_p, ns, ni = B.shape
+    M = np.zeros((n_p, hs.size, ns + 2 * ni, ns + 2 * ni))
+    M[:, :, :ns, :ns] = A[:, None] * hs[None, :, None, None]
+    M[:, :, :ns, ns : ns + ni] = B[:, None] * hs[None, :, None, None]
+    M[:, :, ns : ns + ni, ns + ni :] = np.eye(ni)
     E = expm(M)
-    return E[:ns, :ns], E[:ns, ns : ns + ni], E[:ns, ns + ni :]
+    return E[..., :ns, :ns], E[..., :ns, ns : ns + ni], E[..., :ns, ns + ni :]
 
 
 def _network(roles: set[str]) -> tuple[tuple[str, ...], tuple[tuple[str, str, str], ...]]:
