@@ -11,8 +11,7 @@ campaigns (unit ``all_training``).
 The physical twin (model ``twin``, :mod:`pipeline.twin_candidate`) is scored and ranked in the
 report but is not eligible: the champion is registered as an MLflow pyfunc that predicts from a
 table of temperatures (:func:`temperature_features`), and the twin needs another input (the
-spindle program, the sensor roles and each run's first readings); besides, its effect set was
-chosen by the ``discrepancy`` stage on every campaign, validation ones included.
+spindle program, the sensor roles and each run's first readings).
 """
 
 from __future__ import annotations

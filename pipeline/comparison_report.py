@@ -62,10 +62,12 @@ def twin_section(source: str) -> str:
 `twin` (selection `roles`, mode `static`) is the calibrated physical twin, not a regression on
 temperatures: driven by the spindle program, the ambient reading and the campaign's first
 temperatures, its parameters calibrated by least squares on the temperatures and Z drift of the
-training unit's campaigns only. The effect set was chosen by the discrepancy stage on every
-valid campaign, validation ones included, so its validation scores are not fully out-of-sample
-as to model structure. It is ranked here but never chosen as champion: the registered model
-predicts from a table of temperatures, the twin needs the spindle program.
+training unit's campaigns only. Its effect set was named by the discrepancy stage on the
+training campaigns (the validation campaigns are held back from that search), so its validation
+scores are out-of-sample for the structure too (the leave-one-season-out and single-campaign
+units share that set, named on all training campaigns). It is ranked here but never chosen as
+champion: the registered model predicts from a table of temperatures, the twin needs the spindle
+program.
 Twin used: {source}.
 """
 

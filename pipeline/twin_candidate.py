@@ -21,8 +21,10 @@ separation stage defines the thermal error as displacement minus its cold value
 (:func:`pipeline.spindle_separation.cold_value`), so the same cold reference is applied to the
 prediction, over the samples where the displacement was measured: like for like.
 
-Caveat, stated in the comparison report: the effect *set* is chosen by the ``discrepancy`` stage
-on every valid campaign (validation ones included); only the parameters are fitted per unit.
+The effect *set* is named by the ``discrepancy`` stage on the training campaigns (it holds the
+validation campaigns back, ``discrepancy.hold_out_validation``); the parameters are fitted per
+unit. The LOSO and single-campaign units still use an effect set named on all training
+campaigns, which includes their own test campaigns of the training split.
 """
 
 from __future__ import annotations

@@ -29,6 +29,7 @@ from pipeline.discrepancy.search import (
     SearchSettings,
     forward_search,
     make_folds,
+    split_for_search,
 )
 from pipeline.discrepancy.trials import (
     CASES,
@@ -102,6 +103,7 @@ class _Campaign:
     temperatures: pd.DataFrame
     roles: dict
     z_um: np.ndarray
+    split: str | None = None
 
 
 def test_localise_reports_the_cool_down_bias_in_words():
@@ -239,6 +241,25 @@ def test_parallel_and_serial_searches_agree():
     serial = forward_search(fake, IDS, SETTINGS)
     parallel = forward_search(fake, IDS, replace(SETTINGS, n_jobs=2))
     assert serial.to_dict()["candidates_by_step"] == parallel.to_dict()["candidates_by_step"]
+
+
+def test_validation_campaigns_are_held_back_from_the_search():
+    def campaign(cid, split):
+        return _Campaign(cid, np.arange(3.0), np.zeros(3), pd.DataFrame({"T1": [20.0] * 3}),
+                         {"T1": "headstock"}, np.zeros(3), split=split)  # fmt: skip
+
+    train = [campaign(f"K{i}", "training") for i in range(3)]
+    val = [campaign("V1", "validation"), campaign("V2", "validation")]
+    searched, held = split_for_search(train + val, SearchSettings())
+    assert [c.campaign_id for c in searched] == ["K0", "K1", "K2"]
+    assert [c.campaign_id for c in held] == ["V1", "V2"]
+    # switched off, or too few campaigns left to search on: every campaign is searched
+    off = SearchSettings(hold_out_validation=False)
+    assert split_for_search(train + val, off) == (train + val, [])
+    assert split_for_search(train[:1] + val, SearchSettings()) == (train[:1] + val, [])
+    # campaigns without a split (a folder outside the repo): all searched
+    unsplit = [campaign("A", None), campaign("B", None)]
+    assert split_for_search(unsplit, SearchSettings()) == (unsplit, [])
 
 
 def test_settings_reject_unknown_effects():

@@ -162,6 +162,12 @@ def test_every_score_reaches_a_real_mlflow_server_once_and_the_champion_loads(tm
         assert disc_run.data.metrics["rmse_um_before"] == pytest.approx(disc["rmse_um_before"])
         named = ",".join(disc["named_effects"]) or "none"
         assert disc_run.data.params["named_effects"] == named
+        # the search never saw the validation campaigns; the named effects are checked on them
+        val = disc["validation"]
+        assert sorted(val["campaigns"]) == [f"V{i:02d}" for i in range(1, 7)]
+        assert not set(val["campaigns"]) & {c for fold in disc["folds"] for c in fold}
+        metric = disc_run.data.metrics["validation_rmse_um_after"]
+        assert metric == pytest.approx(val["rmse_um_after"])
 
         record = json.loads((work / "reports" / "mlflow_run.json").read_text())
         card = json.loads((work / "data" / "models" / "champion" / "champion.json").read_text())

@@ -59,7 +59,9 @@ def build_document(
     ``rmse_T_K_before/after``, ``per_campaign``, ``steps`` (effect, evidence, RMS before/after,
     calibrated parameters with units), ``candidates_by_step`` (evidence of every candidate at
     every step), ``untestable`` (effect -> missing roles), ``localisation`` (findings, ambient
-    lag, before and after), ``thresholds``, ``campaigns``, ``quarantined``, ``synthetic``.
+    lag, before and after), ``thresholds``, ``campaigns``, ``quarantined``, ``synthetic``,
+    ``validation`` (the named effects checked on the validation campaigns held back from the
+    search, or None).
     """
     doc = result.to_dict()
     doc["localisation"] = {
@@ -115,7 +117,14 @@ def markdown(doc: Mapping[str, Any], figures: Sequence[str]) -> str:
         )
         + ".",
         f"Held-out = displacement residual on campaigns not used for calibration "
-        f"({len(doc['folds'])}-fold cross-validation across campaigns).",
+        f"({len(doc['folds'])}-fold cross-validation across the "
+        f"{sum(len(f) for f in doc['folds'])} searched campaigns)"
+        + (
+            f"; the {len(doc['validation']['campaigns'])} validation campaigns are held back "
+            "from the search and used only for the check below."
+            if doc.get("validation")
+            else "."
+        ),
         "",
         "## What the baseline twin misses",
         "",
@@ -165,6 +174,29 @@ def markdown(doc: Mapping[str, Any], figures: Sequence[str]) -> str:
             f"| {cid} | {_fmt(b.get('z_um'))} | {_fmt(a.get('z_um'))} | "
             f"{_fmt(b.get('t_k'))} | {_fmt(a.get('t_k'))} |"
         )
+    val = doc.get("validation")
+    if val:
+        lines += [
+            "",
+            "## Check on the validation campaigns",
+            "",
+            f"Calibrated on all {sum(len(f) for f in doc['folds'])} searched campaigns, the "
+            f"baseline twin predicts the validation campaigns ({', '.join(val['campaigns'])}), "
+            "which no step of the search has seen, with a Z residual of "
+            f"**{_fmt(val['rmse_um_before'])} um** RMS and temperatures "
+            f"{_fmt(val['rmse_T_K_before'])} K; "
+            + (f"the twin + {', '.join(named)}" if named else "with nothing added it is the same")
+            + f": **{_fmt(val['rmse_um_after'])} um**, {_fmt(val['rmse_T_K_after'])} K.",
+            "",
+            "| validation campaign | Z before (um) | Z after (um) | T before (K) | T after (K) |",
+            "|---|---:|---:|---:|---:|",
+        ]
+        for cid, row in val["per_campaign"].items():
+            b, a = row["before"], row["after"]
+            lines.append(
+                f"| {cid} | {_fmt(b.get('z_um'))} | {_fmt(a.get('z_um'))} | "
+                f"{_fmt(b.get('t_k'))} | {_fmt(a.get('t_k'))} |"
+            )
     if "after" in doc["localisation"] and named:
         lines += ["", "## What remains after adding the named effects", ""]
         lines += [f"- {f}" for f in doc["localisation"]["after"]["findings"]]
@@ -358,6 +390,10 @@ def log_mlflow(files: Sequence[Path], doc: Mapping[str, Any], settings: Mapping[
                     value = pair[when].get(key)
                     if value is not None and np.isfinite(value):
                         client.log_metric(run_id, f"{name}_{when}.{cid}", float(value))
+        val = doc.get("validation") or {}
+        for key in ("rmse_um_before", "rmse_um_after", "rmse_T_K_before", "rmse_T_K_after"):
+            if val.get(key) is not None:  # the validation campaigns the search never saw
+                client.log_metric(run_id, f"validation_{key}", float(val[key]))
         client.log_param(run_id, "named_effects", ",".join(doc["named_effects"]) or "none")
         for name, value in doc["thresholds"].items():
             client.log_param(run_id, name, str(value))

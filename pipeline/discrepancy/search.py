@@ -77,6 +77,10 @@ class SearchSettings:
         Parallel calibrations (joblib processes); 1 = serial.
     max_effects : int
         Stop after naming this many effects.
+    hold_out_validation : bool
+        Search on the campaigns not in the ``validation`` split only, and check the named
+        effects on the validation campaigns afterwards (:class:`ValidationCheck`); the twin
+        candidate of ``evaluate`` then gets an effect set chosen without them.
     """
 
     candidates: tuple[str, ...] = CANDIDATE_EFFECTS
@@ -86,6 +90,7 @@ class SearchSettings:
     n_folds: int = 4
     n_jobs: int = 2
     max_effects: int = 6
+    hold_out_validation: bool = True
 
     @classmethod
     def from_params(cls, section: Mapping[str, Any]) -> SearchSettings:
@@ -105,6 +110,7 @@ class SearchSettings:
             n_folds=int(section.get("n_folds", 4)),
             n_jobs=int(section.get("n_jobs", 2)),
             max_effects=int(section.get("max_effects", len(candidates))),
+            hold_out_validation=bool(section.get("hold_out_validation", True)),
         )
 
 
@@ -168,22 +174,60 @@ class ModelEvidence:
     @property
     def rmse_heldout_t_k(self) -> float:
         """Held-out temperature RMS pooled over all sensors and campaigns, K."""
-        return pooled_rms(
-            f.to_numpy(dtype=float).ravel() for f in self.heldout.t_residual_k.values()
-        )
+        return _pooled_t(self.heldout)
 
     def per_campaign(self) -> dict[str, dict[str, float]]:
         """Held-out RMS per campaign: ``{id: {"z_um": .., "t_k": ..}}``."""
-        out = {}
-        for cid, z in self.heldout.z_residual_um.items():
-            t = self.heldout.t_residual_k.get(cid)
-            out[cid] = {
-                "z_um": pooled_rms([z]),
-                "t_k": pooled_rms([t.to_numpy(dtype=float).ravel()])
-                if t is not None
-                else float("nan"),
-            }
-        return out
+        return rms_by_campaign(self.heldout)
+
+
+def rms_by_campaign(fit: FitResult) -> dict[str, dict[str, float]]:
+    """RMS of a fit's residuals per predicted campaign: ``{id: {"z_um": .., "t_k": ..}}``."""
+    out = {}
+    for cid, z in fit.z_residual_um.items():
+        t = fit.t_residual_k.get(cid)
+        out[cid] = {
+            "z_um": pooled_rms([z]),
+            "t_k": pooled_rms([t.to_numpy(dtype=float).ravel()]) if t is not None else float("nan"),
+        }
+    return out
+
+
+@dataclass
+class ValidationCheck:
+    """The baseline and the augmented twin predicting the validation campaigns.
+
+    Both are calibrated on every searched campaign; the search never saw these.
+
+    Attributes
+    ----------
+    campaign_ids : list of str
+        Validation campaigns.
+    baseline, final : FitResult
+        Residuals of the baseline and of the augmented twin on them.
+    """
+
+    campaign_ids: list[str]
+    baseline: FitResult
+    final: FitResult
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready figures: Z (um) and temperature (K) RMS before and after, per campaign."""
+        before, after = rms_by_campaign(self.baseline), rms_by_campaign(self.final)
+        return {
+            "campaigns": list(self.campaign_ids),
+            "rmse_um_before": _num(pooled_rms(self.baseline.z_residual_um.values())),
+            "rmse_um_after": _num(pooled_rms(self.final.z_residual_um.values())),
+            "rmse_T_K_before": _num(_pooled_t(self.baseline)),
+            "rmse_T_K_after": _num(_pooled_t(self.final)),
+            "per_campaign": {
+                cid: {"before": before[cid], "after": after.get(cid, {})} for cid in before
+            },
+        }
+
+
+def _pooled_t(fit: FitResult) -> float:
+    return pooled_rms(f.to_numpy(dtype=float).ravel() for f in fit.t_residual_k.values())
 
 
 @dataclass(frozen=True)
@@ -291,6 +335,8 @@ class SearchResult:
         Held-out campaigns of each fold.
     seconds : float
         Wall time, s.
+    validation : ValidationCheck or None
+        The named effects checked on the validation campaigns, None when none was held out.
     """
 
     named_effects: list[str]
@@ -301,6 +347,7 @@ class SearchResult:
     untestable: dict[str, list[str]]
     folds: list[list[str]]
     seconds: float
+    validation: ValidationCheck | None = None
 
     @property
     def rmse_um_before(self) -> float:
@@ -340,6 +387,7 @@ class SearchResult:
                 k: {"value": _num(v), "unit": u} for k, (v, u) in self.final.full.params.items()
             },
             "folds": self.folds,
+            "validation": self.validation.to_dict() if self.validation else None,
             "seconds": round(self.seconds, 1),
         }
 
@@ -622,9 +670,55 @@ def untestable_effects(candidates: Sequence[str], roles: set[str]) -> dict[str, 
     return out
 
 
+def split_for_search(campaigns: Sequence, settings: SearchSettings) -> tuple[list, list]:
+    """Campaigns to search on and validation campaigns to check the result on.
+
+    With ``hold_out_validation`` the campaigns of the ``validation`` split are held back, as
+    long as at least two others remain; otherwise every campaign is searched on.
+    """
+    searched = [c for c in campaigns if getattr(c, "split", None) != "validation"]
+    held = [c for c in campaigns if getattr(c, "split", None) == "validation"]
+    if not settings.hold_out_validation or not held:
+        return list(campaigns), []
+    if len(searched) < 2:
+        logger.warning(
+            "only %d campaign(s) outside the validation split: searching on all %d campaigns, "
+            "the validation ones included",
+            len(searched),
+            len(campaigns),
+        )
+        return list(campaigns), []
+    return searched, held
+
+
 def search_twin(campaigns: Sequence, settings: SearchSettings) -> SearchResult:
-    """Run :func:`forward_search` on measured campaigns with the calibrated twin."""
+    """Run :func:`forward_search` on measured campaigns with the calibrated twin.
+
+    The search uses the campaigns :func:`split_for_search` keeps; the baseline and the
+    augmented twin, calibrated on all of those, then predict the validation campaigns
+    (:attr:`SearchResult.validation`), which no step of the search has seen.
+    """
     roles = campaign_roles(campaigns)
     evaluator = TwinEvaluator(campaigns, roles)
-    ids = [c.campaign_id for c in campaigns]
-    return forward_search(evaluator, ids, settings, untestable_effects(settings.candidates, roles))
+    searched, held = split_for_search(campaigns, settings)
+    ids = [c.campaign_id for c in searched]
+    untestable = untestable_effects(settings.candidates, roles)
+    result = forward_search(evaluator, ids, settings, untestable)
+    if held:
+        held_ids = tuple(c.campaign_id for c in held)
+        checks = [
+            evaluator(
+                evidence.effects,
+                tuple(ids),
+                held_ids,
+                {k: v for k, (v, _) in evidence.full.params.items()},
+            )
+            for evidence in (result.baseline, result.final)
+        ]
+        result.validation = ValidationCheck(list(held_ids), checks[0], checks[1])
+        logger.info(
+            "validation campaigns (not searched): Z RMS %.2f -> %.2f um",
+            pooled_rms(checks[0].z_residual_um.values()),
+            pooled_rms(checks[1].z_residual_um.values()),
+        )
+    return result
