@@ -6,7 +6,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: install run test test-fast bench trials lint simulate clean
+.PHONY: install run test test-fast bench trials demo-check lint simulate clean
 
 install: $(STAMP)
 
@@ -33,6 +33,9 @@ bench: install
 
 trials: install
 	$(BIN)/thermal discrepancy-trials --seeds 1 2 3 --out reports/discrepancy_trials
+
+demo-check: install
+	$(BIN)/thermal discrepancy-demo-check --out reports/discrepancy_demo_check
 
 lint: install
 	$(BIN)/ruff check .

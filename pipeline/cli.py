@@ -23,6 +23,10 @@ COMMANDS = {
         "pipeline.discrepancy.trials",
         "rate of correct naming on campaigns with hidden effects",
     ),
+    "discrepancy-demo-check": (
+        "pipeline.discrepancy.demo_check",
+        "the workflow on the demo plans with and without their unseen state",
+    ),
     "track": ("pipeline.track", "log the scores to MLflow"),
     "summary": ("pipeline.summary", "print where the results are and how to open MLflow"),
     "bench": ("pipeline.bench", "time each stage of the default dvc repro"),

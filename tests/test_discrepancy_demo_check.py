@@ -1,0 +1,78 @@
+"""The demo check: the demo plans simulated as shipped and without their unseen state."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pandas as pd
+import pytest
+
+from pipeline.discrepancy.demo_check import markdown, summarise, write_demo
+from pipeline.twin.effects import DEMO_EFFECTS
+
+REPO = Path(__file__).resolve().parents[1]
+
+
+@pytest.fixture(scope="module")
+def demo_variants(tmp_path_factory):
+    root = tmp_path_factory.mktemp("demo")
+    ids = {v: write_demo(root / v, v) for v in ("shipped", "without_state")}
+    return root, ids
+
+
+def test_the_shipped_variant_is_the_shipped_demo(demo_variants):
+    root, ids = demo_variants
+    shipped = sorted(p.name for p in (REPO / "data" / "raw").iterdir() if p.is_dir())
+    spindle = [c for c in shipped if c.startswith(("K", "V"))]
+    assert ids["shipped"] == spindle
+    for cid in ("K01", "V06"):
+        for name in ("temperature.csv", "displacement.csv"):
+            written = pd.read_csv(root / "shipped" / cid / name)
+            pd.testing.assert_frame_equal(written, pd.read_csv(REPO / "data" / "raw" / cid / name))
+
+
+def test_without_state_only_the_unseen_state_differs(demo_variants):
+    root, ids = demo_variants
+    assert ids["without_state"] == ids["shipped"]
+    a = pd.read_csv(root / "shipped" / "K02" / "displacement.csv")
+    b = pd.read_csv(root / "without_state" / "K02" / "displacement.csv")
+    assert list(a["elapsed_s"]) == list(b["elapsed_s"])
+    assert (a["Z"] - b["Z"]).abs().max() > 1.0  # um: the state changes the drift
+
+
+def _doc(named):
+    candidates = [{"effect": "sensor_lag", "delta_bic": 3.0, "heldout_reduction": -0.01,
+                   "heldout_T_reduction": 0.0, "passes": False}]  # fmt: skip
+    return {
+        "named_effects": named,
+        "rmse_um_before": 4.0,
+        "rmse_um_after": 1.0,
+        "rmse_T_K_before": 1.0,
+        "rmse_T_K_after": 0.5,
+        "validation": {"rmse_um_before": 5.0, "rmse_um_after": 2.0},
+        "steps": [
+            {
+                "effect": e,
+                "evidence": {
+                    "delta_bic": -50.0,
+                    "heldout_reduction": 0.3,
+                    "heldout_T_reduction": 0.1,
+                },
+            }  # fmt: skip
+            for e in named
+        ],
+        "candidates_by_step": [{"step": 1, "candidates": candidates}],
+        "seconds": 10.0,
+    }
+
+
+def test_summary_says_which_demo_effects_were_named():
+    r = summarise(_doc(["motor_heat", "centrifugal_growth"]))
+    assert r["demo_effects_named"] == ["motor_heat"]
+    assert r["named_but_not_in_demo"] == ["centrifugal_growth"]
+    assert set(r["demo_effects_not_named"]) == DEMO_EFFECTS - {"motor_heat"}
+    assert r["validation_rmse_um"] == [5.0, 2.0]
+    md = markdown({"shipped": r, "without_state": summarise(_doc([]))}, 2016)
+    assert "| shipped | motor_heat, centrifugal_growth |" in md
+    assert "| without_state | nothing |" in md and "4.00 -> 1.00" in md
+    assert "`sensor_lag`: delta BIC 3" in md
