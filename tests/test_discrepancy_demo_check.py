@@ -72,7 +72,9 @@ def test_summary_says_which_demo_effects_were_named():
     assert r["named_but_not_in_demo"] == ["centrifugal_growth"]
     assert set(r["demo_effects_not_named"]) == DEMO_EFFECTS - {"motor_heat"}
     assert r["validation_rmse_um"] == [5.0, 2.0]
-    md = markdown({"shipped": r, "without_state": summarise(_doc([]))}, 2016)
+    unsplit = summarise({**_doc([]), "quarantined": ["K02"]})
+    md = markdown({"shipped": r, "without_state": unsplit}, 2016)
+    assert "Quarantined by validation in `without_state` and left out: K02" in md
     assert "| shipped | motor_heat, centrifugal_growth |" in md
     assert "| without_state | nothing |" in md and "4.00 -> 1.00" in md
     assert "`sensor_lag`: delta BIC 3" in md

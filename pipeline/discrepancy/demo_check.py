@@ -71,6 +71,7 @@ def summarise(doc: dict[str, Any]) -> dict[str, Any]:
     val = doc.get("validation") or {}
     return {
         "named_effects": list(doc["named_effects"]),
+        "quarantined": list(doc.get("quarantined") or []),
         "demo_effects_named": sorted(set(doc["named_effects"]) & DEMO_EFFECTS),
         "demo_effects_not_named": sorted(DEMO_EFFECTS - set(doc["named_effects"])),
         "named_but_not_in_demo": sorted(set(doc["named_effects"]) - DEMO_EFFECTS),
@@ -119,6 +120,10 @@ def markdown(results: dict[str, dict[str, Any]], seed: int) -> str:
             f"{_pair(r['heldout_rmse_um'])} | {_pair(r['heldout_rmse_T_K'])} | "
             f"{_pair(r['validation_rmse_um'])} |"
         )
+    for variant, r in results.items():
+        if r["quarantined"]:
+            lines += ["", f"Quarantined by validation in `{variant}` and left out: "
+                      f"{', '.join(r['quarantined'])} (see the workflow's log)."]  # fmt: skip
     for variant, r in results.items():
         lines += ["", f"Candidates in the last round of `{variant}` (none passed):", ""]
         lines += [
