@@ -7,7 +7,7 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from pipeline.discrepancy.demo_check import markdown, summarise, write_demo
+from pipeline.discrepancy.demo_check import VARIANTS, markdown, summarise, write_demo
 from pipeline.twin.effects import DEMO_EFFECTS
 
 REPO = Path(__file__).resolve().parents[1]
@@ -16,7 +16,7 @@ REPO = Path(__file__).resolve().parents[1]
 @pytest.fixture(scope="module")
 def demo_variants(tmp_path_factory):
     root = tmp_path_factory.mktemp("demo")
-    ids = {v: write_demo(root / v, v) for v in ("shipped", "without_state")}
+    ids = {v: write_demo(root / v, v) for v in VARIANTS}
     return root, ids
 
 
@@ -38,6 +38,18 @@ def test_without_state_only_the_unseen_state_differs(demo_variants):
     b = pd.read_csv(root / "without_state" / "K02" / "displacement.csv")
     assert list(a["elapsed_s"]) == list(b["elapsed_s"])
     assert (a["Z"] - b["Z"]).abs().max() > 1.0  # um: the state changes the drift
+
+
+def test_speed_steps_keep_the_state_and_change_the_program(demo_variants):
+    root, ids = demo_variants
+    assert ids["speed_steps"] == ids["shipped"]
+    shipped = pd.read_csv(root / "shipped" / "K03" / "temperature.csv")
+    stepped = pd.read_csv(root / "speed_steps" / "K03" / "temperature.csv")
+    assert len(stepped) == len(shipped)
+    program = (root / "speed_steps" / "K03" / "campaign.yaml").read_text(encoding="utf-8")
+    assert program.count("rpm:") > (root / "shipped" / "K03" / "campaign.yaml").read_text(
+        encoding="utf-8"
+    ).count("rpm:")
 
 
 def _doc(named):

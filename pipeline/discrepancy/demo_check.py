@@ -5,11 +5,15 @@ effects :data:`pipeline.twin.effects.DEMO_EFFECTS` switched on, one constant spe
 and a per-campaign machine state no sensor sees (:data:`pipeline.twin.conditions.DEMO_SCATTER`:
 bearing preload and lubrication, the share of the friction heat entering the shaft, the
 shaft's cooling, the season's convection, warm starts). ``thermal discrepancy-demo-check``
-simulates the same demo spindle plans with the same seed twice:
+simulates the same demo spindle plans with the same seed three ways:
 
 * ``shipped``: as shipped in ``data/raw`` (the same files ``thermal simulate`` writes);
 * ``without_state``: the same plans with the state scatter off (``SpindlePlan(scatter=None)``:
   cold starts, only the twin's 5 % heat scatter between campaigns);
+* ``speed_steps``: the same plans with their state, but each run in speed steps (the programs
+  of the hidden-effect trials, :data:`pipeline.discrepancy.trials.PROGRAMS`) instead of one
+  constant speed: within a campaign the state is fixed, so the steps contrast the heat at
+  several speeds under the same state;
 
 runs the workflow on each like on measurements (:func:`pipeline.discrepancy.trials.
 run_workflow`, the ``discrepancy`` params) and writes ``demo_check.json`` and ``demo_check.md``:
@@ -24,12 +28,12 @@ import argparse
 import json
 import logging
 import tempfile
-from dataclasses import replace
+from dataclasses import fields, replace
 from pathlib import Path
 from typing import Any
 
 from pipeline.config import DEFAULT_PARAMS, load_section
-from pipeline.discrepancy.trials import run_workflow
+from pipeline.discrepancy.trials import PROGRAMS, SteppedPlan, run_workflow
 from pipeline.twin.campaigns import SpindlePlan, demo_plans, simulate_spindle_campaign
 from pipeline.twin.cli import DEFAULT_SEED
 from pipeline.twin.effects import DEMO_EFFECTS
@@ -37,7 +41,7 @@ from pipeline.twin.writer import write_campaign
 
 logger = logging.getLogger(__name__)
 
-VARIANTS = ("shipped", "without_state")
+VARIANTS = ("shipped", "without_state", "speed_steps")
 """The two simulations of the demo plans (see the module docstring)."""
 
 
@@ -56,11 +60,13 @@ def write_demo(raw: Path, variant: str, seed: int = DEFAULT_SEED) -> list[str]:
     if variant not in VARIANTS:
         raise ValueError(f"unknown variant '{variant}'; use one of {', '.join(VARIANTS)}")
     ids = []
-    for plan in demo_plans():
-        if not isinstance(plan, SpindlePlan):
-            continue
+    spindle = [p for p in demo_plans() if isinstance(p, SpindlePlan)]
+    for i, plan in enumerate(spindle):
         if variant == "without_state":
             plan = replace(plan, scatter=None)
+        elif variant == "speed_steps":
+            same = {f.name: getattr(plan, f.name) for f in fields(SpindlePlan)}
+            plan = SteppedPlan(**same, steps=PROGRAMS[i % len(PROGRAMS)])
         write_campaign(simulate_spindle_campaign(plan, seed=seed, effects=DEMO_EFFECTS), raw)
         ids.append(plan.campaign_id)
     return ids
@@ -107,7 +113,8 @@ def markdown(results: dict[str, dict[str, Any]], seed: int) -> str:
         f"Demo spindle plans, seed {seed}; the demo twin's effects beyond the baseline: "
         + ", ".join(f"`{e}`" for e in sorted(DEMO_EFFECTS))
         + ". `shipped` = the demo as shipped (per-campaign machine state no sensor sees); "
-        "`without_state` = the same plans with that state off (cold starts, 5 % heat scatter).",
+        "`without_state` = the same plans with that state off (cold starts, 5 % heat scatter); "
+        "`speed_steps` = the same plans and states, each run in speed steps.",
         "",
         "| variant | named | demo effects not named | held-out Z RMS (um) | held-out T RMS (K) "
         "| validation Z RMS (um) |",
