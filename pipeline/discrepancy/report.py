@@ -102,6 +102,21 @@ def _pct(x: float | None) -> str:
     return "n/a" if x is None or not np.isfinite(x) else f"{100 * x:.0f} %"
 
 
+def _per_campaign_table(label: str, per_campaign: Mapping[str, Any]) -> list[str]:
+    """Markdown rows: Z (um) and temperature (K) RMS before and after, one row per campaign."""
+    lines = [
+        f"| {label} | Z before (um) | Z after (um) | T before (K) | T after (K) |",
+        "|---|---:|---:|---:|---:|",
+    ]
+    for cid, row in per_campaign.items():
+        b, a = row["before"], row["after"]
+        lines.append(
+            f"| {cid} | {_fmt(b.get('z_um'))} | {_fmt(a.get('z_um'))} | "
+            f"{_fmt(b.get('t_k'))} | {_fmt(a.get('t_k'))} |"
+        )
+    return lines
+
+
 def markdown(doc: Mapping[str, Any], figures: Sequence[str]) -> str:
     """Write the engineer's report (``discrepancy.md``) from the JSON document."""
     named = doc["named_effects"]
@@ -165,15 +180,8 @@ def markdown(doc: Mapping[str, Any], figures: Sequence[str]) -> str:
         + (f"the twin + {', '.join(named)}" if named else "no effect added")
         + f"; temperatures {_fmt(doc['rmse_T_K_before'])} K -> {_fmt(doc['rmse_T_K_after'])} K.",
         "",
-        "| campaign | Z before (um) | Z after (um) | T before (K) | T after (K) |",
-        "|---|---:|---:|---:|---:|",
     ]
-    for cid, row in doc["per_campaign"].items():
-        b, a = row["before"], row["after"]
-        lines.append(
-            f"| {cid} | {_fmt(b.get('z_um'))} | {_fmt(a.get('z_um'))} | "
-            f"{_fmt(b.get('t_k'))} | {_fmt(a.get('t_k'))} |"
-        )
+    lines += _per_campaign_table("campaign", doc["per_campaign"])
     val = doc.get("validation")
     if val:
         lines += [
@@ -188,15 +196,8 @@ def markdown(doc: Mapping[str, Any], figures: Sequence[str]) -> str:
             + (f"the twin + {', '.join(named)}" if named else "with nothing added it is the same")
             + f": **{_fmt(val['rmse_um_after'])} um**, {_fmt(val['rmse_T_K_after'])} K.",
             "",
-            "| validation campaign | Z before (um) | Z after (um) | T before (K) | T after (K) |",
-            "|---|---:|---:|---:|---:|",
         ]
-        for cid, row in val["per_campaign"].items():
-            b, a = row["before"], row["after"]
-            lines.append(
-                f"| {cid} | {_fmt(b.get('z_um'))} | {_fmt(a.get('z_um'))} | "
-                f"{_fmt(b.get('t_k'))} | {_fmt(a.get('t_k'))} |"
-            )
+        lines += _per_campaign_table("validation campaign", val["per_campaign"])
     if "after" in doc["localisation"] and named:
         lines += ["", "## What remains after adding the named effects", ""]
         lines += [f"- {f}" for f in doc["localisation"]["after"]["findings"]]
