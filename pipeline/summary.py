@@ -47,6 +47,21 @@ def summary_lines(root: Path) -> list[str]:
             f"  axis model       {paths.AXIS_MODEL_REPORT}: validation residual "
             f"{_um(figures.get('residual_min_um'))} to {_um(figures.get('residual_max_um'))} um"
         )
+    discrepancy = root / paths.DISCREPANCY_DOCUMENT
+    if discrepancy.is_file():
+        doc = json.loads(discrepancy.read_text())
+        val = doc.get("validation") or {}
+        lines.append(
+            f"  twin vs data     {paths.DISCREPANCY}/discrepancy.md: named "
+            f"{', '.join(doc['named_effects']) or 'nothing'}; held-out Z "
+            f"{_um(doc['rmse_um_before'])} -> {_um(doc['rmse_um_after'])} um"
+            + (
+                f", validation Z {_um(val.get('rmse_um_before'))} -> "
+                f"{_um(val.get('rmse_um_after'))} um"
+                if val
+                else ""
+            )
+        )
     lines += [
         f"  comparison       {paths.MODEL_COMPARISON} (every model, scores, heat-maps, plots)",
         f"  selection        {paths.SELECTION}/ (sensitive points, evidence, stability)",

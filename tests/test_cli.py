@@ -1,4 +1,5 @@
 import importlib
+import json
 import subprocess
 import sys
 
@@ -28,4 +29,16 @@ def test_unknown_command_is_a_usage_error(capsys):
 
 def test_summary_points_at_the_mlflow_ui(tmp_path, capsys):
     assert main(["summary", "--root", str(tmp_path)]) == 0
-    assert "mlflow ui --backend-store-uri sqlite:///mlflow.db" in capsys.readouterr().out
+    out = capsys.readouterr().out
+    assert "mlflow ui --backend-store-uri sqlite:///mlflow.db" in out
+    assert "twin vs data" not in out  # no discrepancy report yet
+
+
+def test_summary_says_what_the_twin_comparison_named(tmp_path, capsys):
+    doc = {"named_effects": ["motor_heat"], "rmse_um_before": 3.641, "rmse_um_after": 3.65,
+           "validation": {"rmse_um_before": 5.37, "rmse_um_after": 4.81}}  # fmt: skip
+    (tmp_path / "reports" / "discrepancy").mkdir(parents=True)
+    (tmp_path / "reports" / "discrepancy" / "discrepancy.json").write_text(json.dumps(doc))
+    assert main(["summary", "--root", str(tmp_path)]) == 0
+    out = capsys.readouterr().out
+    assert "named motor_heat; held-out Z 3.64 -> 3.65 um, validation Z 5.37 -> 4.81 um" in out
