@@ -451,3 +451,18 @@ def test_mlflow_run_holds_the_metrics_and_figures(tmp_path, monkeypatch):
     assert run.data.metrics[f"rmse_um_after.{cid}"] == pytest.approx(after)
     names = {a.path for a in client.list_artifacts(run_id, "discrepancy")}
     assert "discrepancy/heldout_fit.png" in names and "discrepancy/discrepancy.md" in names
+
+
+def test_the_motor_loss_is_reported_with_the_rise_it_fixes():
+    from pipeline.discrepancy.report import _motor_rise
+
+    params = {
+        "q_motor_W_per_krpm": {"value": 52.0, "unit": "W/krpm"},
+        "h_motor_W_per_K": {"value": 20.0, "unit": "W/K"},
+        "G_motor_headstock_W_per_K": {"value": 6.0, "unit": "W/K"},
+    }
+    assert _motor_rise(params) == pytest.approx(2.0)  # K per 1000 rpm
+    # the same rise with every heat flow doubled: the temperatures cannot tell them apart
+    doubled = {k: {**v, "value": 2 * v["value"]} for k, v in params.items()}
+    assert _motor_rise(doubled) == pytest.approx(_motor_rise(params))
+    assert _motor_rise({"h_motor_W_per_K": {"value": 1.0, "unit": "W/K"}}) is None

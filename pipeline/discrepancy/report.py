@@ -102,6 +102,16 @@ def _pct(x: float | None) -> str:
     return "n/a" if x is None or not np.isfinite(x) else f"{100 * x:.0f} %"
 
 
+def _motor_rise(params: Mapping[str, Any]) -> float | None:
+    """Steady rise of the motor node over its surroundings per 1000 rpm, K (None if n/a)."""
+    names = ("q_motor_W_per_krpm", "h_motor_W_per_K", "G_motor_headstock_W_per_K")
+    values = [(params.get(n) or {}).get("value") for n in names]
+    if any(v is None for v in values):
+        return None
+    q, h, g = values
+    return q / (h + g)
+
+
 def _per_campaign_table(label: str, per_campaign: Mapping[str, Any]) -> list[str]:
     """Markdown rows: Z (um) and temperature (K) RMS before and after, one row per campaign."""
     lines = [
@@ -168,6 +178,15 @@ def markdown(doc: Mapping[str, Any], figures: Sequence[str]) -> str:
             lines.append(
                 f"  - its own calibrated parameters: {shown} (all parameters in discrepancy.json)"
             )
+            rise = _motor_rise(step["parameters"]) if step["effect"] == "motor_heat" else None
+            if rise is not None:
+                lines.append(
+                    "  - read the motor loss together with the node's cooling: the temperatures "
+                    "fix the motor node's steady rise over its surroundings, q / (h + G) = "
+                    f"{_fmt(rise, 3)} K per 1000 rpm, and its time constant, not q, h and its "
+                    "heat capacity one by one (they scale together while its link to the "
+                    "headstock is weak)"
+                )
     else:
         lines.append(
             "No candidate effect passes the thresholds: the baseline twin explains the data "
