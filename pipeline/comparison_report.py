@@ -65,9 +65,9 @@ temperatures, its parameters calibrated by least squares on the temperatures and
 training unit's campaigns only. Its effect set was named by the discrepancy stage on the
 training campaigns (the validation campaigns are held back from that search), so its validation
 scores are out-of-sample for the structure too (the leave-one-season-out and single-campaign
-units share that set, named on all training campaigns). It is ranked here but never chosen as
-champion: the registered model predicts from a table of temperatures, the twin needs the spindle
-program.
+units share that set, named on all training campaigns). It is ranked here but
+never chosen as champion: the registered model predicts from a table of temperatures, the twin
+needs the spindle program.
 Twin used: {source}.
 """
 

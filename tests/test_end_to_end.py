@@ -155,7 +155,14 @@ def test_every_score_reaches_a_real_mlflow_server_once_and_the_champion_loads(tm
         assert twin["rmse_um"].notna().all()
 
         disc = json.loads((work / "reports" / "discrepancy" / "discrepancy.json").read_text())
-        assert disc["rmse_um_after"] <= disc["rmse_um_before"]
+        # every named effect met the rule on the held-out campaigns, in Z or in temperature
+        rule = disc["thresholds"]
+        for step in disc["steps"]:
+            ev = step["evidence"]
+            assert ev["delta_bic"] <= rule["max_delta_bic"]
+            by_z = ev["heldout_reduction"] >= rule["min_heldout_reduction"]
+            by_t = ev["heldout_T_reduction"] >= rule["min_heldout_temperature_reduction"]
+            assert by_z or by_t
         assert (work / "reports" / "discrepancy" / "heldout_fit.png").stat().st_size > 10_000
         discrepancy = client.get_experiment_by_name(params["discrepancy"]["experiment"])
         (disc_run,) = client.search_runs([discrepancy.experiment_id])
