@@ -12,6 +12,13 @@ stage), keeps the spindle-drift campaigns, then
 3. writes ``<out>/discrepancy.json``, ``<out>/discrepancy.md``, ``<out>/localisation.csv`` and
    the figures, and logs an MLflow run with the same files (:mod:`pipeline.discrepancy.report`).
 
+When the campaigns cannot be compared with the twin -- fewer than two valid spindle-drift
+campaigns with a Z displacement, or no sensor with a structure role (the twin's nodes are
+built from the roles; campaigns whose sensors are all ``other`` give it nothing to attach
+to) -- the stage still succeeds: it writes ``discrepancy.json`` with ``status: untestable``,
+the reason and the roles it would need, and ``discrepancy.md`` saying so, so that the rest of
+``dvc repro`` goes on (the ``twin`` candidate of ``evaluate`` is then skipped with that reason).
+
 Parameters: ``params.yaml`` section ``discrepancy`` (thresholds, folds, n_jobs, MLflow store);
 the ingest and validation limits come from the ``ingest`` and ``validate`` sections so that a
 campaign is read and quarantined exactly as by those stages.
@@ -29,8 +36,15 @@ from pipeline import paths
 from pipeline.config import DEFAULT_PARAMS, load_section
 from pipeline.discrepancy.data import MeasuredCampaign, campaigns_from_tables
 from pipeline.discrepancy.localise import LocaliseSettings, localise
-from pipeline.discrepancy.report import build_document, log_mlflow, write_outputs
-from pipeline.discrepancy.search import SearchResult, SearchSettings, search_twin
+from pipeline.discrepancy.model import ROLE_NODES
+from pipeline.discrepancy.report import (
+    build_document,
+    log_mlflow,
+    untestable_document,
+    write_outputs,
+    write_untestable,
+)
+from pipeline.discrepancy.search import SearchResult, SearchSettings, campaign_roles, search_twin
 from pipeline.ingest import ingest
 from pipeline.validate import validate_tables
 from pipeline.validation.limits import limits_from_params
@@ -64,11 +78,6 @@ def read_raw(
         Campaigns left out, each logged with its problems.
     synthetic : bool
         True if any kept campaign is flagged ``synthetic`` in its campaign.yaml.
-
-    Raises
-    ------
-    ValueError
-        When fewer than 2 valid spindle campaigns remain.
     """
     tables = ingest(Path(raw_dir), max_alignment_gap_s)
     limits = limits_from_params(validate_params)
@@ -87,15 +96,45 @@ def read_raw(
         "spindle"
     ]
     campaigns = campaigns_from_tables(spindle["campaigns"], spindle["samples"])
-    if len(campaigns) < 2:
-        raise ValueError(
-            f"{raw_dir}: {len(campaigns)} valid spindle-drift campaign(s) with a Z displacement; "
-            "the discrepancy workflow needs at least 2 (one is held out); add campaigns or fix "
-            "the quarantined ones"
-        )
     meta = spindle["campaigns"]
     synthetic = bool("synthetic" in meta and pd.Series(meta["synthetic"]).fillna(False).any())
     return campaigns, list(result.quarantined), synthetic
+
+
+STRUCTURE_ROLES = tuple(ROLE_NODES)
+"""Sensor roles that are nodes of the twin's thermal network (at least one is needed)."""
+MIN_CAMPAIGNS = 2
+
+
+def untestable_reason(campaigns: list[MeasuredCampaign]) -> str | None:
+    """Why the twin cannot be compared with these campaigns, or None when it can.
+
+    Parameters
+    ----------
+    campaigns : list of MeasuredCampaign
+        The valid spindle-drift campaigns with a Z displacement.
+
+    Returns
+    -------
+    str or None
+        In words, with what to add: too few campaigns (the search holds campaigns out), or no
+        sensor whose role is a node of the twin's network.
+    """
+    if len(campaigns) < MIN_CAMPAIGNS:
+        return (
+            f"{len(campaigns)} valid spindle-drift campaign(s) with a Z displacement; the "
+            f"comparison needs at least {MIN_CAMPAIGNS} (campaigns are held out to test each "
+            "effect): add campaigns with a Z probe or fix the quarantined ones"
+        )
+    roles = campaign_roles(campaigns)
+    if not roles & set(STRUCTURE_ROLES):
+        return (
+            f"no sensor has a structure role (roles present: {', '.join(sorted(roles))}): the "
+            "twin's thermal network is built from the places of the sensors; give the sensors "
+            "on the machine their role in campaign.yaml (at least one of "
+            f"{', '.join(STRUCTURE_ROLES)})"
+        )
+    return None
 
 
 def run(
@@ -157,8 +196,43 @@ def run(
     return result, doc
 
 
+def run_untestable(
+    campaigns: list[MeasuredCampaign],
+    reason: str,
+    section: dict,
+    out_dir: Path,
+    *,
+    quarantined: list[str] | None = None,
+    synthetic: bool = False,
+    mlflow: bool = True,
+) -> dict:
+    """Write the report of campaigns the twin cannot be compared with (status untestable).
+
+    Returns
+    -------
+    dict
+        The ``discrepancy.json`` content.
+    """
+    doc = untestable_document(
+        reason,
+        needed_roles=list(STRUCTURE_ROLES),
+        roles_present=sorted(campaign_roles(campaigns)),
+        campaign_ids=[c.campaign_id for c in campaigns],
+        quarantined=quarantined or [],
+        synthetic=synthetic,
+    )
+    files = write_untestable(out_dir, doc)
+    logger.warning("discrepancy: untestable: %s", reason)
+    if mlflow and section.get("mlflow", True):
+        try:
+            doc["mlflow_run_id"] = log_mlflow(files, doc, section)
+        except Exception as err:  # the report stands without the tracking record
+            logger.warning("MLflow logging failed (%s); the report files are written", err)
+    return doc
+
+
 def main(argv: list[str] | None = None) -> int:
-    """Run the stage; return 0, or 1 when the raw folder has too few usable campaigns."""
+    """Run the stage; return 0 (also when untestable), 1 when the raw folder cannot be read."""
     parser = argparse.ArgumentParser(
         prog="thermal discrepancy", description=__doc__.splitlines()[0]
     )
@@ -178,12 +252,10 @@ def main(argv: list[str] | None = None) -> int:
     except (ValueError, FileNotFoundError) as err:
         logger.error("%s", err)
         return 1
-    run(
-        campaigns,
-        section,
-        args.out,
-        quarantined=quarantined,
-        synthetic=synthetic,
-        mlflow=not args.no_mlflow,
-    )
+    reason = untestable_reason(campaigns)
+    common = {"quarantined": quarantined, "synthetic": synthetic, "mlflow": not args.no_mlflow}
+    if reason is not None:
+        run_untestable(campaigns, reason, section, args.out, **common)
+    else:
+        run(campaigns, section, args.out, **common)
     return 0

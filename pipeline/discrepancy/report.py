@@ -42,6 +42,74 @@ EFFECT_WORDS = {
 }
 """One line per effect, for the report."""
 
+STATUS_TESTED = "tested"
+STATUS_UNTESTABLE = "untestable"
+"""``discrepancy.json`` ``status``: the twin was compared with the campaigns, or could not be."""
+
+
+def untestable_document(
+    reason: str,
+    *,
+    needed_roles: Sequence[str],
+    roles_present: Sequence[str],
+    campaign_ids: Sequence[str],
+    quarantined: Sequence[str],
+    synthetic: bool,
+) -> dict[str, Any]:
+    """Return the ``discrepancy.json`` of campaigns the twin cannot be compared with.
+
+    Fields: ``status`` (``untestable``), ``reason`` (in words, with what to add),
+    ``needed_roles`` (sensor roles the twin's network is built from; at least one is needed),
+    ``roles_present``, ``named_effects`` (empty), ``campaigns``, ``quarantined``,
+    ``synthetic``.
+    """
+    return {
+        "status": STATUS_UNTESTABLE,
+        "reason": reason,
+        "needed_roles": list(needed_roles),
+        "roles_present": list(roles_present),
+        "named_effects": [],
+        "campaigns": list(campaign_ids),
+        "quarantined": list(quarantined),
+        "synthetic": bool(synthetic),
+    }
+
+
+def untestable_markdown(doc: Mapping[str, Any]) -> str:
+    """Write the engineer's report when the twin cannot be compared with the campaigns."""
+    source = "synthetic campaigns (not measurements)" if doc["synthetic"] else "measured campaigns"
+    quarantined = (
+        f" Quarantined and left out: {', '.join(doc['quarantined'])}." if doc["quarantined"] else ""
+    )
+    return "\n".join([
+        "# Where the twin and the measurements disagree",
+        "",
+        f"**Untestable on these campaigns.** {doc['reason']}.",
+        "",
+        f"Data: {len(doc['campaigns'])} spindle campaign(s) with a Z displacement, {source}; "
+        f"sensor roles present: {', '.join(doc['roles_present']) or 'none'}.{quarantined}",
+        "",
+        "The physical twin is a thermal network whose nodes are the places of the sensors "
+        "(`campaign.yaml` `sensors: <name>: {role: ...}`). Roles it can use: "
+        + ", ".join(f"`{r}`" for r in doc["needed_roles"])
+        + "; `ambient` drives it. Nothing was calibrated or named, and the `twin` candidate of "
+        "the model comparison is skipped for this reason. The rest of the pipeline (the "
+        "regression models, their scores and the champion) does not need the roles.",
+        "",
+    ])  # fmt: skip
+
+
+def write_untestable(out_dir: Path, doc: Mapping[str, Any]) -> list[Path]:
+    """Write ``discrepancy.json`` and ``discrepancy.md`` of an untestable folder."""
+    out_dir.mkdir(parents=True, exist_ok=True)
+    for stale in (FIT_FIGURE, RESIDUAL_FIGURE, LOCALISATION_CSV):
+        (out_dir / stale).unlink(missing_ok=True)
+    json_path = out_dir / JSON_FILE
+    json_path.write_text(json.dumps(doc, indent=2, ensure_ascii=False) + "\n", encoding="utf-8")
+    md_path = out_dir / MARKDOWN_FILE
+    md_path.write_text(untestable_markdown(doc), encoding="utf-8")
+    return [json_path, md_path]
+
 
 def build_document(
     result: SearchResult,
@@ -55,15 +123,15 @@ def build_document(
 ) -> dict[str, Any]:
     """Assemble the content of ``discrepancy.json``.
 
-    Fields: ``named_effects``, ``rmse_um_before``, ``rmse_um_after`` (held-out Z RMS, um),
-    ``rmse_T_K_before/after``, ``per_campaign``, ``steps`` (effect, evidence, RMS before/after,
-    calibrated parameters with units), ``candidates_by_step`` (evidence of every candidate at
-    every step), ``untestable`` (effect -> missing roles), ``localisation`` (findings, ambient
-    lag, before and after), ``thresholds``, ``campaigns``, ``quarantined``, ``synthetic``,
-    ``validation`` (the named effects checked on the validation campaigns held back from the
-    search, or None).
+    Fields: ``status`` (``tested``), ``named_effects``, ``rmse_um_before``,
+    ``rmse_um_after`` (held-out Z RMS, um), ``rmse_T_K_before/after``, ``per_campaign``,
+    ``steps`` (effect, evidence, RMS before/after, calibrated parameters with units),
+    ``candidates_by_step`` (evidence of every candidate at every step), ``untestable``
+    (effect -> missing roles), ``localisation`` (findings, ambient lag, before and after),
+    ``thresholds``, ``campaigns``, ``quarantined``, ``synthetic``, ``validation`` (the named
+    effects checked on the validation campaigns held back from the search, or None).
     """
-    doc = result.to_dict()
+    doc = {"status": STATUS_TESTED, **result.to_dict()}
     doc["localisation"] = {
         "before": {
             "findings": before.findings,
@@ -387,9 +455,12 @@ def log_mlflow(files: Sequence[Path], doc: Mapping[str, Any], settings: Mapping[
     experiment_id = ensure_experiment(client, experiment, location)
     tags = {
         "stage": "discrepancy",
+        "status": str(doc.get("status", STATUS_TESTED)),
         "synthetic": str(bool(doc["synthetic"])).lower(),
         "named_effects": ",".join(doc["named_effects"]) or "none",
     }
+    if doc.get("status") == STATUS_UNTESTABLE:
+        tags["mlflow.note.content"] = f"Untestable: {doc['reason']}"
     run = client.create_run(experiment_id, tags=tags, run_name="discrepancy")
     run_id = run.info.run_id
     try:
@@ -397,14 +468,15 @@ def log_mlflow(files: Sequence[Path], doc: Mapping[str, Any], settings: Mapping[
             if doc.get(key) is not None:
                 client.log_metric(run_id, key, float(doc[key]))
         # the gap along the search: step 0 = baseline, step k = after the k-th named effect
-        client.log_metric(run_id, "heldout_rmse_um", float(doc["rmse_um_before"]), step=0)
-        for k, step in enumerate(doc["steps"], start=1):
+        if doc.get("rmse_um_before") is not None:
+            client.log_metric(run_id, "heldout_rmse_um", float(doc["rmse_um_before"]), step=0)
+        for k, step in enumerate(doc.get("steps", []), start=1):
             client.log_metric(run_id, "heldout_rmse_um", float(step["rmse_um_after"]), step=k)
             for name, value in step["effect_parameters"].items():
                 if value["value"] is not None:
                     client.log_param(run_id, f"{step['effect']}.{name}_{value['unit']}",
                                      value["value"])  # fmt: skip
-        for cid, pair in doc["per_campaign"].items():  # held-out, per campaign
+        for cid, pair in doc.get("per_campaign", {}).items():  # held-out, per campaign
             for when in ("before", "after"):
                 for key, name in (("z_um", "rmse_um"), ("t_k", "rmse_T_K")):
                     value = pair[when].get(key)
@@ -415,7 +487,7 @@ def log_mlflow(files: Sequence[Path], doc: Mapping[str, Any], settings: Mapping[
             if val.get(key) is not None:  # the validation campaigns the search never saw
                 client.log_metric(run_id, f"validation_{key}", float(val[key]))
         client.log_param(run_id, "named_effects", ",".join(doc["named_effects"]) or "none")
-        for name, value in doc["thresholds"].items():
+        for name, value in doc.get("thresholds", {}).items():
             client.log_param(run_id, name, str(value))
         client.log_param(run_id, "campaigns", ",".join(doc["campaigns"])[:500])
         for path in files:
