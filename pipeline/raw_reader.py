@@ -211,6 +211,8 @@ def _campaign_row(folder: Path, meta: dict[str, Any], report) -> dict[str, Any]:
         "season_derived": bool(season_derived),
         "synthetic": bool(meta.get("synthetic", False)),
         "split": str(meta.get("split", "train")),
+        "start_state": _optional_text(meta.get("start_state")),
+        "follows": _optional_text(meta.get("follows")),
         "axis_name": str(axis["name"]) if "name" in axis else None,
         "stroke_mm": float(axis.get("stroke_mm", np.nan)),
         "sensors_json": json.dumps(
@@ -221,6 +223,11 @@ def _campaign_row(folder: Path, meta: dict[str, Any], report) -> dict[str, Any]:
         "has_spindle_log": (folder / "spindle.csv").is_file(),
         "source_dir": str(folder),
     }
+
+
+def _optional_text(value: Any) -> str | None:
+    """Return a yaml value as stripped text, None when absent or empty."""
+    return None if value is None or str(value).strip() == "" else str(value).strip()
 
 
 def _read_text_csv(path: Path, report) -> pd.DataFrame | None:

@@ -30,6 +30,7 @@ from schemas.vocabulary import (
     SENSOR_ROLES,
     SPINDLE_KIND,
     SPLITS,
+    START_STATES,
     displacement_column,
     displacement_row_column,
     uses_ds18b20_codes,
@@ -37,6 +38,7 @@ from schemas.vocabulary import (
 
 DATAFRAME_CHECK_COLUMNS = {
     "time_increasing": "elapsed_s",
+    "follows_other": "follows",
     "displacement_declared": "displacement_json",
     "axis_declared": "axis_name",
     "single_ambient": "role",
@@ -131,6 +133,8 @@ class CampaignsModel(pa.DataFrameModel):
     season_derived: Series[bool]
     synthetic: Series[bool]
     split: Series[str]
+    start_state: Series[str] = pa.Field(nullable=True, coerce=True)
+    follows: Series[str] = pa.Field(nullable=True, coerce=True)
     axis_name: Series[str] = pa.Field(nullable=True, coerce=True)
     stroke_mm: Series[float] = pa.Field(nullable=True, coerce=True)
     sensors_json: Series[str]
@@ -167,6 +171,24 @@ class CampaignsModel(pa.DataFrameModel):
     def split_known(cls, s: Series[str]) -> Series[bool]:
         """Check that ``split`` is train or validation."""
         return s.isin(SPLITS)
+
+    @pa.check("start_state")
+    @classmethod
+    def start_state_known(cls, s: Series[str]) -> Series[bool]:
+        """Check that ``start_state`` is cold or warm (or not given)."""
+        return s.isna() | s.isin(START_STATES)
+
+    @pa.check("follows")
+    @classmethod
+    def follows_format(cls, s: Series[str]) -> Series[bool]:
+        """Check that ``follows`` is a campaign id (letters, digits, '-', '_') or not given."""
+        return s.isna() | s.str.match(_ID_PATTERN).fillna(False).astype(bool)
+
+    @pa.dataframe_check
+    @classmethod
+    def follows_other(cls, df: pd.DataFrame) -> Series[bool]:
+        """Check that a campaign does not follow itself."""
+        return df["follows"].isna() | (df["follows"] != df["campaign_id"])
 
     @pa.check("season")
     @classmethod

@@ -16,6 +16,10 @@ SPINDLE_KIND, AXIS_KIND = KINDS
 SPLITS = ("train", "validation")
 """Known values of ``split:`` in campaign.yaml."""
 
+START_STATES = ("cold", "warm")
+"""Known values of ``start_state:`` in campaign.yaml: at rest in equilibrium with the air when
+the first sample was taken, or not (it ran, or stopped too shortly before)."""
+
 SEASONS = ("spring", "summer", "autumn", "winter")
 """Known values of ``season:`` in campaign.yaml (or derived from ``start``)."""
 

@@ -87,3 +87,14 @@ def test_raw_files_are_not_modified(tmp_path):
     before = {p.name: p.read_bytes() for p in folder.iterdir()}
     ingest(tmp_path, max_alignment_gap_s=200.0)
     assert {p.name: p.read_bytes() for p in folder.iterdir()} == before
+
+
+def test_start_state_and_follows_are_read_and_optional(tmp_path):
+    write_spindle_campaign(tmp_path, "K01", n=10)
+    folder = write_spindle_campaign(tmp_path, "K02", n=10)
+    meta = (folder / "campaign.yaml").read_text()
+    (folder / "campaign.yaml").write_text(meta + "start_state: warm\nfollows: K01\n")
+    campaigns = ingest(tmp_path, max_alignment_gap_s=200.0)["campaigns"].set_index("campaign_id")
+    assert campaigns.loc["K02", "start_state"] == "warm"
+    assert campaigns.loc["K02", "follows"] == "K01"
+    assert campaigns.loc["K01", ["start_state", "follows"]].isna().all()

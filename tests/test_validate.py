@@ -65,6 +65,8 @@ def _campaign_row(campaign_id, kind, sensors, displacement, axis_name=None, stro
         "season_derived": False,
         "synthetic": True,
         "split": "train",
+        "start_state": None,
+        "follows": None,
         "axis_name": axis_name,
         "stroke_mm": stroke,
         "sensors_json": json.dumps(sensors),
@@ -456,6 +458,9 @@ def test_axis_campaign_without_laser_rows():
         ("season", "monsoon", "season_known", "season"),
         ("axis_name", None, "axis_declared", "axis.name"),
         ("start", pd.NaT, "metadata_missing", "start"),
+        ("start_state", "hot", "start_state_known", "start_state"),
+        ("follows", "../K00", "follows_format", "follows"),
+        ("follows", "K01", "follows_other", "follows"),
     ],
 )
 def test_campaign_metadata(column, value, check, report_column):

@@ -193,6 +193,27 @@ PROBLEM_TEXTS: dict[str, ProblemText] = {
         f"start:, {RERUN}",
         column="season",
     ),
+    "start_state_known": ProblemText(
+        "start_state {value} in {campaign}/campaign.yaml is not cold or warm",
+        "set start_state: cold (the machine was at rest at the air temperature at the first "
+        "sample) or warm (it had been running), or delete the key, in "
+        f"{{campaign}}/campaign.yaml, {RERUN}",
+        column="start_state",
+    ),
+    "follows_format": ProblemText(
+        "follows {value} in {campaign}/campaign.yaml is not a campaign id (letters, digits, "
+        "'-', '_')",
+        "set follows: to the id of the campaign this one continues without a break, or delete "
+        f"the key, in {{campaign}}/campaign.yaml, {RERUN}",
+        column="follows",
+    ),
+    "follows_other": ProblemText(
+        "{campaign}/campaign.yaml says the campaign follows itself",
+        "set follows: to the id of the campaign that ended where this one starts, or delete "
+        f"the key, in {{campaign}}/campaign.yaml, {RERUN}",
+        column="follows",
+        row_level=False,
+    ),
     "campaign_id_format": ProblemText(
         "campaign_id {value} has characters other than letters, digits, '-' and '_'",
         f"rename the folder data/raw/{{campaign}} and its campaign_id:, {RERUN}",
