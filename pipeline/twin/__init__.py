@@ -12,6 +12,10 @@ library of named, switchable physical effects. Modules:
 ``conditions`` campaign-to-campaign machine state no sensor sees (bearings, convection, warm
                start, probe mounting), drawn per campaign by the demo plans
 ``campaigns``  plans, measurement chain (sensors, probe, laser), demo set
+``lateral``    X and Y drift terms of the spindle nose (workshop preset)
+``instruments``
+               placed sensors, eddy-current probes and speed log (workshop preset)
+``workshop``   the workshop preset: one two-day run cut into six back-to-back campaigns
 ``writer``     :func:`write_campaign` in the raw campaign contract
 ``cli``        ``thermal simulate``
 """

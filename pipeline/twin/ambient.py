@@ -151,3 +151,74 @@ class Climate:
 def season_of(start: datetime) -> str:
     """Meteorological season of a date (northern hemisphere): Dec-Feb winter, etc."""
     return SEASON_OF_MONTH[start.month]
+
+
+@dataclass(frozen=True)
+class WeatherAmbient:
+    """A daily-cycle profile plus a slow weather wander: ``T(t) = profile(t) + w(t)``.
+
+    ``w`` is piecewise linear through its knots (a random walk drawn by
+    :func:`draw_weather`) and held constant outside them; it models the day-to-day change of
+    the weather an unconditioned workshop follows over a run of several days, which a single
+    linear drift (:attr:`AmbientProfile.drift_k_per_h`) cannot do for long.
+
+    Attributes
+    ----------
+    profile : AmbientProfile
+        Season mean and daily cycle (its ``drift_k_per_h`` adds to the wander).
+    knots_s : tuple of float
+        Knot instants of the wander, s since the start, increasing.
+    wander_k : tuple of float
+        Wander at the knots, K.
+    """
+
+    profile: AmbientProfile
+    knots_s: tuple[float, ...]
+    wander_k: tuple[float, ...]
+
+    def at(self, t_s: np.ndarray | float) -> np.ndarray:
+        """Air temperature, degC, same shape as ``t_s`` (s since the start)."""
+        t = np.asarray(t_s, dtype=float)
+        return self.profile.at(t) + np.interp(t, self.knots_s, self.wander_k)
+
+
+def draw_weather(
+    profile: AmbientProfile,
+    from_s: float,
+    to_s: float,
+    rng: np.random.Generator,
+    *,
+    knot_h: float = 6.0,
+    sd_k_per_sqrt_h: float = 0.2,
+) -> WeatherAmbient:
+    """Draw a weather wander over ``[from_s, to_s]`` on top of ``profile``.
+
+    The wander is a Gaussian random walk sampled every ``knot_h`` hours (standard deviation
+    ``sd_k_per_sqrt_h * sqrt(knot_h)`` per knot), shifted so that it is 0 at t = 0: the
+    profile's mean stays the air's daily mean at the start. With the defaults the daily mean
+    wanders by about 1 K (1 sd) over two days, an engineering estimate for an unconditioned
+    workshop in spring or autumn (no measurement behind it).
+
+    Parameters
+    ----------
+    profile : AmbientProfile
+    from_s, to_s : float
+        Time span to cover, s since the start (from_s < 0 covers the pre-roll).
+    rng : numpy.random.Generator
+        One normal draw per knot.
+    knot_h : float
+        Knot spacing, h.
+    sd_k_per_sqrt_h : float
+        Random-walk intensity, K/sqrt(h).
+
+    Returns
+    -------
+    WeatherAmbient
+    """
+    if not to_s > from_s or knot_h <= 0:
+        raise ValueError("draw_weather: need to_s > from_s and knot_h > 0")
+    step_s = knot_h * 3600.0
+    knots = from_s + step_s * np.arange(int(np.ceil((to_s - from_s) / step_s)) + 1)
+    walk = np.cumsum(sd_k_per_sqrt_h * np.sqrt(knot_h) * rng.standard_normal(knots.size))
+    walk -= np.interp(0.0, knots, walk)
+    return WeatherAmbient(profile, tuple(knots.tolist()), tuple(walk.tolist()))

@@ -160,7 +160,10 @@ class CampaignInfo:
 
     Attributes
     ----------
-    campaign_id, kind, machine, season, split : str
+    campaign_id, kind, machine, season : str
+    split : str or None
+        ``"train"`` or ``"validation"``; None writes no ``split`` key (the contract's default,
+        train).
     start : datetime
     notes : str
         Free text (provenance); never names the effects used.
@@ -171,7 +174,7 @@ class CampaignInfo:
     machine: str
     start: datetime
     season: str
-    split: str
+    split: str | None
     notes: str
 
 
@@ -278,7 +281,32 @@ def read_sensors(
     ndarray of shape (n_t, n_sensors), degC, multiples of ``noise.resolution_degc``.
     """
     offsets = np.array([s.offset_degc for s in sensors])
-    value = true_degC + offsets + noise.noise_sd_degc * rng.standard_normal(true_degC.shape)
+    return read_temperatures(true_degC, offsets, noise, rng)
+
+
+def read_temperatures(
+    true_degC: np.ndarray,
+    offsets_degC: np.ndarray,
+    noise: SensorNoise,
+    rng: np.random.Generator,
+) -> np.ndarray:
+    """Add each sensor's offset and white noise to true temperatures, then quantise.
+
+    Parameters
+    ----------
+    true_degC : ndarray of shape (n_t, n_sensors)
+        What the sensing elements see, degC.
+    offsets_degC : ndarray of shape (n_sensors,)
+        Fixed calibration offset of each sensor, degC.
+    noise : SensorNoise
+    rng : numpy.random.Generator
+        n_t * n_sensors normal draws, row-major.
+
+    Returns
+    -------
+    ndarray of shape (n_t, n_sensors), degC, multiples of ``noise.resolution_degc``.
+    """
+    value = true_degC + offsets_degC + noise.noise_sd_degc * rng.standard_normal(true_degC.shape)
     return np.round(value / noise.resolution_degc) * noise.resolution_degc
 
 
@@ -286,7 +314,8 @@ def _scatter(rng: np.random.Generator, rel: float, n: int) -> np.ndarray:
     return 1.0 + rel * rng.standard_normal(n)
 
 
-def _notes(seed: int, preset: str, varied: bool = False) -> str:
+def provenance_notes(seed: int, preset: str, varied: bool = False) -> str:
+    """Return the ``notes:`` line of a synthetic campaign (never names the effects used)."""
     text = (
         "Synthetic campaign written by the physical twin (pipeline.twin, "
         f"thermal simulate --preset {preset} --seed {seed}); not a measurement."
@@ -364,7 +393,7 @@ def simulate_spindle_campaign(
         start=plan.start,
         season=season,
         split=plan.split,
-        notes=_notes(seed, preset, varied=state is not None),
+        notes=provenance_notes(seed, preset, varied=state is not None),
     )
     logger.debug("simulated %s at %s rpm", plan.campaign_id, plan.rpm)
     return SpindleCampaign(
@@ -441,7 +470,7 @@ def simulate_axis_campaign(
         start=plan.start,
         season=plan.season or season_of(plan.start),
         split=plan.split,
-        notes=_notes(seed, preset),
+        notes=provenance_notes(seed, preset),
     )
     return AxisCampaign(
         info=info,

@@ -7,6 +7,9 @@ Examples
 ``thermal simulate --preset single --id K13 --season summer --rpm 4000 --seed 13 --out DIR``
     one extra spindle-drift campaign (same machine, its own machine state drawn like the
     demo's);
+``thermal simulate --preset workshop --out DIR --seed 2046``
+    one continuous two-day run of a machine cut into six back-to-back campaigns W01-W06
+    (16 unnamed sensors, X/Y/Z probes, speed log; :mod:`pipeline.twin.workshop`);
 ``thermal simulate --list-effects``
     the switchable physical effects.
 """
@@ -23,17 +26,20 @@ from pipeline import paths
 from pipeline.twin.ambient import SEASON_OF_MONTH, season_of
 from pipeline.twin.campaigns import (
     SEASON_START,
+    AxisPlan,
     SpindlePlan,
     demo_plans,
     simulate_plan,
 )
 from pipeline.twin.conditions import DEMO_SCATTER
 from pipeline.twin.effects import DEMO_EFFECTS, EFFECTS, check_effects
+from pipeline.twin.workshop import WORKSHOP_EFFECTS, simulate_workshop, workshop_plan
 from pipeline.twin.writer import write_campaign
 
 logger = logging.getLogger(__name__)
 
 DEFAULT_SEED = 2016
+WORKSHOP_SEED = 2046
 SEASONS = ("winter", "spring", "summer", "autumn")
 
 
@@ -42,9 +48,14 @@ def _parser() -> argparse.ArgumentParser:
         prog="thermal simulate",
         description="Write synthetic campaigns (raw contract, synthetic: true) from the twin.",
     )
-    p.add_argument("--preset", choices=("demo", "single"), default="demo")
+    p.add_argument("--preset", choices=("demo", "single", "workshop"), default="demo")
     p.add_argument("--out", default=str(paths.RAW), help="raw directory (default data/raw)")
-    p.add_argument("--seed", type=int, default=DEFAULT_SEED, help=f"default {DEFAULT_SEED}")
+    p.add_argument(
+        "--seed",
+        type=int,
+        default=None,
+        help=f"default {DEFAULT_SEED} ({WORKSHOP_SEED} for the workshop preset)",
+    )
     p.add_argument(
         "--effects",
         default=None,
@@ -64,9 +75,9 @@ def _parser() -> argparse.ArgumentParser:
     return p
 
 
-def _effects(text: str | None) -> frozenset[str]:
+def _effects(text: str | None, preset: str) -> frozenset[str]:
     if text is None:
-        return DEMO_EFFECTS
+        return WORKSHOP_EFFECTS if preset == "workshop" else DEMO_EFFECTS
     if text.strip().lower() == "none":
         return frozenset()
     return check_effects(n.strip() for n in text.split(",") if n.strip())
@@ -96,6 +107,40 @@ def _single_plan(args: argparse.Namespace) -> SpindlePlan:
     )
 
 
+def _plans(args: argparse.Namespace) -> tuple[SpindlePlan | AxisPlan, ...]:
+    """Plans of the demo (``--only`` filters them) or single preset."""
+    if args.preset == "single":
+        return (_single_plan(args),)
+    plans = demo_plans()
+    if not args.only:
+        return plans
+    wanted = {s.strip() for s in args.only.split(",") if s.strip()}
+    unknown = wanted - {p.campaign_id for p in plans}
+    if unknown:
+        raise ValueError(
+            f"--only: no demo campaign {sorted(unknown)}; "
+            f"demo ids: {', '.join(p.campaign_id for p in plans)}"
+        )
+    return tuple(p for p in plans if p.campaign_id in wanted)
+
+
+def _write_workshop(seed: int | None, effects: frozenset[str], out: str) -> int:
+    """Simulate the workshop run and write its campaigns to ``out``; return 0."""
+    t0 = time.perf_counter()
+    run = simulate_workshop(
+        workshop_plan(), seed=WORKSHOP_SEED if seed is None else seed, effects=effects
+    )
+    for campaign in run.campaigns:
+        write_campaign(campaign, out)
+    logger.info(
+        "workshop run: %d campaigns written to %s in %.1f s",
+        len(run.campaigns),
+        out,
+        time.perf_counter() - t0,
+    )
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run ``thermal simulate``; return 0 on success, 2 on a usage error."""
     parser = _parser()
@@ -103,29 +148,21 @@ def main(argv: list[str] | None = None) -> int:
     if args.list_effects:
         lines = [f"{name:<24} {e.description}" for name, e in EFFECTS.items()]
         lines.append(f"demo preset: {', '.join(sorted(DEMO_EFFECTS))}")
+        lines.append(f"workshop preset: {', '.join(sorted(WORKSHOP_EFFECTS))}")
         sys.stdout.write("\n".join(lines) + "\n")
         return 0
     try:
-        effects = _effects(args.effects)
-        if args.preset == "single":
-            plans = (_single_plan(args),)
-        else:
-            plans = demo_plans()
-            if args.only:
-                wanted = {s.strip() for s in args.only.split(",") if s.strip()}
-                unknown = wanted - {p.campaign_id for p in plans}
-                if unknown:
-                    raise ValueError(
-                        f"--only: no demo campaign {sorted(unknown)}; "
-                        f"demo ids: {', '.join(p.campaign_id for p in plans)}"
-                    )
-                plans = tuple(p for p in plans if p.campaign_id in wanted)
+        effects = _effects(args.effects, args.preset)
+        plans = () if args.preset == "workshop" else _plans(args)
     except (KeyError, ValueError) as err:
         sys.stderr.write(f"thermal simulate: {err.args[0] if err.args else err}\n")
         return 2
+    if args.preset == "workshop":
+        return _write_workshop(args.seed, effects, args.out)
+    seed = DEFAULT_SEED if args.seed is None else args.seed
     t0 = time.perf_counter()
     for plan in plans:
-        campaign = simulate_plan(plan, seed=args.seed, effects=effects, preset=args.preset)
+        campaign = simulate_plan(plan, seed=seed, effects=effects, preset=args.preset)
         write_campaign(campaign, args.out)
     logger.info(
         "%d synthetic campaign(s) written to %s in %.1f s",

@@ -104,7 +104,7 @@ def run_network(
     Parameters
     ----------
     params : SpindleParams or AxisParams
-        Must have ``network`` and ``sensors``.
+        Must have ``network`` and ``sensors`` (may be empty: nodes only).
     terms : tuple of Term
         From :func:`pipeline.twin.effects.model_terms`.
     program : Program
@@ -196,9 +196,9 @@ def run_network(
     idx = np.searchsorted(grid, times)
     nodes = x[idx, :n]
     amb = air(times)
-    readings = np.column_stack([amb if j < 0 else nodes[:, j] for j in sensor_nodes]).reshape(
-        times.size, len(sensor_nodes)
-    )
+    readings = np.empty((times.size, len(sensor_nodes)))
+    for j, node in enumerate(sensor_nodes):
+        readings[:, j] = amb if node < 0 else nodes[:, node]
     for k, j in enumerate(lagged):
         readings[:, j] = x[idx, n + k]
     logger.debug("run_network: %d grid steps, method %s", grid.size - 1, method)

@@ -14,8 +14,10 @@ import numpy as np
 import pandas as pd
 
 from pipeline.twin.campaigns import AxisCampaign, CampaignInfo, SpindleCampaign
+from pipeline.twin.instruments import PlacedSensor
 from pipeline.twin.params import SensorSpec
 from pipeline.twin.program import Program
+from pipeline.twin.workshop import WorkshopCampaign
 
 logger = logging.getLogger(__name__)
 
@@ -35,6 +37,7 @@ FORMATS = {
     "displacement": "{:.2f}",
     "target_mm": "{:.1f}",
     "deviation_um": "{:.2f}",
+    "rpm": "{:.0f}",
 }
 
 
@@ -56,10 +59,12 @@ def _csv(columns: dict[str, list[str]]) -> str:
     return ",".join(names) + "\n" + "".join(",".join(r) + "\n" for r in rows)
 
 
-def _sensors_yaml(sensors: tuple[SensorSpec, ...]) -> list[str]:
+def _sensors_yaml(sensors: tuple[SensorSpec, ...] | tuple[PlacedSensor, ...]) -> list[str]:
+    """One line per sensor: role, location (left out when None) and type."""
     lines = ["sensors:"]
     for s in sensors:
-        lines.append(f'  {s.name}: {{role: {s.role}, location: "{s.location}", type: {s.type}}}')
+        where = "" if s.location is None else f'location: "{s.location}", '
+        lines.append(f"  {s.name}: {{role: {s.role}, {where}type: {s.type}}}")
     return lines
 
 
@@ -79,22 +84,29 @@ def _header(info: CampaignInfo) -> list[str]:
         f"start: {info.start.strftime('%Y-%m-%dT%H:%M:%S')}",
         f"season: {info.season}",
         "synthetic: true",
-        f"split: {info.split}",
+        *([] if info.split is None else [f"split: {info.split}"]),
         f'notes: "{info.notes}"',
     ]
 
 
-def campaign_yaml(campaign: SpindleCampaign | AxisCampaign) -> str:
+def _spindle_yaml(
+    campaign: SpindleCampaign | WorkshopCampaign, probe_lines: list[str]
+) -> list[str]:
+    lines = ["spindle_program:", *_program_yaml(campaign.program, "  ")]
+    return lines + _sensors_yaml(campaign.sensors) + ["displacement:", *probe_lines]
+
+
+def campaign_yaml(campaign: SpindleCampaign | AxisCampaign | WorkshopCampaign) -> str:
     """Return the campaign.yaml text of a campaign."""
     lines = _header(campaign.info)
     if isinstance(campaign, SpindleCampaign):
-        lines.append("spindle_program:")
-        lines += _program_yaml(campaign.program, "  ")
-        lines += _sensors_yaml(campaign.sensors)
-        lines += [
-            "displacement:",
-            '  Z: {probe: eddy_current, location: "spindle nose, probe under the tool holder"}',
-        ]
+        lines += _spindle_yaml(
+            campaign,
+            ['  Z: {probe: eddy_current, location: "spindle nose, probe under the tool holder"}'],
+        )
+    elif isinstance(campaign, WorkshopCampaign):
+        axes = campaign.displacement.columns[1:]
+        lines += _spindle_yaml(campaign, [f"  {a}: {{probe: eddy_current}}" for a in axes])
     else:
         lines += _sensors_yaml(campaign.sensors)
         lines += [
@@ -125,6 +137,16 @@ def displacement_csv(displacement: pd.DataFrame) -> str:
     return _csv(cols)
 
 
+def spindle_csv(spindle: pd.DataFrame) -> str:
+    """spindle.csv text: elapsed_s to 0.1 s, measured speed to 1 rpm."""
+    return _csv(
+        {
+            "elapsed_s": _fmt(spindle["elapsed_s"], FORMATS["elapsed_s"]),
+            "rpm": _fmt(spindle["rpm"], FORMATS["rpm"]),
+        }
+    )
+
+
 def laser_csv(laser: pd.DataFrame) -> str:
     """laser.csv text: elapsed_min, run, direction, target_mm, deviation_um (0.01 um)."""
     cols = {
@@ -142,7 +164,9 @@ def _write(path: Path, text: str) -> None:
         handle.write(text)
 
 
-def write_campaign(campaign: SpindleCampaign | AxisCampaign, out_dir: Path | str) -> Path:
+def write_campaign(
+    campaign: SpindleCampaign | AxisCampaign | WorkshopCampaign, out_dir: Path | str
+) -> Path:
     """Write ``out_dir/<campaign_id>/`` in the raw contract; return the folder.
 
     Contract files already in the folder (campaign.yaml, temperature.csv, displacement.csv,
@@ -150,7 +174,8 @@ def write_campaign(campaign: SpindleCampaign | AxisCampaign, out_dir: Path | str
 
     Parameters
     ----------
-    campaign : SpindleCampaign or AxisCampaign
+    campaign : SpindleCampaign, AxisCampaign or WorkshopCampaign
+        A workshop campaign also writes its measured speed, spindle.csv.
     out_dir : Path or str
         The raw directory (e.g. ``data/raw``); created if missing.
     """
@@ -160,8 +185,10 @@ def write_campaign(campaign: SpindleCampaign | AxisCampaign, out_dir: Path | str
         (folder / name).unlink(missing_ok=True)
     _write(folder / "campaign.yaml", campaign_yaml(campaign))
     _write(folder / "temperature.csv", temperature_csv(campaign.temperature))
-    if isinstance(campaign, SpindleCampaign):
+    if isinstance(campaign, SpindleCampaign | WorkshopCampaign):
         _write(folder / "displacement.csv", displacement_csv(campaign.displacement))
+        if isinstance(campaign, WorkshopCampaign):
+            _write(folder / "spindle.csv", spindle_csv(campaign.spindle))
     else:
         _write(folder / "laser.csv", laser_csv(campaign.laser))
     logger.info("wrote %s (%s) to %s", campaign.info.campaign_id, campaign.info.kind, folder)
