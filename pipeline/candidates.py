@@ -1,10 +1,12 @@
-"""Which model runs on which sensor selection, and the parallel run of all of them.
+"""Which model runs on which input selection, and the parallel run of all of them.
 
-``params.yaml`` ``evaluate.candidates`` maps each model to the selection method that feeds it
-(the sources' defaults: DL on FC-GRD, PCDL on the grey-relational top k, MLR on the best
-subset); ``evaluate.full_grid: true`` runs every model on every selection instead. Models that
-use no temperature (``arma``, ``ar_reduced``, ``tv_ar``, ``svr``) always run on selection
-``none``.
+``params.yaml`` ``evaluate.candidates`` maps each model to the selection method (or the list of
+methods) that feeds it: the sources' defaults (DL on FC-GRD, PCDL on the grey-relational top k,
+MLR on the best subset), the plain baselines (``mlr`` and ``ridge`` on ``all``, every
+temperature, no lag, no speed) and ``ridge`` on ``all_speed`` (every temperature and speed
+response under a cross-validated penalty); ``evaluate.full_grid: true`` runs every model on
+every selection instead. Models that use no input (``none``, ``arma``, ``ar_reduced``,
+``tv_ar``, ``svr``) always run on selection ``none``.
 """
 
 from __future__ import annotations
@@ -31,8 +33,8 @@ def candidate_list(
 
     Parameters
     ----------
-    pairs : mapping of str to str
-        ``evaluate.candidates``: model name -> selection method.
+    pairs : mapping of str to str or list of str
+        ``evaluate.candidates``: model name -> selection method(s).
     selections : mapping
         Selection methods available (``reports/selection/selected.json`` ``methods``).
     full_grid : bool
@@ -44,36 +46,41 @@ def candidate_list(
         If a model is not registered or a selection method was not run by ``select``; the
         message lists what exists.
     """
-    for model, selection in pairs.items():
+    wanted = {
+        model: [chosen] if isinstance(chosen, str) else list(chosen)
+        for model, chosen in pairs.items()
+    }
+    for model, chosen in wanted.items():
         if model not in MODELS:
             raise KeyError(
                 f"params.yaml evaluate.candidates: unknown model '{model}'; registered: "
                 f"{sorted(MODELS)}"
             )
-        if MODELS[model].uses_temperatures and selection not in selections:
+        unknown = [s for s in chosen if s not in selections]
+        if MODELS[model].uses_temperatures and unknown:
             raise KeyError(
                 f"params.yaml evaluate.candidates: model '{model}' is fed by selection "
-                f"'{selection}', which the select stage did not run; run one of "
+                f"{unknown}, which the select stage did not run; run one of "
                 f"{sorted(selections)} or add it to select.methods"
             )
-    candidates = []
-    for model, selection in pairs.items():
+    candidates: list[Candidate] = []
+    for model, chosen in wanted.items():
         if not MODELS[model].uses_temperatures:
             candidates.append(Candidate(model, NO_SELECTION))
         elif full_grid:
             candidates.extend(Candidate(model, method) for method in selections)
         else:
-            candidates.append(Candidate(model, selection))
-    return candidates
+            candidates.extend(Candidate(model, method) for method in chosen)
+    return list(dict.fromkeys(candidates))
 
 
 def unit_sensors(
     candidate: Candidate, unit: TrainingUnit, selected: Mapping[str, Mapping[str, Mapping]]
 ) -> list[str]:
-    """Return the sensors chosen on this training unit (none for series-only models)."""
+    """Return the inputs chosen on this training unit (none for models without inputs)."""
     if candidate.selection == NO_SELECTION:
         return []
-    return list(selected[candidate.selection][unit.name]["sensors"])
+    return list(selected[candidate.selection][unit.name]["inputs"])
 
 
 def run_all(

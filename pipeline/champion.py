@@ -1,149 +1,220 @@
-"""Choose the champion model and describe it for registration.
+"""Choose each axis' champion, honestly, and describe it for registration.
 
-The champion is the candidate with the smallest validation Mn (mean residual standard deviation
-on the validation campaigns, um) under the PCDL paper's protocol (scheme ``campaign``), among
-the candidates a machine can run from its temperatures alone: mode ``static`` or ``free_run``.
-One-step-ahead scores need the measured error online and are not eligible (they would win
-trivially). Without validation campaigns the prediction Mn on the other training campaigns is
-used instead, and the card says so. The registered model is the candidate's fit on all training
-campaigns (unit ``all_training``).
+The champion of an axis is chosen on the training campaigns only, by the score of the same kind
+of fit that is then registered: a model built on several campaigns and applied to campaigns it
+has not seen -- leave-one-season-out when the training campaigns span two seasons or more, else
+leave-one-campaign-out (the *selection protocol*, :mod:`pipeline.training_units`). Candidates
+are ranked by the mean RMS of the residual over the held-out campaigns (``<protocol>_Mn_rms_um``):
+a compensation has to get the offset right too, which the PCDL paper's residual standard
+deviation does not see (it is reported beside it). The validation campaigns never choose; they
+only report the chosen model afterwards.
 
-The physical twin (model ``twin``, :mod:`pipeline.twin_candidate`) is scored and ranked in the
-report but is not eligible: the champion is registered as an MLflow pyfunc that predicts from a
-table of temperatures (:func:`temperature_features`), and the twin needs another input (the
-spindle program, the sensor roles and each run's first readings).
+Eligible: candidates that run from the machine's own inputs (temperatures, spindle speed): mode
+``static`` or ``free_run``. One-step-ahead scores need the measured error online and would win
+trivially; the physical twin (model ``twin``) needs the spindle program and the sensor roles,
+which the registered model does not take; both are ranked in the report, never chosen.
+
+No compensation (model ``none``) is always a candidate. A model becomes champion only if it beats
+``none`` by the margin ``evaluate.champion.min_improvement`` (a fraction of none's held-out RMS,
+i.e. its compensation ratio eta on the protocol is at least that fraction); otherwise the
+champion is ``none`` and the report says plainly not to compensate that axis with these inputs.
+With a single training campaign there is no held-out score, and the champion is ``none``.
+
+The registered model is the candidate's fit on all training campaigns (unit ``all_training``).
 """
 
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import pandas as pd
 
 from pipeline.cross_season import FREE_RUN, STATIC, UnitResult
-from pipeline.training_units import POOLED_UNIT
+from pipeline.features import InputSpec
+from pipeline.training_units import POOLED_UNIT, PROTOCOL_NAMES
 
 DEPLOYABLE_MODES = (STATIC, FREE_RUN)
 NOT_REGISTRABLE_MODELS = ("twin",)
 """Candidates never chosen as champion (see the module docstring)."""
+NO_COMPENSATION = "none"
+KEYS = ("model", "selection", "mode")
 
 
-def rank_candidates(summary: pd.DataFrame) -> tuple[pd.DataFrame, str]:
-    """Deployable candidates ordered best first, and the score column used.
+def protocol_column(protocol: str | None) -> str | None:
+    """Summary column the champion is chosen on: ``<protocol>_Mn_rms_um`` (None: no protocol)."""
+    return None if protocol is None else f"{protocol}_Mn_rms_um"
+
+
+@dataclass(frozen=True)
+class Decision:
+    """The champion choice of one axis.
+
+    Attributes
+    ----------
+    axis : str
+    protocol : str or None
+        ``loso``, ``loco`` or None (a single training campaign).
+    column : str or None
+        The score it was chosen on (um).
+    ranked : DataFrame
+        Eligible candidates with a finite score, best first (``none`` among them).
+    champion : Series
+        The champion's summary row (``none`` when nothing beats it).
+    none_score : float, um
+        ``none``'s protocol score (the mean held-out RMS of the uncompensated error).
+    best_score : float, um
+        The best eligible model's score (``none`` excluded); NaN if there is none.
+    compensate : bool
+        False when the champion is ``none``.
+    reason : str
+        Why, in one sentence.
+    """
+
+    axis: str
+    protocol: str | None
+    column: str | None
+    ranked: pd.DataFrame
+    champion: pd.Series
+    none_score: float
+    best_score: float
+    compensate: bool
+    reason: str
+
+    @property
+    def label(self) -> str:
+        """``model/selection/mode`` of the champion."""
+        return "/".join(str(self.champion[k]) for k in KEYS)
+
+
+def eligible(summary: pd.DataFrame) -> pd.DataFrame:
+    """Rows of ``summary`` a machine can run from its own inputs (see the module docstring)."""
+    return summary[
+        summary["mode"].isin(DEPLOYABLE_MODES) & ~summary["model"].isin(NOT_REGISTRABLE_MODELS)
+    ]
+
+
+def choose_champion(
+    summary: pd.DataFrame, axis: str, protocol: str | None, min_improvement: float
+) -> Decision:
+    """Choose the champion of one axis on the selection protocol.
 
     Parameters
     ----------
     summary : DataFrame
-        :func:`pipeline.scoring.candidate_summary` output.
+        :func:`pipeline.scoring.candidate_summary` rows of this axis; must hold ``none``.
+    axis : str
+    protocol : str or None
+        ``loso``, ``loco``, or None without a held-out scheme.
+    min_improvement : float
+        Fraction of none's held-out RMS a model must remove to be chosen (0 to 1).
 
     Returns
     -------
-    ranked : DataFrame
-        Rows of ``summary`` with a deployable mode and a finite score, best first; models of
-        :data:`NOT_REGISTRABLE_MODELS` left out.
-    column : str
-        ``Mn_val_um`` or, without validation campaigns, ``Mn_um``.
+    Decision
 
     Raises
     ------
     ValueError
-        If no deployable candidate has a finite score.
+        If ``none`` is not among the candidates or ``min_improvement`` is outside [0, 1).
     """
-    deployable = summary[
-        summary["mode"].isin(DEPLOYABLE_MODES) & ~summary["model"].isin(NOT_REGISTRABLE_MODELS)
-    ]
-    column = "Mn_val_um"
-    if column not in deployable or not deployable[column].notna().any():
-        column = "Mn_um"
-    ranked = deployable[deployable[column].notna()] if column in deployable else deployable[:0]
-    if ranked.empty:
+    if not 0.0 <= min_improvement < 1.0:
         raise ValueError(
-            "no candidate running from temperatures alone (mode static or free_run) has a "
-            "prediction score; add a training campaign or a validation campaign"
+            f"params.yaml evaluate.champion.min_improvement is {min_improvement}; use a "
+            "fraction in [0, 1), e.g. 0.1 for 10 % less RMS than no compensation"
         )
-    return ranked.sort_values([column, "model", "selection"]).reset_index(drop=True), column
+    rows = summary[summary["axis"] == axis]
+    none_rows = rows[rows["model"] == NO_COMPENSATION]
+    if none_rows.empty:
+        raise ValueError(
+            f"axis {axis}: the candidate '{NO_COMPENSATION}' was not scored; add "
+            f"'{NO_COMPENSATION}: none' to params.yaml evaluate.candidates"
+        )
+    column = protocol_column(protocol)
+    if column is None or column not in rows or not rows[column].notna().any():
+        return Decision(
+            axis, protocol, column, none_rows.iloc[:0], none_rows.iloc[0], math.nan, math.nan,
+            False, "a single training campaign leaves no campaign to test a model on: there is "
+            "no held-out score to choose a compensation by",
+        )  # fmt: skip
+    ranked = eligible(rows)
+    ranked = ranked[ranked[column].notna()].sort_values([column, "model", "selection"])
+    ranked = ranked.reset_index(drop=True)
+    none_row = ranked[ranked["model"] == NO_COMPENSATION].iloc[0]
+    none_score = float(none_row[column])
+    models = ranked[ranked["model"] != NO_COMPENSATION]
+    name = PROTOCOL_NAMES[protocol]
+    if models.empty:
+        return Decision(axis, protocol, column, ranked, none_row, none_score, math.nan, False,
+                        f"no model has a {name} score")  # fmt: skip
+    best = models.iloc[0]
+    best_score = float(best[column])
+    threshold = (1.0 - min_improvement) * none_score
+    if best_score <= threshold:
+        reason = (
+            f"{'/'.join(str(best[k]) for k in KEYS)} leaves {best_score:.2f} um RMS on the "
+            f"campaigns it did not see ({name}), against {none_score:.2f} um without "
+            f"compensation: {100 * (1 - best_score / none_score):.0f} % less, above the "
+            f"{100 * min_improvement:.0f} % margin"
+        )
+        return Decision(axis, protocol, column, ranked, best, none_score, best_score, True, reason)
+    reason = (
+        f"no model removes {100 * min_improvement:.0f} % of the error on the campaigns it did "
+        f"not see ({name}): the best, {'/'.join(str(best[k]) for k in KEYS)}, leaves "
+        f"{best_score:.2f} um RMS against {none_score:.2f} um without compensation"
+    )
+    return Decision(axis, protocol, column, ranked, none_row, none_score, best_score, False, reason)
 
 
-def champion_card(best: pd.Series, column: str, result: UnitResult, features: str) -> dict:
-    """JSON-ready description of the champion (``data/models/champion/champion.json``).
+def champion_card(
+    decision: Decision, result: UnitResult, spec: InputSpec, sample_interval_s: float
+) -> dict:
+    """JSON-ready description of an axis' champion (``data/models/champion/<axis>/champion.json``).
 
     Parameters
     ----------
-    best : Series
-        The champion's row of the candidate summary.
-    column : str
-        The score it was chosen on.
+    decision : Decision
     result : UnitResult
-        Its fit on all training campaigns.
-    features : str
-        ``temperature_rise`` or ``absolute``.
+        The champion's fit on all training campaigns.
+    spec : InputSpec
+        How its inputs are prepared (they travel with the model).
+    sample_interval_s : float, s
+        Median sampling interval of the training data (lagged models count lags in samples).
+
+    Raises
+    ------
+    ValueError
+        If ``result`` is not a fit on all training campaigns.
     """
     if result.unit.name != POOLED_UNIT:
         raise ValueError(f"the champion must be the fit on {POOLED_UNIT}, got {result.unit.name}")
+    best = decision.champion
     scores = {
         key: (None if not isinstance(value, float) or math.isnan(value) else round(value, 4))
         for key, value in best.items()
-        if key.endswith("_um")
+        if key.endswith("_um") or key.endswith("eta") or key.endswith("eta_val")
     }
     return {
+        "axis": decision.axis,
         "model": best["model"],
         "selection": best["selection"],
         "mode": best["mode"],
-        "chosen_on": column,
-        "sensors": list(result.sensors),
-        "features": features,
+        "compensate": decision.compensate,
+        "reason": decision.reason,
+        "protocol": decision.protocol,
+        "protocol_name": PROTOCOL_NAMES.get(decision.protocol or "", "none"),
+        "chosen_on": decision.column,
+        "none_score_um": None if math.isnan(decision.none_score) else round(decision.none_score, 4),
+        "inputs": list(result.sensors),
+        "input_spec": spec.to_dict(),
+        "sample_interval_s": round(float(sample_interval_s), 3),
         "trained_on": list(result.unit.campaigns),
         "chosen_params": {k: _plain(v) for k, v in result.chosen_params.items()},
-        "scores_um": scores,
+        "scores": scores,
     }
 
 
 def _plain(value):
+    if hasattr(value, "tolist"):
+        return value.tolist()
     return value.item() if hasattr(value, "item") else value
-
-
-def temperature_features(table: pd.DataFrame, card: dict) -> pd.DataFrame:
-    """Model input from a temperature table, as the champion was trained.
-
-    Parameters
-    ----------
-    table : DataFrame
-        One row per sample in time order; a column per chosen sensor (degC), named as in the
-        card's ``sensors``; optional ``campaign_id`` (several runs in one table) and
-        ``elapsed_s`` (s). With ``features: temperature_rise`` each run's first row is its cold
-        reference: the model sees each sensor minus its first reading (K).
-
-    Returns
-    -------
-    DataFrame of shape (n, len(sensors))
-        Indexed by (``campaign_id``, ``elapsed_s``).
-
-    Raises
-    ------
-    ValueError
-        If a sensor column is missing, naming it and the columns found.
-    """
-    sensors = list(card["sensors"])
-    missing = [s for s in sensors if s not in table.columns]
-    if missing:
-        raise ValueError(
-            f"temperature table lacks sensor column(s) {missing} (found {list(table.columns)}); "
-            f"the champion {card['model']}/{card['selection']} needs {sensors}, in degC"
-        )
-    runs = (
-        table["campaign_id"].astype(str)
-        if "campaign_id" in table
-        else pd.Series("run", index=table.index)
-    )
-    elapsed = (
-        table["elapsed_s"]
-        if "elapsed_s" in table
-        else pd.Series(range(len(table)), index=table.index, dtype=float)
-    )
-    values = table[sensors].astype(float)
-    if card["features"] == "temperature_rise":
-        values = values - values.groupby(runs.to_numpy()).transform("first")
-    index = pd.MultiIndex.from_arrays(
-        [runs.to_numpy(), elapsed.to_numpy(dtype=float)], names=["campaign_id", "elapsed_s"]
-    )
-    return pd.DataFrame(values.to_numpy(), columns=sensors, index=index)

@@ -7,16 +7,21 @@ from collections.abc import Mapping, Sequence
 
 import pandas as pd
 
-TABLE_COLUMNS = {
-    "S_um": "S",
-    "Mn_um": "Mn",
-    "Sd_um": "Sd",
-    "Mn_val_um": "Mn_val",
-    "Sd_val_um": "Sd_val",
-    "Mn_rms_um": "Mn (RMS)",
-    "Mn_val_rms_um": "Mn_val (RMS)",
-    "loso_Mn_um": "LOSO Mn",
-    "pooled_Mn_val_um": "all-training Mn_val",
+from pipeline.champion import Decision, eligible
+from pipeline.training_units import PROTOCOL_NAMES, CampaignSeries
+
+PROTOCOL_COLUMNS = {
+    "Mn_rms_um": "held-out RMS",
+    "eta": "eta",
+    "Mn_um": "held-out S",
+}
+"""Columns of the selection protocol (prefixed ``loso_`` or ``loco_``) and their headers."""
+OTHER_COLUMNS = {
+    "S_um": "fit S",
+    "Mn_rms_um": "one-campaign RMS",
+    "Mn_um": "one-campaign S",
+    "pooled_Mn_val_rms_um": "validation RMS",
+    "pooled_eta_val": "validation eta",
 }
 
 
@@ -26,21 +31,30 @@ def _number(value: object) -> str:
     return f"{float(value):.2f}"
 
 
-def score_table(summary: pd.DataFrame, champion: Mapping[str, str]) -> str:
-    """Markdown table of every candidate; the champion in bold.
+def _columns(summary: pd.DataFrame, protocol: str | None) -> dict[str, str]:
+    columns = {}
+    if protocol is not None:
+        columns.update({f"{protocol}_{k}": v for k, v in PROTOCOL_COLUMNS.items()})
+    columns.update(OTHER_COLUMNS)
+    return {k: v for k, v in columns.items() if k in summary}
 
-    Candidates that run from temperatures alone (``static``, ``free_run``) come first, then the
-    ``one_step`` ones (which need the measured error online), each block by validation Mn.
+
+def score_table(summary: pd.DataFrame, decision: Decision) -> str:
+    """Markdown table of one axis' candidates; the champion in bold.
+
+    Candidates the machine can run from its own inputs come first, ranked by the protocol score
+    (as the champion is chosen), then the others (``one_step``, ``twin``), which are never chosen.
     """
-    columns = [c for c in TABLE_COLUMNS if c in summary]
-    header = "| model | selection | mode | " + " | ".join(TABLE_COLUMNS[c] for c in columns) + " |"
+    columns = _columns(summary, decision.protocol)
+    header = "| model | selection | mode | " + " | ".join(columns.values()) + " |"
     lines = [header, "|" + "---|" * (3 + len(columns))]
-    order = summary.assign(online=summary["mode"] == "one_step").sort_values(
-        ["online", "Mn_val_um" if "Mn_val_um" in summary else "Mn_um", "model"],
-        na_position="last",
+    sort_by = decision.column if decision.column in summary else "Mn_rms_um"
+    chosen = eligible(summary).index
+    order = summary.assign(other=~summary.index.isin(chosen)).sort_values(
+        ["other", sort_by, "model"], na_position="last"
     )
     for _, row in order.iterrows():
-        is_champion = all(row[k] == champion[k] for k in ("model", "selection", "mode"))
+        is_champion = all(row[k] == decision.champion[k] for k in ("model", "selection", "mode"))
         name = f"**{row['model']}**" if is_champion else row["model"]
         cells = [name, row["selection"], row["mode"], *(_number(row[c]) for c in columns)]
         lines.append("| " + " | ".join(str(c) for c in cells) + " |")
@@ -48,112 +62,199 @@ def score_table(summary: pd.DataFrame, champion: Mapping[str, str]) -> str:
 
 
 def selection_table(selected: Mapping[str, Mapping[str, Mapping]]) -> str:
-    """Markdown table of the sensors each method chose on all training campaigns."""
-    lines = ["| method | sensors (all training campaigns) |", "|---|---|"]
+    """Markdown table of the inputs each method chose on all training campaigns."""
+    lines = ["| method | inputs (all training campaigns) |", "|---|---|"]
     for method, by_unit in selected.items():
-        sensors = by_unit.get("all_training", {}).get("sensors", [])
-        lines.append(f"| {method} | {', '.join(sensors) or '-'} |")
+        inputs = by_unit.get("all_training", {}).get("inputs", [])
+        lines.append(f"| {method} | {', '.join(inputs) or '-'} |")
     return "\n".join(lines)
 
 
-def twin_section(source: str) -> str:
-    """Paragraph on the physical-twin candidate ``twin`` (empty line before and after)."""
-    return f"""
-`twin` (selection `roles`, mode `static`) is the calibrated physical twin, not a regression on
-temperatures: driven by the spindle program, the ambient reading and the campaign's first
-temperatures, its parameters calibrated by least squares on the temperatures and Z drift of the
-training unit's campaigns only. Its effect set was named by the discrepancy stage on the
-training campaigns (the validation campaigns are held back from that search), so its validation
-scores are out-of-sample for the structure too (the leave-one-season-out and single-campaign
-units share that set, named on all training campaigns). It is ranked here but
-never chosen as champion: the registered model predicts from a table of temperatures, the twin
-needs the spindle program.
-Twin used: {source}.
+def reference_table(separation: Mapping, series: Sequence[CampaignSeries]) -> str:
+    """Markdown table: each campaign's split, run and what its error is counted from."""
+    lines = ["| campaign | split | season | run | error counted from |", "|---|---|---|---|---|"]
+    for item in series:
+        info = separation.get("campaigns", {}).get(item.campaign_id, {})
+        lines.append(
+            f"| {item.campaign_id} | {item.split} | {item.season} | {info.get('run_id', '-')} | "
+            f"{info.get('reference', '-')} |"
+        )
+    return "\n".join(lines)
+
+
+def _decision_text(axis: str, decision: Decision, card: Mapping) -> str:
+    if decision.compensate:
+        return (
+            f"Champion: **{decision.label}** on {', '.join(card['inputs']) or 'no input'}. "
+            f"{decision.reason[0].upper()}{decision.reason[1:]}. Registered in MLflow (model "
+            f"`thermal-error-spindle-{axis}`, alias `champion`), fitted on all training "
+            "campaigns."
+        )
+    return (
+        f"**Do not compensate axis {axis} with these inputs.** {decision.reason[0].upper()}"
+        f"{decision.reason[1:]}. The champion is `none` (no compensation); it is registered so "
+        "that a controller loading the champion applies none."
+    )
+
+
+def _validation_text(summary: pd.DataFrame, decision: Decision, n_validation: int) -> str:
+    if n_validation == 0:
+        return (
+            "**No independent check exists**: there is no validation campaign "
+            "(`split: validation` in campaign.yaml). The held-out score above, on training "
+            "campaigns each fit did not see, is the only evidence; keep campaigns of another "
+            "day or season back as validation to get an independent one."
+        )
+    champion = decision.champion
+    none = summary[summary["model"] == "none"]
+    rms = champion.get("pooled_Mn_val_rms_um")
+    eta = champion.get("pooled_eta_val")
+    none_rms = none["pooled_Mn_val_rms_um"].iloc[0] if len(none) else float("nan")
+    return (
+        f"Check on the {n_validation} validation campaign(s), which chose nothing: the champion "
+        f"built on all training campaigns leaves {_number(rms)} um RMS (eta {_number(eta)}); no "
+        f"compensation leaves {_number(none_rms)} um."
+    )
+
+
+def _baseline_text(decision: Decision, plain: pd.Series | None) -> str:
+    if plain is None or decision.column is None:
+        return ""
+    models = decision.ranked[decision.ranked["model"] != "none"]
+    if models.empty:
+        return ""
+    best = models.iloc[0]
+    ratio = float(best[decision.column]) / float(plain[decision.column])
+    return (
+        f"Best model against the best plain regression (every temperature, no lag, no speed): "
+        f"{'/'.join(str(best[k]) for k in ('model', 'selection', 'mode'))} "
+        f"{_number(best[decision.column])} um vs {plain['model']}/{plain['selection']} "
+        f"{_number(plain[decision.column])} um held-out RMS (ratio {ratio:.2f})."
+    )
+
+
+def axis_section(
+    axis: str,
+    summary: pd.DataFrame,
+    decision: Decision,
+    card: Mapping,
+    selected: Mapping[str, Mapping[str, Mapping]],
+    separation: Mapping,
+    series: Sequence[CampaignSeries],
+    skipped: Mapping[str, str],
+    figure: str,
+    labels: tuple[str, str],
+    heatmaps: Sequence[str],
+    plain: pd.Series | None,
+    twin_source: str | None,
+) -> str:
+    """One axis' part of the report: decision, scores, check, references, inputs, figures."""
+    n_train = sum(s.split == "train" for s in series)
+    n_validation = sum(s.split == "validation" for s in series)
+    protocol = PROTOCOL_NAMES.get(decision.protocol or "", "none")
+    skipped_lines = "\n".join(f"- `{name}` not scored: {why}." for name, why in skipped.items())
+    twin = f"\nTwin used: {twin_source}.\n" if twin_source and axis == "Z" else ""
+    heatmap_lines = "\n".join(f"![{path}]({path})" for path in heatmaps)
+    return f"""## Axis {axis}
+
+{n_train} training and {n_validation} validation campaigns. Selection protocol:
+**{protocol}** (each fit built on the training campaigns but {
+        "one season's" if decision.protocol == "loso" else "one"
+    }, scored on the one{"s" if decision.protocol == "loso" else ""} left out).
+
+{_decision_text(axis, decision, card)}
+
+{_validation_text(summary, decision, n_validation)}
+
+{_baseline_text(decision, plain)}
+
+{score_table(summary, decision)}
+{skipped_lines}
+{twin}
+### What the error is counted from
+
+{reference_table(separation, series)}
+
+### Inputs chosen
+
+{selection_table(selected)}
+
+![stability](selection/stability_{axis}.png)
+
+### Held-out predictions
+
+{labels[0].capitalize()}; {labels[1]}.
+
+![held-out predictions]({figure})
+
+### Matrices (RMS of the residual, um)
+
+{heatmap_lines}
 """
 
 
-def render(
-    summary: pd.DataFrame,
-    champion: Mapping[str, object],
-    selected: Mapping[str, Mapping[str, Mapping]],
-    heatmaps: Sequence[str],
-    best_worst_figure: str,
-    best_worst: tuple[str, str],
-    n_campaigns: Mapping[str, int],
-    synthetic: bool,
-    twin_source: str | None = None,
-) -> str:
-    """Render the whole report as Markdown.
+def _speed_text(separation: Mapping) -> str:
+    speed = (separation.get("settings") or {}).get("speed_responses")
+    if not speed:
+        return "No speed responses are computed (`separate.speed_responses` is empty)."
+    taus = ", ".join(f"{t:g}" for t in speed["time_constants_min"])
+    powers = ", ".join(f"{a:g}" for a in speed["exponents"])
+    return (
+        f"Speed responses (inputs `speed*_lag_*min`): first-order lags of {taus} min to "
+        f"(rpm/1000)^a, a = {powers}, from rest at each run's start; offered to the selection "
+        "methods and to `ridge/all_speed`, where the campaigns have a spindle speed."
+    )
 
-    Parameters
-    ----------
-    summary : DataFrame
-        :func:`pipeline.scoring.candidate_summary` output (um).
-    champion : mapping
-        The champion card (``model``, ``selection``, ``mode``, ``chosen_on``...).
-    selected : mapping
-        ``selected.json`` ``methods``.
-    heatmaps : sequence of str
-        Heat-map paths relative to ``reports/``.
-    best_worst_figure : str
-        Path of the predicted-vs-measured figure, relative to ``reports/``.
-    best_worst : tuple of str
-        Labels of the best and the worst deployable candidate.
-    n_campaigns : mapping
-        ``{"train": n, "validation": n}``.
-    synthetic : bool
-        Whether the campaigns came from the physical twin.
-    twin_source : str, optional
-        Which twin the ``twin`` candidate is (:func:`pipeline.twin_candidate.named_effects`);
-        ``None`` when it is not a candidate.
-    """
+
+def render(
+    sections: Sequence[str], separation: Mapping, synthetic: bool, axes: Sequence[str]
+) -> str:
+    """Render the whole report as Markdown."""
     origin = (
         "**These figures come from SYNTHETIC campaigns written by the physical twin "
         "(`thermal simulate`), not from measurements.**"
         if synthetic
         else "These figures come from the measured campaigns in `data/raw/`."
     )
-    heatmap_lines = "\n".join(f"![{path}]({path})" for path in heatmaps)
-    twin = "" if twin_source is None else twin_section(twin_source)
+    settings = separation.get("settings") or {}
+    reference = (
+        "the first sample"
+        if settings.get("cold_reference", "first_sample") == "first_sample"
+        else f"the mean of the first {settings.get('cold_n')} samples"
+    )
+    warm = [c for c, info in separation.get("campaigns", {}).items() if info.get("warm_start")]
+    runs = [r for r in separation.get("runs", []) if len(r["campaigns"]) > 1]
+    run_text = (
+        "Campaigns that continue one another without a break form runs ("
+        + "; ".join(", ".join(r["campaigns"]) for r in runs)
+        + f"): {', '.join(warm)} start warm, and their error is counted from their run's "
+        "reference, like their temperature rises."
+        if runs
+        else "Every campaign is its own run."
+    )
     return f"""# Model comparison
 
 Generated by `thermal evaluate` (DVC stage `evaluate`); do not edit. {origin}
 
-{n_campaigns.get("train", 0)} training and {n_campaigns.get("validation", 0)} validation campaigns.
-Each model is built on one training campaign and applied to every other (the PCDL paper's
-protocol): **S** is the residual standard deviation on the campaign it was built on, **Mn** and
-**Sd** the mean and standard deviation of the residual standard deviations on the other training
-campaigns, **Mn_val** and **Sd_val** the same on the validation campaigns. The RMS columns use
-the root mean square of the residual instead, which also counts offsets. **LOSO Mn**: built on
-three seasons, applied to the fourth (mean over the held-out seasons). **all-training Mn_val**:
-built on all training campaigns, applied to the validation campaigns. All in um.
+Axes: {", ".join(axes)}. The thermal error of a campaign is its displacement minus its value at
+the reference of its run, {reference} of the run (the cold state when the run starts cold); the
+temperature rises use the same reference. {run_text} {_speed_text(separation)}
 
-Mode `static`: from temperatures only. Models on the error's own history are scored twice:
-`one_step` uses the measured error up to the previous sample (only possible on a machine that
-measures its error online), `free_run` feeds back its own predictions.
-{twin}
-## Scores
+**How a model is chosen.** Each axis' champion is chosen on the training campaigns only, by the
+score of the kind of fit that is registered: built on several campaigns, applied to the
+campaigns it did not see (leave-one-season-out when the training campaigns span two seasons,
+else leave-one-campaign-out). **held-out RMS**: mean over the held-out campaigns of the RMS of
+the residual (counts offsets; um); **held-out S**: the same with the residual standard
+deviation (the PCDL paper's score, blind to offsets); **eta** = 1 - RMS(residual) / RMS(no
+compensation), summarised as 1 - mean RMS / mean RMS of `none`. `none` (no compensation) is a
+candidate: a model must beat it by the margin in `params.yaml` `evaluate.champion`, or the
+champion is `none`. Validation campaigns never choose; **validation RMS / eta**: the model built
+on all training campaigns, applied to them. The PCDL paper's own protocol stays beside it:
+**fit S** on the campaign a model was built on, **one-campaign RMS / S** its mean on every other
+training campaign.
 
-{score_table(summary, champion)}
+Mode `static`: from the machine's inputs only. Models on the error's own history are scored
+twice: `one_step` uses the measured error up to the previous sample (only possible on a machine
+that measures its error online; never chosen), `free_run` feeds back its own predictions.
 
-Champion (bold; smallest {champion["chosen_on"]} among `static` and `free_run` candidates):
-**{champion["model"]}** on `{champion["selection"]}` ({champion["mode"]}), sensors
-{", ".join(champion["sensors"]) or "none"}; registered in MLflow as alias `champion`.
-
-## Sensitive points
-
-{selection_table(selected)}
-
-How often each sensor is chosen across the training campaigns:
-![stability](selection/stability.png)
-
-## Predicted vs measured on the validation campaigns
-
-{best_worst[0].capitalize()}; {best_worst[1]}. Both built on all training campaigns.
-
-![best and worst]({best_worst_figure})
-
-## Cross-season matrices (residual standard deviation, um)
-
-{heatmap_lines}
-"""
+{chr(10).join(sections)}"""

@@ -21,7 +21,7 @@ import numpy as np
 import pandas as pd
 from sklearn.base import RegressorMixin, clone
 
-from pipeline.scoring import residual_std, root_mean_square
+from pipeline.scoring import compensation_ratio, residual_std, root_mean_square
 from pipeline.training_units import CampaignSeries, TrainingUnit, stack
 
 STATIC, ONE_STEP, FREE_RUN = "static", "one_step", "free_run"
@@ -122,17 +122,22 @@ def score_row(
     -------
     dict or None
         Columns of ``schemas.CrossSeasonScoresModel``; ``None`` without any finite residual.
+        The uncompensated RMS and eta are taken over the samples with a finite residual.
     """
     residual = test.target - predicted
-    n_samples = int(np.isfinite(residual).sum())
+    scored = np.isfinite(residual)
+    n_samples = int(scored.sum())
     if n_samples == 0:
         return None
+    rmse = root_mean_square(residual)
+    uncompensated = root_mean_square(np.where(scored, test.target, np.nan))
     return {
-        "model": candidate.model, "selection": candidate.selection, "mode": mode,
-        "scheme": unit.scheme, "train_unit": unit.name,
+        "axis": test.axis, "model": candidate.model, "selection": candidate.selection,
+        "mode": mode, "scheme": unit.scheme, "train_unit": unit.name,
         "test_campaign": test.campaign_id, "test_split": test.split,
         "test_season": test.season, "role": _role(unit, test), "n_samples": n_samples,
-        "rmse_um": root_mean_square(residual), "resid_std_um": residual_std(residual),
+        "rmse_um": rmse, "resid_std_um": residual_std(residual),
+        "uncompensated_rms_um": uncompensated, "eta": compensation_ratio(rmse, uncompensated),
     }  # fmt: skip
 
 
@@ -148,9 +153,8 @@ def fit_and_score(
     Returns
     -------
     UnitResult
-        ``scores`` has columns ``model``, ``selection``, ``mode``, ``scheme``, ``train_unit``,
-        ``test_campaign``, ``test_split``, ``test_season``, ``role``, ``n_samples``,
-        ``rmse_um``, ``resid_std_um``; campaigns without a finite residual get no row.
+        ``scores`` has the columns of ``schemas.CrossSeasonScoresModel``; campaigns without a
+        finite residual get no row.
     """
     training = [c for c in campaigns if c.campaign_id in unit.campaigns]
     X, y = stack(training, sensors)

@@ -1,16 +1,18 @@
-"""DVC stage ``evaluate``: every candidate model, built on each training unit, scored everywhere.
+"""DVC stage ``evaluate``: every candidate of every axis, built on each training unit, scored.
 
-Reads ``data/separated/spindle_thermal_error.parquet`` and the sensitive points of
-``reports/selection/selected.json``. Runs each candidate (model x selection, see
-:mod:`pipeline.candidates`; the physical twin ``twin``, see :mod:`pipeline.twin_candidate`, which
-also reads ``data/validated/spindle/campaigns.parquet`` for the sensor roles and spindle programs
-and ``reports/discrepancy/discrepancy.json`` for its effects) on each training unit (each
-training campaign, each season left out, all training campaigns; :mod:`pipeline.training_units`)
-and scores it on every campaign (:mod:`pipeline.cross_season`, :mod:`pipeline.scoring`).
-Writes the long score table, one row of scores per candidate, ``metrics/cross_season.json`` (a
-DVC metric), the fitted-model record read by ``track``, the matrices (CSV, one heat-map per
-candidate), ``reports/model_comparison.md`` with its figures, the champion model
-(``data/models/champion/``) and two DVC plot tables.
+Reads ``data/separated/spindle_thermal_error.parquet`` (one block of rows per displacement axis),
+``data/separated/spindle_runs.json`` (runs, references, speed responses) and the inputs chosen
+in ``reports/selection/selected.json``. For each axis, runs each candidate (model x selection,
+see :mod:`pipeline.candidates`; ``none``, no compensation, is one of them; the physical twin
+``twin``, see :mod:`pipeline.twin_candidate`, which also reads
+``data/validated/spindle/campaigns.parquet`` and ``reports/discrepancy/discrepancy.json``, or
+is skipped with the reason) on each training unit (:mod:`pipeline.training_units`) and scores
+it on every campaign (:mod:`pipeline.cross_season`, :mod:`pipeline.scoring`), then chooses the
+axis' champion on the selection protocol (:mod:`pipeline.champion`). Writes the long score
+table, one row of scores per candidate, ``metrics/cross_season.json`` (a DVC metric), the
+fitted-model record read by ``track``, the matrices (CSV, one heat-map per candidate),
+``reports/model_comparison.md`` with its figures, each axis' champion
+(``data/models/champion/<axis>/``) and two DVC plot tables.
 """
 
 from __future__ import annotations
@@ -18,7 +20,7 @@ from __future__ import annotations
 import argparse
 import json
 import logging
-from dataclasses import replace
+from dataclasses import dataclass, field, replace
 
 import joblib
 import numpy as np
@@ -26,17 +28,27 @@ import pandas as pd
 
 from pipeline import comparison_report, paths, plots
 from pipeline.candidates import candidate_list, run_all
-from pipeline.champion import champion_card, rank_candidates
+from pipeline.champion import NO_COMPENSATION, Decision, champion_card, choose_champion
 from pipeline.config import load_section
 from pipeline.cross_season import UnitResult
+from pipeline.features import InputSpec, SpeedResponses
 from pipeline.scoring import candidate_summary, metrics_tree, score_matrix
-from pipeline.select import feature_prefix, sensor_columns
-from pipeline.training_units import POOLED_UNIT, CampaignSeries, campaign_series, training_units
+from pipeline.select import check_features
+from pipeline.training_units import (
+    POOLED_UNIT,
+    CampaignSeries,
+    TrainingUnit,
+    protocol_scheme,
+    series_by_axis,
+    training_units,
+)
 from pipeline.twin_candidate import (
     TWIN_MODEL,
+    TWIN_SELECTION,
     TwinSetup,
     named_effects,
     run_twin,
+    skip_reason,
     split_twin,
     twin_campaigns,
 )
@@ -45,6 +57,10 @@ from schemas import CrossSeasonScoresModel
 LOGGER = logging.getLogger(__name__)
 
 CANDIDATE = ["model", "selection", "mode"]
+PLAIN_BASELINES = (("mlr", "all"), ("ridge", "all"))
+"""Every temperature, no lag, no speed: the references a model must clearly beat."""
+DEFAULT_MARGIN = 0.1
+EXAMPLE_ROWS = 10
 
 
 def label(row) -> str:
@@ -52,64 +68,117 @@ def label(row) -> str:
     return "/".join(str(row[key]) for key in CANDIDATE)
 
 
-def evaluate(
-    series: list[CampaignSeries], selected: dict, params: dict, twin: TwinSetup | None = None
-) -> tuple[pd.DataFrame, list[UnitResult]]:
-    """Score every candidate on every training unit.
+@dataclass
+class AxisEvaluation:
+    """Everything ``evaluate`` computed for one displacement axis.
+
+    Attributes
+    ----------
+    axis : str
+    series : list of CampaignSeries
+    units : list of TrainingUnit
+    scores : DataFrame
+        Long score rows (``schemas.CrossSeasonScoresModel``).
+    results : list of UnitResult
+    skipped : dict of str to str
+        Candidate (``model/selection``) -> why it was not scored.
+    decision : Decision or None
+        Set once the champion is chosen.
+    """
+
+    axis: str
+    series: list[CampaignSeries]
+    units: list[TrainingUnit]
+    scores: pd.DataFrame
+    results: list[UnitResult]
+    skipped: dict[str, str] = field(default_factory=dict)
+    decision: Decision | None = None
+
+    @property
+    def protocol(self) -> str | None:
+        """``loso``, ``loco`` or None."""
+        return protocol_scheme(self.units)
+
+
+def evaluate_axis(
+    axis: str,
+    series: list[CampaignSeries],
+    selected: dict,
+    params: dict,
+    twin: TwinSetup | None = None,
+    twin_skipped: str | None = None,
+) -> AxisEvaluation:
+    """Score every candidate of one axis on every training unit.
 
     Parameters
     ----------
+    axis : str
     series : list of CampaignSeries
-        All valid spindle campaigns.
+        The axis' valid spindle campaigns.
     selected : dict
-        ``selected.json`` ``methods``: ``{method: {unit: {"sensors": [...], ...}}}``.
+        ``selected.json`` ``axes[axis]``: ``{method: {unit: {"inputs": [...], ...}}}``.
     params : dict
         The ``evaluate`` section: ``candidates``, ``full_grid``, ``model_params``, ``n_jobs``.
     twin : TwinSetup, optional
-        Needed when ``candidates`` has ``twin: roles`` (:func:`read_twin_setup`).
+        Needed when ``candidates`` has ``twin: roles`` and ``twin_skipped`` is None.
+    twin_skipped : str, optional
+        Why the twin is not scored on this axis.
 
     Returns
     -------
-    scores : DataFrame
-        Long score table (``schemas.CrossSeasonScoresModel``).
-    results : list of UnitResult
+    AxisEvaluation
 
     Raises
     ------
     ValueError
-        If the twin is a candidate and ``twin`` is not given.
+        If the twin is a candidate, not skipped, and ``twin`` is not given.
     """
     units = training_units(series)
     pairs, with_twin = split_twin(params["candidates"])
-    if with_twin and twin is None:
-        raise ValueError(
-            f"params.yaml evaluate.candidates has '{TWIN_MODEL}' but no TwinSetup was given; "
-            "build one with pipeline.evaluate.read_twin_setup"
-        )
     candidates = candidate_list(pairs, selected, bool(params.get("full_grid")))
     model_params = params.get("model_params") or {}
     n_jobs = int(params.get("n_jobs", 1))
     results = run_all(candidates, units, series, selected, model_params, n_jobs)
-    if with_twin:
+    skipped = {}
+    if with_twin and twin_skipped is not None:
+        skipped[f"{TWIN_MODEL}/{TWIN_SELECTION}"] = twin_skipped
+        LOGGER.info("axis %s: twin candidate skipped: %s", axis, twin_skipped)
+    elif with_twin:
+        if twin is None:
+            raise ValueError(
+                f"params.yaml evaluate.candidates has '{TWIN_MODEL}' but no TwinSetup was given; "
+                "build one with pipeline.evaluate.read_twin_setup"
+            )
         settings = dict(model_params.get(TWIN_MODEL) or {})
         setup = replace(twin, calibration={**twin.calibration, **settings})
         results = results + run_twin(units, series, setup, n_jobs)
     scores = pd.concat([r.scores for r in results], ignore_index=True)
-    return CrossSeasonScoresModel.validate(scores, lazy=True), results
+    scores = CrossSeasonScoresModel.validate(scores, lazy=True)
+    return AxisEvaluation(axis, series, units, scores, results, skipped)
 
 
-def fitted_record(results: list[UnitResult]) -> dict:
-    """JSON-ready record of every fit: sensors and what the fit decided, per candidate and unit."""
+def decide(evaluations: list[AxisEvaluation], summary: pd.DataFrame, margin: float) -> None:
+    """Choose every axis' champion (sets ``decision``)."""
+    for item in evaluations:
+        item.decision = choose_champion(summary, item.axis, item.protocol, margin)
+        LOGGER.info("axis %s: champion %s: %s", item.axis, item.decision.label,
+                    item.decision.reason)  # fmt: skip
+
+
+def fitted_record(evaluations: list[AxisEvaluation]) -> dict:
+    """JSON-ready record of every fit: inputs and what it decided, per axis, candidate, unit."""
     return {
-        f"{r.candidate.model}/{r.candidate.selection}/{r.unit.name}": {
+        f"{e.axis}/{r.candidate.model}/{r.candidate.selection}/{r.unit.name}": {
+            "axis": e.axis,
             "model": r.candidate.model,
             "selection": r.candidate.selection,
             "train_unit": r.unit.name,
             "scheme": r.unit.scheme,
-            "sensors": r.sensors,
+            "inputs": r.sensors,
             "chosen_params": {k: _plain(v) for k, v in r.chosen_params.items()},
         }
-        for r in results
+        for e in evaluations
+        for r in e.results
     }
 
 
@@ -119,33 +188,69 @@ def _plain(value):
     return value
 
 
-def pooled_result(results: list[UnitResult], model: str, selection: str) -> UnitResult:
-    """Return the candidate's fit on all training campaigns."""
+def find_result(item: AxisEvaluation, model: str, selection: str, unit: str) -> UnitResult:
+    """Return the candidate's fit on ``unit``."""
     return next(
-        r for r in results
-        if r.unit.name == POOLED_UNIT and (r.candidate.model, r.candidate.selection)
-        == (model, selection)
+        r for r in item.results
+        if r.unit.name == unit and (r.candidate.model, r.candidate.selection) == (model, selection)
     )  # fmt: skip
 
 
-def prediction_panels(
-    series: list[CampaignSeries], first: tuple[UnitResult, str], second: tuple[UnitResult, str]
-) -> dict[str, pd.DataFrame]:
-    """Measured and two candidates' predicted error on each validation campaign (um)."""
+def held_out_prediction(
+    item: AxisEvaluation, row: pd.Series, campaign: CampaignSeries
+) -> np.ndarray | None:
+    """Return a candidate's prediction of ``campaign`` (um) by a fit that did not see it.
+
+    Validation campaigns: the fit on all training campaigns; training campaigns: the fit of the
+    protocol unit that left the campaign out; None without one.
+    """
+    for result in item.results:
+        if (result.candidate.model, result.candidate.selection) != (row["model"], row["selection"]):
+            continue
+        unit = result.unit
+        held_out = campaign.campaign_id not in unit.campaigns
+        if (campaign.split == "validation" and unit.name == POOLED_UNIT) or (
+            campaign.split == "train" and unit.scheme == item.protocol and held_out
+        ):
+            return result.predictions.get((row["mode"], campaign.campaign_id))
+    return None
+
+
+def best_plain_baseline(summary: pd.DataFrame, column: str | None) -> pd.Series | None:
+    """Return the better plain all-temperature regression on the protocol, if scored."""
+    if column is None or column not in summary:
+        return None
+    plain = summary[
+        summary[["model", "selection"]].apply(tuple, axis=1).isin(PLAIN_BASELINES)
+        & summary[column].notna()
+    ]
+    return None if plain.empty else plain.sort_values(column).iloc[0]
+
+
+def prediction_panels(item: AxisEvaluation, first: pd.Series, second: pd.Series | None) -> dict:
+    """Measured and predicted error of held-out campaigns, per campaign (um).
+
+    The validation campaigns when there are any, else the training campaigns, each predicted by
+    the protocol fit that left it out.
+    """
+    validation = [s for s in item.series if s.split == "validation"]
+    shown = validation or [s for s in item.series if s.split == "train"]
     panels = {}
-    for campaign in (s for s in series if s.split == "validation"):
+    for campaign in shown:
+        one = held_out_prediction(item, first, campaign)
+        if one is None:
+            continue
+        two = None if second is None else held_out_prediction(item, second, campaign)
         minutes = campaign.features.index.get_level_values("elapsed_s").to_numpy() / 60.0
         panels[campaign.campaign_id] = pd.DataFrame({
-            "elapsed_min": minutes,
-            "measured_um": campaign.target,
-            "first_um": first[0].predictions[(first[1], campaign.campaign_id)],
-            "second_um": second[0].predictions[(second[1], campaign.campaign_id)],
+            "elapsed_min": minutes, "measured_um": campaign.target, "first_um": one,
+            "second_um": np.full(len(minutes), np.nan) if two is None else two,
         })  # fmt: skip
     return panels
 
 
 def write_matrices(scores: pd.DataFrame, title_suffix: str) -> list[str]:
-    """Matrices CSV (every candidate, both scores) and one heat-map PNG per candidate.
+    """Matrices CSV (every axis and candidate, both scores) and one heat-map per candidate.
 
     Returns
     -------
@@ -154,21 +259,23 @@ def write_matrices(scores: pd.DataFrame, title_suffix: str) -> list[str]:
     """
     cross = scores[scores["scheme"] != "pooled"]
     frames, figures = [], []
+    paths.MATRICES.mkdir(parents=True, exist_ok=True)
     for path in paths.MATRICES.glob("*.png"):
         path.unlink()
-    for keys, group in cross.groupby(CANDIDATE, sort=True):
+    keys_all = ["axis", *CANDIDATE]
+    for keys, group in cross.groupby(keys_all, sort=True):
         for column in ("resid_std_um", "rmse_um"):
             matrix = score_matrix(group, column)
             matrix.index = pd.MultiIndex.from_tuples(
                 [(*keys, column, unit) for unit in matrix.index],
-                names=[*CANDIDATE, "score", "train_unit"],
+                names=[*keys_all, "score", "train_unit"],
             )
             frames.append(matrix)
         out = paths.MATRICES / f"{'__'.join(keys)}.png"
         plots.score_heatmaps(
-            {"residual standard deviation (um)": score_matrix(group, "resid_std_um")},
-            f"{'/'.join(keys)}: built on one training unit, applied to every campaign "
-            f"({title_suffix})",
+            {"RMS of the residual (um)": score_matrix(group, "rmse_um")},
+            f"axis {keys[0]}, {'/'.join(keys[1:])}: built on one training unit, applied to every "
+            f"campaign ({title_suffix})",
             out,
         )
         figures.append(out.relative_to(paths.REPORTS).as_posix())
@@ -176,90 +283,166 @@ def write_matrices(scores: pd.DataFrame, title_suffix: str) -> list[str]:
     return figures
 
 
-def write_champion(card: dict, result: UnitResult) -> None:
-    """Save the champion estimator (joblib) and its card (JSON) for ``track`` to register."""
-    paths.CHAMPION.mkdir(parents=True, exist_ok=True)
-    joblib.dump(result.estimator, paths.CHAMPION_ESTIMATOR)
-    paths.CHAMPION_CARD.write_text(json.dumps(card, indent=2, sort_keys=True) + "\n")
+def input_spec(inputs: list[str], features: str, separation: dict) -> InputSpec:
+    """How the champion's inputs are prepared, from the separation record (speed responses)."""
+    settings = separation.get("settings") or {}
+    speed = settings.get("speed_responses")
+    return InputSpec(
+        tuple(inputs),
+        features,
+        str(settings.get("cold_reference", "first_sample")),
+        int(settings.get("cold_n", 1)),
+        None if not speed else SpeedResponses(
+            tuple(float(t) for t in speed["time_constants_min"]),
+            tuple(float(a) for a in speed["exponents"]),
+        ),
+    )  # fmt: skip
+
+
+def input_example(table: pd.DataFrame, spec: InputSpec, campaign_id: str) -> pd.DataFrame:
+    """Return the first rows of a training campaign as the registered model takes them."""
+    rows = table[table["campaign_id"] == campaign_id].sort_values("elapsed_s").head(EXAMPLE_ROWS)
+    columns = ["campaign_id", "elapsed_s", *(["rpm"] if spec.needs_speed else []), *spec.sensors]
+    return rows[columns].reset_index(drop=True)
+
+
+def write_champion(item: AxisEvaluation, card: dict, result: UnitResult, example: pd.DataFrame):
+    """Save an axis' champion: estimator (joblib), card (JSON), input example (CSV)."""
+    folder = paths.CHAMPION / item.axis
+    folder.mkdir(parents=True, exist_ok=True)
+    joblib.dump(result.estimator, folder / paths.CHAMPION_ESTIMATOR_FILE)
+    card_text = json.dumps(card, indent=2, sort_keys=True) + "\n"
+    (folder / paths.CHAMPION_CARD_FILE).write_text(card_text)
+    example.to_csv(folder / paths.CHAMPION_EXAMPLE_FILE, index=False)
+
+
+def champions(
+    evaluations: list[AxisEvaluation], table: pd.DataFrame, features: str, separation: dict
+) -> dict[str, dict]:
+    """Write every axis' champion; return the cards by axis."""
+    for stale in paths.CHAMPION.glob("*") if paths.CHAMPION.is_dir() else []:
+        if stale.is_dir() and stale.name not in {e.axis for e in evaluations}:
+            for file in stale.iterdir():
+                file.unlink()
+            stale.rmdir()
+    cards = {}
+    for item in evaluations:
+        best = item.decision.champion
+        result = find_result(item, best["model"], best["selection"], POOLED_UNIT)
+        spec = input_spec(result.sensors, features, separation)
+        training = [s for s in item.series if s.split == "train"]
+        times = [np.diff(s.features.index.get_level_values("elapsed_s")) for s in training]
+        interval = float(np.median(np.concatenate(times))) if times else float("nan")
+        card = champion_card(item.decision, result, spec, interval)
+        rows = table[table["axis"] == item.axis]
+        write_champion(item, card, result, input_example(rows, spec, training[0].campaign_id))
+        cards[item.axis] = card
+    return cards
 
 
 def write_outputs(
-    series: list[CampaignSeries],
+    evaluations: list[AxisEvaluation],
+    table: pd.DataFrame,
     selected: dict,
     features: str,
-    scores: pd.DataFrame,
-    results: list[UnitResult],
-    synthetic: bool,
+    separation: dict,
     twin_source: str | None = None,
-) -> dict:
-    """Write every output declared for the stage in ``dvc.yaml``; return the champion card.
-
-    ``twin_source`` says which twin the ``twin`` candidate is (report note); ``None`` without it.
-    """
+) -> dict[str, dict]:
+    """Write every output declared for the stage in ``dvc.yaml``; return the champion cards."""
     for path in (paths.SCORES_LONG, paths.CROSS_SEASON_METRICS, paths.PLOT_MODEL_SCORES):
         path.parent.mkdir(parents=True, exist_ok=True)
+    scores = pd.concat([e.scores for e in evaluations], ignore_index=True)
     scores.to_csv(paths.SCORES_LONG, index=False, float_format="%.6g")
     summary = candidate_summary(scores)
     summary.to_csv(paths.CANDIDATE_SCORES, index=False, float_format="%.4f")
-    paths.CROSS_SEASON_METRICS.write_text(
-        json.dumps(_round(metrics_tree(scores)), indent=2, sort_keys=True)
-    )
-    paths.FITTED_MODELS.write_text(json.dumps(fitted_record(results), indent=2, sort_keys=True))
+    cards = champions(evaluations, table, features, separation)
+    tree = metrics_tree(scores)
+    metrics = {
+        e.axis: {
+            "candidates": tree[e.axis],
+            "champion": _champion_metrics(cards[e.axis]),
+            "skipped": dict(e.skipped),
+        }
+        for e in evaluations
+    }
+    paths.CROSS_SEASON_METRICS.write_text(json.dumps(_round(metrics), indent=2, sort_keys=True))
+    paths.FITTED_MODELS.write_text(json.dumps(fitted_record(evaluations), indent=2, sort_keys=True))
 
-    ranked, column = rank_candidates(summary)
-    best, worst = ranked.iloc[0], ranked.iloc[-1]
-    champion = pooled_result(results, best["model"], best["selection"])
-    card = champion_card(best, column, champion, features)
-    write_champion(card, champion)
-
+    synthetic = bool(table["synthetic"].any())
     origin = "SYNTHETIC data from the physical twin" if synthetic else "measured data"
     heatmaps = write_matrices(scores, origin)
-    worst_fit = pooled_result(results, worst["model"], worst["selection"])
-    panels = prediction_panels(series, (champion, best["mode"]), (worst_fit, worst["mode"]))
-    figure = paths.COMPARISON_FIGURES / "best_worst_validation.png"
-    labels = (f"best: {label(best)}", f"worst: {label(worst)}")
-    plots.predicted_vs_measured(
-        panels, labels, f"Validation campaigns, models built on all training campaigns ({origin})",
-        figure,
-    )  # fmt: skip
-    n_campaigns = {
-        split: sum(s.split == split for s in series) for split in ("train", "validation")
-    }
-    paths.MODEL_COMPARISON.write_text(
-        comparison_report.render(
-            summary,
-            card,
-            selected,
-            heatmaps,
-            figure.relative_to(paths.REPORTS).as_posix(),
-            labels,
-            n_campaigns,
-            synthetic,
-            twin_source,
+    sections, plot_rows, prediction_rows = [], [], []
+    for item in evaluations:
+        rows = summary[summary["axis"] == item.axis]
+        decision = item.decision
+        models = decision.ranked[decision.ranked["model"] != NO_COMPENSATION]
+        first = models.iloc[0] if len(models) else decision.champion
+        second = best_plain_baseline(rows, decision.column)
+        panels = prediction_panels(item, first, second)
+        figure = paths.COMPARISON_FIGURES / f"heldout_{item.axis}.png"
+        labels = (f"best model: {label(first)}",
+                  "no plain baseline" if second is None else f"plain: {label(second)}")  # fmt: skip
+        where = (
+            "validation campaigns, built on all training campaigns"
+            if any(s.split == "validation" for s in item.series)
+            else "each training campaign, predicted by the fit that left it out"
+        )
+        plots.predicted_vs_measured(panels, labels, f"Axis {item.axis}: {where} ({origin})", figure)
+        sections.append(
+            comparison_report.axis_section(
+                item.axis, rows, decision, cards[item.axis], selected["axes"][item.axis],
+                separation, item.series, item.skipped,
+                figure.relative_to(paths.REPORTS).as_posix(), labels,
+                [h for h in heatmaps if h.startswith(f"matrices/{item.axis}__")],
+                second, twin_source,
+            )
         )  # fmt: skip
+        column = decision.column
+        for _, row in rows.iterrows():
+            plot_rows.append({
+                "axis": item.axis, "candidate": f"{item.axis}: {label(row)}",
+                "heldout_rms_um": row.get(column) if column else np.nan,
+                "eta": row.get(f"{item.protocol}_eta") if item.protocol else np.nan,
+            })  # fmt: skip
+        for campaign, frame in panels.items():
+            prediction_rows.append(
+                frame.rename(columns={"first_um": "predicted_um"}).drop(columns="second_um")
+                .assign(axis=item.axis, campaign_id=campaign)
+            )  # fmt: skip
+    paths.MODEL_COMPARISON.write_text(
+        comparison_report.render(sections, separation, synthetic, [e.axis for e in evaluations])
     )
-
-    plot_scores = summary.assign(candidate=summary.apply(label, axis=1))
-    plot_scores[["candidate", "Mn_um", "Mn_val_um"]].to_csv(
-        paths.PLOT_MODEL_SCORES, index=False, float_format="%.4f"
-    )
-    rows = []
-    for campaign, frame in panels.items():
-        rows.append(frame.rename(columns={"first_um": "predicted_um"})
-                    .drop(columns="second_um").assign(campaign_id=campaign))  # fmt: skip
-    predictions = pd.concat(rows, ignore_index=True) if rows else pd.DataFrame()
+    pd.DataFrame(plot_rows).to_csv(paths.PLOT_MODEL_SCORES, index=False, float_format="%.4f")
+    predictions = pd.concat(prediction_rows, ignore_index=True) if prediction_rows else (
+        pd.DataFrame(columns=["elapsed_min", "measured_um", "predicted_um", "axis", "campaign_id"])
+    )  # fmt: skip
     predictions.round(4).to_csv(paths.PLOT_PREDICTIONS, index=False)
-    return card
+    return cards
+
+
+def _champion_metrics(card: dict) -> dict:
+    scores = card["scores"]
+    protocol = card["protocol"]
+    return {
+        "compensate": card["compensate"],
+        "heldout_rms_um": scores.get(f"{protocol}_Mn_rms_um") if protocol else None,
+        "heldout_eta": scores.get(f"{protocol}_eta") if protocol else None,
+        "none_heldout_rms_um": card["none_score_um"],
+        "validation_rms_um": scores.get("pooled_Mn_val_rms_um"),
+        "validation_eta": scores.get("pooled_eta_val"),
+    }
 
 
 def _round(tree):
     if isinstance(tree, dict):
         return {k: _round(v) for k, v in tree.items()}
+    if isinstance(tree, bool | str) or tree is None:
+        return tree
     return None if not np.isfinite(tree) else round(float(tree), 4)
 
 
 def read_twin_setup(table: pd.DataFrame, series: list[CampaignSeries]) -> TwinSetup:
-    """Everything the ``twin`` candidate reads besides the separated table.
+    """Everything the ``twin`` candidate reads besides the separated table (axis Z rows).
 
     The sensor roles and spindle programs from ``data/validated/spindle/campaigns.parquet``; the
     effects from ``reports/discrepancy/discrepancy.json`` (absent: the baseline twin, with a
@@ -268,13 +451,7 @@ def read_twin_setup(table: pd.DataFrame, series: list[CampaignSeries]) -> TwinSe
     measured one.
     """
     meta = pd.read_parquet(paths.VALIDATED_SPINDLE / paths.CAMPAIGNS_FILE)
-    document = None
-    if paths.DISCREPANCY_DOCUMENT.is_file():
-        document = json.loads(paths.DISCREPANCY_DOCUMENT.read_text(encoding="utf-8"))
-    effects, source = named_effects(document)
-    if document is None:
-        LOGGER.warning("%s not found: the twin candidate is the %s", paths.DISCREPANCY_DOCUMENT,
-                       source)  # fmt: skip
+    effects, source = named_effects(read_discrepancy())
     separate = load_section("separate")
     return TwinSetup(
         campaigns=twin_campaigns(table, meta, series),
@@ -282,6 +459,25 @@ def read_twin_setup(table: pd.DataFrame, series: list[CampaignSeries]) -> TwinSe
         effects_source=source,
         cold_reference=str(separate["cold_reference"]),
         cold_n=int(separate["cold_n"]),
+    )
+
+
+def read_discrepancy() -> dict | None:
+    """``reports/discrepancy/discrepancy.json``, or None (with a warning) when absent."""
+    if not paths.DISCREPANCY_DOCUMENT.is_file():
+        LOGGER.warning("%s not found: the twin candidate is the baseline twin",
+                       paths.DISCREPANCY_DOCUMENT)  # fmt: skip
+        return None
+    return json.loads(paths.DISCREPANCY_DOCUMENT.read_text(encoding="utf-8"))
+
+
+def sensor_roles() -> frozenset[str]:
+    """Every sensor role of the valid spindle campaigns."""
+    meta = pd.read_parquet(paths.VALIDATED_SPINDLE / paths.CAMPAIGNS_FILE)
+    return frozenset(
+        str((spec or {}).get("role", "other"))
+        for text in meta["sensors_json"]
+        for spec in json.loads(text).values()
     )
 
 
@@ -296,16 +492,22 @@ def main(argv: list[str] | None = None) -> int:
             f"{paths.SELECTED} not found: run the select stage first (dvc repro select)"
         )
     document = json.loads(paths.SELECTED.read_text())
-    features, selected = str(document["features"]), document["methods"]
-    series = campaign_series(table, sensor_columns(table), feature_prefix(features))
-    twin = read_twin_setup(table, series) if split_twin(params["candidates"])[1] else None
-    scores, results = evaluate(series, selected, params, twin)
-    card = write_outputs(series, selected, features, scores, results,
-                         bool(table["synthetic"].any()),
-                         None if twin is None else twin.effects_source)  # fmt: skip
-    LOGGER.info(
-        "champion %s/%s/%s on %s: %s %.2f um; report %s", card["model"], card["selection"],
-        card["mode"], ", ".join(card["sensors"]) or "no sensor", card["chosen_on"],
-        card["scores_um"].get(card["chosen_on"]) or float("nan"), paths.MODEL_COMPARISON,
-    )  # fmt: skip
+    features, selected = check_features(str(document["features"])), document["axes"]
+    separation = json.loads(paths.SPINDLE_RUNS.read_text())
+    with_twin = split_twin(params["candidates"])[1]
+    discrepancy = read_discrepancy() if with_twin else None
+    roles = sensor_roles() if with_twin else frozenset()
+    evaluations, twin_source = [], None
+    for axis, series in series_by_axis(table, features).items():
+        skipped, twin = None, None
+        if with_twin:
+            skipped = skip_reason(axis, discrepancy, series, roles)
+            if skipped is None:
+                twin = read_twin_setup(table[table["axis"] == axis], series)
+                twin_source = twin.effects_source
+        evaluations.append(evaluate_axis(axis, series, selected[axis], params, twin, skipped))
+    summary = candidate_summary(pd.concat([e.scores for e in evaluations], ignore_index=True))
+    champion_params = params.get("champion") or {}
+    decide(evaluations, summary, float(champion_params.get("min_improvement", DEFAULT_MARGIN)))
+    write_outputs(evaluations, table, document, features, separation, twin_source)
     return 0

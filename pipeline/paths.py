@@ -22,14 +22,18 @@ LASER_FILE = "laser.parquet"
 
 SEPARATED = Path("data/separated")
 SPINDLE_THERMAL_ERROR = SEPARATED / "spindle_thermal_error.parquet"
+SPINDLE_RUNS = SEPARATED / "spindle_runs.json"
 AXIS_GEOMETRIC = SEPARATED / "axis_geometric.parquet"
 AXIS_THERMAL_ERROR = SEPARATED / "axis_thermal_error.parquet"
 AXIS_SLOPES = SEPARATED / "axis_slopes.parquet"
 
 MODELS = Path("data/models")
 CHAMPION = MODELS / "champion"
-CHAMPION_ESTIMATOR = CHAMPION / "estimator.joblib"
-CHAMPION_CARD = CHAMPION / "champion.json"
+"""One folder per displacement axis: ``<axis>/estimator.joblib``, ``champion.json``,
+``input_example.csv``."""
+CHAMPION_ESTIMATOR_FILE = "estimator.joblib"
+CHAMPION_CARD_FILE = "champion.json"
+CHAMPION_EXAMPLE_FILE = "input_example.csv"
 
 REPORTS = Path("reports")
 VALIDATION_REPORT = REPORTS / "validation.json"
@@ -37,7 +41,6 @@ SEPARATION_PLOTS = REPORTS / "separation"
 SELECTION = REPORTS / "selection"
 SELECTED = SELECTION / "selected.json"
 SELECTION_STABILITY = SELECTION / "stability.csv"
-SELECTION_STABILITY_PNG = SELECTION / "stability.png"
 SCORES_LONG = REPORTS / "cross_season_scores.csv"
 CANDIDATE_SCORES = REPORTS / "model_scores.csv"
 MATRIX_CSV = REPORTS / "cross_season_matrix.csv"

@@ -13,6 +13,13 @@ deviation (ddof=1) of the scores on the *other* training campaigns (prediction a
 spread, the paper's 11 values per model), and Mn_val, Sd_val the same over the validation
 campaigns. Overall: S is the mean of the per-campaign S, Mn and Sd the mean and standard
 deviation of all pooled prediction scores (Mn_val, Sd_val likewise).
+
+The **compensation ratio** (not in the paper) says how much of the error a compensation removes:
+per scored campaign eta = 1 - RMS(residual) / RMS(uncompensated error), the uncompensated error
+being the thermal error itself on the same samples (what the candidate ``none`` leaves); 1 is
+perfect, 0 no better than no compensation, negative worse. Summarised over a set of campaigns
+as eta = 1 - mean RMS(residual) / mean RMS(uncompensated), so that a candidate beats ``none`` by
+a fraction f of its error exactly when its summary eta is at least f.
 """
 
 from __future__ import annotations
@@ -20,7 +27,11 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
+from pipeline.training_units import SCHEMES
+
 SCORE_COLUMNS = {"resid_std_um": "", "rmse_um": "_rms"}
+SCHEME_PREFIX = {"campaign": "", "loso": "loso_", "loco": "loco_", "pooled": "pooled_"}
+"""Column prefix of each scheme's summary in :func:`candidate_summary`."""
 
 
 def residual_std(residual: np.ndarray) -> float:
@@ -47,6 +58,13 @@ def root_mean_square(residual: np.ndarray) -> float:
     return float(np.sqrt(np.mean(finite**2))) if finite.size else float("nan")
 
 
+def compensation_ratio(rms_residual_um: float, rms_uncompensated_um: float) -> float:
+    """Return eta = 1 - RMS(residual) / RMS(uncompensated error); NaN if the latter is not > 0."""
+    if not np.isfinite(rms_uncompensated_um) or rms_uncompensated_um <= 0:
+        return float("nan")
+    return 1.0 - float(rms_residual_um) / float(rms_uncompensated_um)
+
+
 def _mean_sd(values: pd.Series) -> tuple[float, float]:
     finite = values.dropna()
     mean = float(finite.mean()) if len(finite) else float("nan")
@@ -68,7 +86,8 @@ def summarise(scores: pd.DataFrame) -> dict[str, float]:
     -------
     dict of str to float
         Keys ``S_um``, ``Mn_um``, ``Sd_um``, ``Mn_val_um``, ``Sd_val_um`` and the same with
-        ``_rms`` before ``_um``; all in um.
+        ``_rms`` before ``_um``, all in um; ``eta`` and ``eta_val``, the compensation ratio
+        over the prediction and the validation rows (needs ``uncompensated_rms_um``).
     """
     summary: dict[str, float] = {}
     for column, suffix in SCORE_COLUMNS.items():
@@ -80,15 +99,22 @@ def summarise(scores: pd.DataFrame) -> dict[str, float]:
         summary[f"Mn{suffix}_um"], summary[f"Sd{suffix}_um"] = mn, sd
         mn_val, sd_val = _mean_sd(by_role.get("validation", empty))
         summary[f"Mn_val{suffix}_um"], summary[f"Sd_val{suffix}_um"] = mn_val, sd_val
+    if "uncompensated_rms_um" in scores:
+        for role, key in (("prediction", "eta"), ("validation", "eta_val")):
+            rows = scores[(scores["role"] == role) & scores["rmse_um"].notna()]
+            summary[key] = (
+                compensation_ratio(rows["rmse_um"].mean(), rows["uncompensated_rms_um"].mean())
+                if len(rows)
+                else float("nan")
+            )
     return summary
 
 
-SCHEMES = ("campaign", "season", "pooled")
-CANDIDATE_KEYS = ["model", "selection", "mode"]
+CANDIDATE_KEYS = ["axis", "model", "selection", "mode"]
 
 
 def metrics_tree(scores: pd.DataFrame) -> dict:
-    """Nest summaries as ``{model: {selection: {mode: {scheme: {...}}}}}``.
+    """Nest summaries as ``{axis: {model: {selection: {mode: {scheme: {...}}}}}}``.
 
     Each scheme entry holds ``overall`` (:func:`summarise` of all its rows) and
     ``by_train_unit`` (one summary per training campaign, left-out season or pooled unit).
@@ -99,10 +125,13 @@ def metrics_tree(scores: pd.DataFrame) -> dict:
         The whole long score table (``schemas.CrossSeasonScoresModel``).
     """
     tree: dict = {}
-    for (model, selection, mode, scheme), group in scores.groupby(
+    for (axis, model, selection, mode, scheme), group in scores.groupby(
         [*CANDIDATE_KEYS, "scheme"], sort=True
     ):
-        modes = tree.setdefault(model, {}).setdefault(selection, {}).setdefault(mode, {})
+        modes = (
+            tree.setdefault(axis, {}).setdefault(model, {}).setdefault(selection, {})
+            .setdefault(mode, {})
+        )  # fmt: skip
         modes[scheme] = {
             "overall": summarise(group),
             "by_train_unit": {
@@ -113,16 +142,18 @@ def metrics_tree(scores: pd.DataFrame) -> dict:
 
 
 def candidate_summary(scores: pd.DataFrame) -> pd.DataFrame:
-    """One row per (model, selection, mode): the overall scores of every scheme.
+    """One row per (axis, model, selection, mode): the overall scores of every scheme.
 
     Columns are the candidate keys, then ``S_um``, ``Mn_um``... of the ``campaign`` scheme (the
-    PCDL paper's protocol), ``loso_`` + the same for leave-one-season-out and ``pooled_`` + the
-    same for the model built on all training campaigns; all in um.
+    PCDL paper's protocol), ``loso_`` or ``loco_`` + the same for leave-one-season-out or
+    leave-one-campaign-out and ``pooled_`` + the same for the model built on all training
+    campaigns; all in um (``eta``: dimensionless).
     """
     rows = []
     for keys, group in scores.groupby(CANDIDATE_KEYS, sort=True):
         row = dict(zip(CANDIDATE_KEYS, keys, strict=True))
-        for scheme, prefix in zip(SCHEMES, ("", "loso_", "pooled_"), strict=True):
+        for scheme in SCHEMES:
+            prefix = SCHEME_PREFIX[scheme]
             part = group[group["scheme"] == scheme]
             if len(part):
                 row.update({prefix + key: value for key, value in summarise(part).items()})

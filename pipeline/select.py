@@ -1,17 +1,21 @@
-"""DVC stage ``select``: the temperature-sensitive points of every training unit, by every method.
+"""DVC stage ``select``: the sensitive inputs of every axis and training unit, by every method.
 
-Reads ``data/separated/spindle_thermal_error.parquet``. For each selection method of
-``params.yaml`` ``select.methods`` (registry :mod:`pipeline.selection`) and each training unit
-(each training campaign, each leave-one-season-out set, all training campaigns; see
-:mod:`pipeline.training_units`) it chooses the sensors from the training data only, and writes
+Reads ``data/separated/spindle_thermal_error.parquet``. For each displacement axis, each
+selection method of ``params.yaml`` ``select.methods`` (registry :mod:`pipeline.selection`)
+and each training unit (each training campaign, each season or campaign left out, all training
+campaigns; see :mod:`pipeline.training_units`) it chooses the inputs from the training data
+only. The inputs offered are the temperature sensors and, where the campaigns have a spindle
+speed, the speed responses (:mod:`pipeline.features`); an entry's ``inputs:`` restricts a
+method to the temperatures (``temperatures``), and ``method:`` lets one registry method appear
+under two names (``all_speed: {method: all, inputs: temperatures_and_speed}``). Writes
 
-- ``reports/selection/selected.json``: ``{"features": ..., "methods": {method: {unit:
-  {"sensors": [...], "details": {...}}}}}``, the input of ``evaluate``;
+- ``reports/selection/selected.json``: ``{"features": ..., "axes": {axis: {method: {unit:
+  {"inputs": [...], "details": {...}}}}}}``, the input of ``evaluate``;
 - ``reports/selection/<method>_evidence.csv``: the numbers each choice was made on, one block
-  per unit (leading column ``unit``);
-- ``reports/selection/stability.csv`` and ``stability.png``: how often each sensor is chosen
-  across the training campaigns, per method (the PCDL paper's table 3: sensitive points vary
-  from batch to batch).
+  per axis and unit (leading columns ``axis``, ``unit``);
+- ``reports/selection/stability.csv`` and ``stability_<axis>.png``: how often each input is
+  chosen across the training campaigns, per method and axis (the PCDL paper's table 3:
+  sensitive points vary from batch to batch).
 """
 
 from __future__ import annotations
@@ -19,97 +23,113 @@ from __future__ import annotations
 import argparse
 import json
 import logging
-import re
+from collections.abc import Mapping
 
 import pandas as pd
 
 from pipeline import paths, plots
 from pipeline.config import load_section
+from pipeline.features import FEATURE_KINDS, is_speed_feature
 from pipeline.selection import Selection, make_selector
 from pipeline.training_units import (
     CampaignSeries,
     TrainingUnit,
-    campaign_series,
+    series_by_axis,
     stack,
     training_units,
 )
 
 LOGGER = logging.getLogger(__name__)
 
-FEATURE_PREFIX = {"temperature_rise": "rise_", "absolute": ""}
+INPUT_SETS = ("temperatures", "temperatures_and_speed")
 
 
-def sensor_columns(table: pd.DataFrame) -> list[str]:
-    """Temperature sensor names in the separated table (columns with a ``rise_`` twin).
+def method_entries(methods: Mapping[str, Mapping | None]) -> dict[str, tuple[str, str, dict]]:
+    """Parse ``select.methods``: name -> (registry method, input set, its parameters).
 
-    In natural order: T2 before T10.
+    Raises
+    ------
+    ValueError
+        If an entry's ``inputs`` is not one of :data:`INPUT_SETS`.
     """
-    names = [c.removeprefix("rise_") for c in table.columns if c.startswith("rise_")]
-    return sorted(names, key=lambda name: [int(p) if p.isdigit() else p
-                                           for p in re.split(r"(\d+)", name)])  # fmt: skip
+    entries = {}
+    for name, settings in methods.items():
+        settings = dict(settings or {})
+        method = str(settings.pop("method", name))
+        inputs = str(settings.pop("inputs", "temperatures_and_speed"))
+        if inputs not in INPUT_SETS:
+            raise ValueError(
+                f"params.yaml select.methods.{name}.inputs is '{inputs}'; use one of "
+                f"{list(INPUT_SETS)}"
+            )
+        entries[str(name)] = (method, inputs, settings)
+    return entries
 
 
-def feature_prefix(features: str) -> str:
-    """Column prefix of a feature kind.
+def check_features(features: str) -> str:
+    """Return ``features`` if it is a known feature kind.
 
     Raises
     ------
     ValueError
         If ``features`` is neither ``temperature_rise`` nor ``absolute``.
     """
-    if features not in FEATURE_PREFIX:
+    if features not in FEATURE_KINDS:
         raise ValueError(
-            f"params.yaml select.features is '{features}'; use one of {sorted(FEATURE_PREFIX)}"
+            f"params.yaml select.features is '{features}'; use one of {list(FEATURE_KINDS)}"
         )
-    return FEATURE_PREFIX[features]
+    return features
 
 
 def select_unit(
-    method: str, settings: dict, unit: TrainingUnit, series: list[CampaignSeries]
+    entry: tuple[str, str, dict], unit: TrainingUnit, series: list[CampaignSeries]
 ) -> Selection:
     """Run one selection method on the campaigns of one training unit.
 
-    Only sensors with readings in every campaign of the unit are candidates.
+    Only inputs with readings in every campaign of the unit are candidates; with the input set
+    ``temperatures``, the speed responses are not offered.
     """
+    method, inputs, settings = entry
     training = [s for s in series if s.campaign_id in unit.campaigns]
-    sensors = [
+    offered = [
         column
         for column in training[0].features.columns
         if all(s.features[column].notna().any() for s in training)
+        and (inputs == "temperatures_and_speed" or not is_speed_feature(column))
     ]
-    temperatures, error = stack(training, sensors)
-    return make_selector(method, **(settings or {}))(temperatures, error)
+    temperatures, error = stack(training, offered)
+    return make_selector(method, **settings)(temperatures, error)
 
 
-def select_all(
-    series: list[CampaignSeries], units: list[TrainingUnit], methods: dict[str, dict]
+def select_axis(
+    series: list[CampaignSeries], units: list[TrainingUnit], entries: dict
 ) -> dict[str, dict[str, Selection]]:
-    """Every method on every training unit: ``{method: {unit name: Selection}}``."""
+    """Every method on every training unit of one axis: ``{method: {unit name: Selection}}``."""
     return {
-        method: {unit.name: select_unit(method, settings, unit, series) for unit in units}
-        for method, settings in methods.items()
+        name: {unit.name: select_unit(entry, unit, series) for unit in units}
+        for name, entry in entries.items()
     }
 
 
 def stability_table(
-    selections: dict[str, dict[str, Selection]], units: list[TrainingUnit], sensors: list[str]
+    selections: dict[str, dict[str, Selection]], units: list[TrainingUnit], inputs: list[str]
 ) -> pd.DataFrame:
-    """How often each sensor is chosen across the training campaigns, per method.
+    """How often each input is chosen across the training campaigns, per method.
 
     Parameters
     ----------
     selections : dict
-        ``{method: {unit: Selection}}``.
+        ``{method: {unit: Selection}}`` of one axis.
     units : list of TrainingUnit
         The campaign-scheme units are counted.
-    sensors : list of str
-        Every sensor; one row each per method, chosen or not.
+    inputs : list of str
+        Every input; one row each per method, chosen or not.
 
     Returns
     -------
     DataFrame
         ``method``, ``sensor``, ``times_chosen``, ``n_campaigns``, ``frequency`` (0-1); one row
-        per method and sensor seen by it, most chosen first.
+        per method and input.
     """
     campaigns = [unit.name for unit in units if unit.scheme == "campaign"]
     rows = []
@@ -118,7 +138,7 @@ def stability_table(
         for name in campaigns:
             for sensor in by_unit[name].sensors:
                 counts[sensor] = counts.get(sensor, 0) + 1
-        for sensor in sensors:
+        for sensor in inputs:
             chosen = counts.get(sensor, 0)
             rows.append({
                 "method": method, "sensor": sensor, "times_chosen": chosen,
@@ -127,16 +147,19 @@ def stability_table(
     return pd.DataFrame(rows)
 
 
-def selected_record(features: str, selections: dict[str, dict[str, Selection]]) -> dict:
-    """JSON-ready record of the choices: sensors and decision details per method and unit."""
+def selected_record(features: str, selections: dict[str, dict[str, dict[str, Selection]]]) -> dict:
+    """JSON-ready record of the choices: inputs and decision details per axis, method and unit."""
     return {
         "features": features,
-        "methods": {
-            method: {
-                unit: {"sensors": list(sel.sensors), "details": _plain(sel.details)}
-                for unit, sel in by_unit.items()
+        "axes": {
+            axis: {
+                method: {
+                    unit: {"inputs": list(sel.sensors), "details": _plain(sel.details)}
+                    for unit, sel in by_unit.items()
+                }
+                for method, by_unit in by_method.items()
             }
-            for method, by_unit in selections.items()
+            for axis, by_method in selections.items()
         },
     }
 
@@ -147,33 +170,45 @@ def _plain(details: dict) -> dict:
 
 def write_outputs(
     features: str,
-    selections: dict[str, dict[str, Selection]],
-    units: list[TrainingUnit],
-    sensors: list[str],
+    selections: dict[str, dict[str, dict[str, Selection]]],
+    units: dict[str, list[TrainingUnit]],
+    inputs: dict[str, list[str]],
     synthetic: bool,
 ) -> None:
     """Write every output declared for the stage in ``dvc.yaml``."""
     paths.SELECTION.mkdir(parents=True, exist_ok=True)
-    for stale in paths.SELECTION.glob("*_evidence.csv"):
+    for stale in [*paths.SELECTION.glob("*_evidence.csv"), *paths.SELECTION.glob("*.png")]:
         stale.unlink()
     paths.SELECTED.write_text(
         json.dumps(selected_record(features, selections), indent=2, sort_keys=True) + "\n"
     )
-    for method, by_unit in selections.items():
+    methods = list(next(iter(selections.values())))
+    for method in methods:
         evidence = pd.concat(
-            [sel.evidence.assign(unit=unit) for unit, sel in by_unit.items()], ignore_index=True
+            [
+                sel.evidence.assign(axis=axis, unit=unit)
+                for axis, by_method in selections.items()
+                for unit, sel in by_method[method].items()
+            ],
+            ignore_index=True,
         )
-        evidence = evidence[["unit", *[c for c in evidence.columns if c != "unit"]]]
+        first = ["axis", "unit"]
+        evidence = evidence[[*first, *[c for c in evidence.columns if c not in first]]]
         evidence.to_csv(paths.SELECTION / f"{method}_evidence.csv", index=False,
                         float_format="%.6g")  # fmt: skip
-    stability = stability_table(selections, units, sensors)
-    stability.to_csv(paths.SELECTION_STABILITY, index=False, float_format="%.4f")
     label = "SYNTHETIC data from the physical twin" if synthetic else "measured data"
-    plots.selection_stability(
-        stability,
-        f"How often each sensor is chosen, across the training campaigns ({label})",
-        paths.SELECTION_STABILITY_PNG,
-    )
+    tables = []
+    for axis, by_method in selections.items():
+        stability = stability_table(by_method, units[axis], inputs[axis]).assign(axis=axis)
+        tables.append(stability)
+        plots.selection_stability(
+            stability,
+            f"Axis {axis}: how often each input is chosen, across the training campaigns ({label})",
+            paths.SELECTION / f"stability_{axis}.png",
+        )
+    stability = pd.concat(tables, ignore_index=True)
+    stability = stability[["axis", *[c for c in stability.columns if c != "axis"]]]
+    stability.to_csv(paths.SELECTION_STABILITY, index=False, float_format="%.4f")
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -181,17 +216,18 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="thermal select", description=__doc__.splitlines()[0])
     parser.parse_args(argv)
     params = load_section("select")
-    features = str(params.get("features", "temperature_rise"))
-    methods = {str(name): dict(settings or {}) for name, settings in params["methods"].items()}
+    features = check_features(str(params.get("features", "temperature_rise")))
+    entries = method_entries(params["methods"])
     table = pd.read_parquet(paths.SPINDLE_THERMAL_ERROR)
-    series = campaign_series(table, sensor_columns(table), feature_prefix(features))
-    units = training_units(series)
-    selections = select_all(series, units, methods)
-    write_outputs(
-        features, selections, units, sensor_columns(table), bool(table["synthetic"].any())
-    )
-    for method, by_unit in selections.items():
-        LOGGER.info(
-            "%s: all training campaigns -> %s", method, ", ".join(by_unit["all_training"].sensors)
-        )
+    selections, units, inputs = {}, {}, {}
+    for axis, series in series_by_axis(table, features).items():
+        units[axis] = training_units(series)
+        inputs[axis] = list(series[0].features.columns)
+        selections[axis] = select_axis(series, units[axis], entries)
+        for method, by_unit in selections[axis].items():
+            LOGGER.info(
+                "axis %s, %s: all training campaigns -> %s", axis, method,
+                ", ".join(by_unit["all_training"].sensors),
+            )  # fmt: skip
+    write_outputs(features, selections, units, inputs, bool(table["synthetic"].any()))
     return 0

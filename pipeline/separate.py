@@ -10,6 +10,7 @@ not rerun the axis separation.
 from __future__ import annotations
 
 import argparse
+import json
 import logging
 
 import numpy as np
@@ -19,30 +20,33 @@ from numpy.polynomial import Polynomial
 from pipeline import paths, plots
 from pipeline.axis_separation import separate_axis
 from pipeline.config import load_section
-from pipeline.spindle_separation import spindle_thermal_error
+from pipeline.spindle_separation import SeparationSettings, spindle_thermal_error
 from schemas import AxisSlopesModel, SpindleThermalErrorModel
 
 LOGGER = logging.getLogger(__name__)
 
 
 def run_spindle(params: dict) -> None:
-    """Write ``data/separated/spindle_thermal_error.parquet``."""
+    """Write ``data/separated/spindle_thermal_error.parquet`` and ``spindle_runs.json``."""
     folder = paths.VALIDATED_SPINDLE
-    table = spindle_thermal_error(
+    table, record = spindle_thermal_error(
         pd.read_parquet(folder / paths.CAMPAIGNS_FILE),
         pd.read_parquet(folder / paths.SAMPLES_FILE),
-        axis=str(params["displacement_axis"]),
-        reference=str(params["cold_reference"]),
-        n=int(params["cold_n"]),
+        SeparationSettings.from_params(params),
     )
     SpindleThermalErrorModel.validate(table, lazy=True)
     paths.SEPARATED.mkdir(parents=True, exist_ok=True)
     table.to_parquet(paths.SPINDLE_THERMAL_ERROR, index=False)
-    LOGGER.info(
-        "thermal error of %d spindle campaigns: %.1f to %.1f um",
-        table["campaign_id"].nunique(), table["thermal_error_um"].min(),
-        table["thermal_error_um"].max(),
-    )  # fmt: skip
+    paths.SPINDLE_RUNS.write_text(json.dumps(record, indent=2, sort_keys=True) + "\n")
+    for axis, rows in table.groupby("axis", sort=False):
+        LOGGER.info(
+            "axis %s: thermal error of %d spindle campaigns in %d runs: %.1f to %.1f um",
+            axis, rows["campaign_id"].nunique(), rows["run_id"].nunique(),
+            rows["thermal_error_um"].min(), rows["thermal_error_um"].max(),
+        )  # fmt: skip
+    warm = [c for c, info in record["campaigns"].items() if info["warm_start"]]
+    if warm:
+        LOGGER.info("warm starts (error counted from their run's reference): %s", ", ".join(warm))
 
 
 def run_axis(params: dict) -> None:

@@ -1,97 +1,407 @@
-"""Spindle thermal drift: thermal error = displacement minus its cold-state value.
+"""Spindle thermal drift: thermal error = displacement minus its value at the run's reference.
 
 The PCDL paper (Miao et al. 2016, section 3) measures the Z drift of the spindle nose with an
 eddy-current probe every 3 min from a cold start; the thermal error is the change from the cold
-state. The cold state is the first sample or the mean of the first N samples (params). The same
-reference is taken for every temperature sensor, giving the temperature rises (K) that a model
-fed ``temperature_rise`` features uses.
+state, the first sample. Real records are not always like that, so here:
+
+- **every displacement axis** the campaigns declare (X, Y, Z) is separated, one block of rows
+  per axis (``axis`` column), unless ``separate.displacement_axis`` lists fewer;
+- **the reference is the run's, not the campaign's**: campaigns cut from one record without a
+  break form a run (:mod:`pipeline.runs`); the error of every campaign of a run is counted from
+  the run's first sample (or the mean of its first N: ``cold_reference``, ``cold_n``), the cold
+  start when the run starts cold. A displacement jump across a contiguous cut (a re-zeroed
+  probe) is stitched. A run declared warm (``start_state: warm``) has no cold sample: its error
+  is counted from its first sample, and the ``reference`` column says so;
+- the **model inputs** are computed over the whole run by :func:`pipeline.features.run_inputs`,
+  the function the registered model uses too: temperature rises from the same reference and
+  the responses of first-order lags to the spindle speed, from rest at the run's start;
+- campaigns sampled faster than ``resample_s`` are averaged into windows of that length (a
+  logger's few-second samples; thermal time constants are minutes to hours).
 """
 
 from __future__ import annotations
 
 import json
+import logging
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
 
 import numpy as np
 import pandas as pd
 
-COLD_REFERENCES = ("first_sample", "mean_first_n")
+from pipeline.features import COLD_REFERENCES, SpeedResponses, reference_value, run_inputs
+from pipeline.runs import (
+    DECLARED,
+    Run,
+    RunSettings,
+    build_runs,
+    candidate_links,
+    spans_from_tables,
+    stitch,
+    temperature_jump,
+)
+from schemas.vocabulary import DISPLACEMENT_AXES, displacement_column
+
+LOGGER = logging.getLogger(__name__)
+
+ALL_AXES = "all"
 
 
-def cold_value(values: np.ndarray, reference: str, n: int) -> float:
-    """Cold-state value of a series: its first finite value or the mean of its first n finite ones.
+@dataclass(frozen=True)
+class SeparationSettings:
+    """``params.yaml`` ``separate`` as the spindle separation uses it.
 
-    Parameters
+    Attributes
     ----------
-    values : ndarray of shape (n_samples,)
-        Time-ordered readings (um or degC); NaN are missing readings.
-    reference : {"first_sample", "mean_first_n"}
-    n : int
-        Number of samples averaged for ``mean_first_n``.
-    """
-    if reference not in COLD_REFERENCES:
-        raise ValueError(
-            f"params.yaml separate.cold_reference is '{reference}'; use one of {COLD_REFERENCES}"
-        )
-    finite = values[np.isfinite(values)]
-    if finite.size == 0:
-        return float("nan")
-    return float(finite[0]) if reference == "first_sample" else float(np.mean(finite[:n]))
-
-
-def spindle_thermal_error(
-    campaigns: pd.DataFrame, samples: pd.DataFrame, axis: str, reference: str, n: int
-) -> pd.DataFrame:
-    """Thermal error and temperature rises of every spindle-drift campaign.
-
-    Parameters
-    ----------
-    campaigns : DataFrame
-        Validated spindle campaigns (``campaign_id``, ``split``, ``season``, ``synthetic``,
-        ``sensors_json``).
-    samples : DataFrame
-        Validated spindle samples (``disp_<axis>`` in um, one column per sensor in degC).
-    axis : str
-        Displacement axis modelled, e.g. ``"Z"``.
-    reference : {"first_sample", "mean_first_n"}
-        Cold-state definition.
+    axes : tuple of str or None
+        Displacement axes to model; None: every axis a campaign declares.
+    reference : str
+        ``first_sample`` or ``mean_first_n``.
     n : int
         Samples averaged for ``mean_first_n``.
+    resample_s : float or None, s
+        Average campaigns sampled faster than this into windows of this length.
+    runs : RunSettings
+    speed : SpeedResponses or None
+    """
+
+    axes: tuple[str, ...] | None = None
+    reference: str = "first_sample"
+    n: int = 1
+    resample_s: float | None = None
+    runs: RunSettings = field(default_factory=RunSettings)
+    speed: SpeedResponses | None = None
+
+    @classmethod
+    def from_params(cls, section: Mapping) -> SeparationSettings:
+        """Build from the ``separate`` section of params.yaml."""
+        reference = str(section.get("cold_reference", "first_sample"))
+        if reference not in COLD_REFERENCES:
+            raise ValueError(
+                f"params.yaml separate.cold_reference is '{reference}'; use one of "
+                f"{list(COLD_REFERENCES)}"
+            )
+        axes = section.get("displacement_axis", ALL_AXES)
+        if axes is None or axes == ALL_AXES:
+            axes = None
+        else:
+            axes = tuple(str(a) for a in ([axes] if isinstance(axes, str) else axes))
+        resample = section.get("resample_s")
+        return cls(
+            axes=axes,
+            reference=reference,
+            n=int(section.get("cold_n", 1)),
+            resample_s=None if resample in (None, 0) else float(resample),
+            runs=RunSettings.from_params(section.get("runs")),
+            speed=SpeedResponses.from_params(section.get("speed_responses")),
+        )
+
+
+def modelled_axes(campaigns: pd.DataFrame, wanted: Sequence[str] | None) -> list[str]:
+    """Axes to separate: those the campaigns declare, restricted to ``wanted``.
+
+    Raises
+    ------
+    ValueError
+        If no campaign declares any of the wanted axes.
+    """
+    declared: set[str] = set()
+    for text in campaigns["displacement_json"]:
+        declared |= set(json.loads(text or "{}"))
+    order = [a for a in DISPLACEMENT_AXES if a in declared] + sorted(
+        declared - set(DISPLACEMENT_AXES)
+    )
+    if wanted is None:
+        axes = order
+    else:
+        missing = [a for a in wanted if a not in declared]
+        if missing:
+            LOGGER.warning(
+                "params.yaml separate.displacement_axis lists %s, which no valid campaign "
+                "declares; separating %s", missing, [a for a in order if a in wanted]
+            )  # fmt: skip
+        axes = [a for a in order if a in wanted]
+    if not axes:
+        raise ValueError(
+            f"no valid spindle_drift campaign declares a displacement axis among {wanted or 'any'}"
+            " (campaign.yaml displacement:); check reports/validation.json and params.yaml "
+            "separate.displacement_axis"
+        )
+    return axes
+
+
+def resample(rows: pd.DataFrame, window_s: float | None) -> pd.DataFrame:
+    """Average a campaign's samples into windows of ``window_s`` when it is sampled faster.
+
+    Parameters
+    ----------
+    rows : DataFrame
+        One campaign's samples in time order (``elapsed_s``, ``source_row``, ``rpm``,
+        temperatures, ``disp_<A>``).
+    window_s : float or None, s
 
     Returns
     -------
     DataFrame
-        One row per sample of each campaign that measured ``axis``: ``campaign_id``,
-        ``source_row``, ``elapsed_s``, ``rpm``, ``split``, ``season``, ``synthetic``,
-        ``displacement_um``, ``thermal_error_um``, then each sensor (degC) and
-        ``rise_<sensor>`` (K).
+        ``rows`` unchanged when the median interval is at least ``window_s`` (or None); else one
+        row per window ``[first + k w, first + (k + 1) w)``: the means of every numeric column
+        (missing readings left out; ``elapsed_s`` the mean instant), ``source_row`` the window's
+        first data row.
     """
-    column = f"disp_{axis}"
-    frames = []
-    for meta in campaigns.itertuples(index=False):
-        rows = samples[samples["campaign_id"] == meta.campaign_id].sort_values("elapsed_s")
-        if column not in rows or rows[column].isna().all():
-            continue
-        sensors = list(json.loads(meta.sensors_json))
-        displacement = rows[column].to_numpy(dtype=float)
-        frame = pd.DataFrame({
-            "campaign_id": meta.campaign_id,
-            "source_row": rows["source_row"].to_numpy(),
-            "elapsed_s": rows["elapsed_s"].to_numpy(),
-            "rpm": rows["rpm"].to_numpy(),
-            "split": meta.split,
-            "season": meta.season,
-            "synthetic": bool(meta.synthetic),
-            "displacement_um": displacement,
-            "thermal_error_um": displacement - cold_value(displacement, reference, n),
+    if window_s is None or len(rows) < 2:
+        return rows
+    t = rows["elapsed_s"].to_numpy(dtype=float)
+    if np.median(np.diff(t)) >= window_s * 0.999:
+        return rows
+    window = np.floor((t - t[0]) / window_s).astype(np.int64)
+    numeric = [c for c in rows.columns if c not in ("campaign_id", "source_row")
+               and pd.api.types.is_numeric_dtype(rows[c])]  # fmt: skip
+    grouped = rows[numeric].astype(float).groupby(window, sort=True)
+    out = grouped.mean()
+    out.insert(0, "source_row", rows["source_row"].groupby(window, sort=True).first().to_numpy())
+    out.insert(0, "campaign_id", rows["campaign_id"].iloc[0])
+    return out.reset_index(drop=True)
+
+
+def _sensors(meta: Mapping) -> list[str]:
+    return list(json.loads(meta["sensors_json"]))
+
+
+def _reference_text(run: Run, position: int, reference: str, n: int) -> str:
+    sample = "first sample" if reference == "first_sample" else f"mean of the first {n} samples"
+    head = run.run_id
+    if not run.cold_start:
+        return (
+            f"{sample} of {head} (declared warm start: the cold state is not in the data, the "
+            "error is counted from there)"
+        )
+    if len(run.campaigns) == 1:
+        return f"{sample} of {head} (cold start)"
+    if position == 0:
+        return f"{sample} of {head}, the cold start of run {head} ({', '.join(run.campaigns)})"
+    return f"{sample} of {head}: this campaign continues run {head} without a break and starts warm"
+
+
+@dataclass
+class _RunTables:
+    rows: dict[str, pd.DataFrame]
+    t_run: dict[str, np.ndarray]
+
+
+def _run_tables(run: Run, samples: dict[str, pd.DataFrame]) -> _RunTables:
+    rows = {c: samples[c] for c in run.campaigns}
+    t_run = {
+        c: rows[c]["elapsed_s"].to_numpy(dtype=float) + offset
+        for c, offset in zip(run.campaigns, run.offsets_s, strict=True)
+    }
+    return _RunTables(rows, t_run)
+
+
+def _stitched_displacement(
+    run: Run, tables: _RunTables, axis: str, settings: RunSettings
+) -> tuple[dict[str, np.ndarray], list[dict]]:
+    """Displacement of every campaign of the run along ``axis``, stitched across the links."""
+    column = displacement_column(axis)
+    values = {
+        c: tables.rows[c][column].to_numpy(dtype=float)
+        if column in tables.rows[c]
+        else np.full(len(tables.rows[c]), np.nan)
+        for c in run.campaigns
+    }
+    record = []
+    for link in run.links:
+        result = stitch(
+            tables.t_run[link.previous], values[link.previous], tables.t_run[link.campaign],
+            values[link.campaign], link.contiguous, settings.min_stitch_um,
+        )  # fmt: skip
+        values[link.campaign] = values[link.campaign] + result.offset_um
+        record.append({
+            "axis": axis, "previous": link.previous, "campaign": link.campaign,
+            "jump_um": None if np.isnan(result.jump_um) else round(result.jump_um, 4),
+            "offset_um": round(result.offset_um, 4),
         })  # fmt: skip
-        for sensor in sensors:
-            values = rows[sensor].to_numpy(dtype=float)
-            frame[sensor] = values
-            frame[f"rise_{sensor}"] = values - cold_value(values, reference, n)
-        frames.append(frame)
+    return values, record
+
+
+def find_runs(
+    campaigns: pd.DataFrame, samples: dict[str, pd.DataFrame], settings: RunSettings
+) -> list[Run]:
+    """Find the runs of the campaigns; detected links whose temperatures jump are dropped."""
+    combined = pd.concat(samples.values(), ignore_index=True)
+    spans = spans_from_tables(campaigns, combined)
+    links, notes = candidate_links(spans, settings)
+    sensors = {str(m["campaign_id"]): _sensors(m) for m in campaigns.to_dict("records")}
+    kept = []
+    for link in links:
+        if link.how != DECLARED:
+            before = samples[link.previous].reindex(columns=sensors[link.previous])
+            after = samples[link.campaign].reindex(columns=sensors[link.campaign])
+            jump = temperature_jump(before, after)
+            if not jump <= settings.max_temperature_jump_degC:
+                notes.append(
+                    f"{link.campaign} starts {link.gap_s:.0f} s after {link.previous} ends but "
+                    f"its temperatures jump by {jump:.2f} degC (median): not linked"
+                )
+                continue
+        kept.append(link)
+    return build_runs(spans, kept, notes)
+
+
+def spindle_thermal_error(
+    campaigns: pd.DataFrame, samples: pd.DataFrame, settings: SeparationSettings
+) -> tuple[pd.DataFrame, dict]:
+    """Thermal error and model inputs of every spindle-drift campaign, for every axis.
+
+    Parameters
+    ----------
+    campaigns : DataFrame
+        Validated spindle campaigns (``campaign_id``, ``machine``, ``start``, ``split``,
+        ``season``, ``synthetic``, ``sensors_json``, ``displacement_json``, ``start_state``,
+        ``follows``).
+    samples : DataFrame
+        Validated spindle samples (``disp_<axis>`` in um, one column per sensor in degC,
+        ``rpm``).
+    settings : SeparationSettings
+
+    Returns
+    -------
+    table : DataFrame
+        One row per (axis, sample) of each campaign that measured the axis: ``axis``,
+        ``campaign_id``, ``run_id``, ``source_row``, ``elapsed_s``, ``run_elapsed_s``,
+        ``rpm``, ``split``, ``season``, ``synthetic``, ``warm_start``, ``reference`` (in
+        words), ``displacement_um`` (stitched), ``thermal_error_um``, each sensor (degC),
+        ``rise_<sensor>`` (K) and the speed responses.
+    record : dict
+        JSON-ready: settings, runs (campaigns, links with gaps, temperature jumps and
+        displacement stitches, notes) and each campaign's run, position and reference.
+
+    Raises
+    ------
+    ValueError
+        If no campaign measured a wanted axis.
+    """
+    axes = modelled_axes(campaigns, settings.axes)
+    meta = {str(m["campaign_id"]): m for m in campaigns.to_dict("records")}
+    per_campaign = {
+        cid: resample(rows.sort_values("elapsed_s").reset_index(drop=True), settings.resample_s)
+        for cid, rows in samples.groupby("campaign_id", sort=True)
+        if cid in meta
+    }
+    runs = find_runs(campaigns[campaigns["campaign_id"].isin(per_campaign)], per_campaign,
+                     settings.runs)  # fmt: skip
+    frames, record = [], {"axes": axes, "runs": [], "campaigns": {}}
+    for run in runs:
+        tables = _run_tables(run, per_campaign)
+        sensors = list(dict.fromkeys(s for c in run.campaigns for s in _sensors(meta[c])))
+        run_frame = pd.concat([tables.rows[c].reindex(columns=sensors) for c in run.campaigns])
+        t_all = np.concatenate([tables.t_run[c] for c in run.campaigns])
+        rpm_all = np.concatenate(
+            [tables.rows[c]["rpm"].to_numpy(dtype=float) for c in run.campaigns]
+        )
+        inputs = run_inputs(
+            t_all, run_frame, rpm_all, features="temperature_rise", reference=settings.reference,
+            n=settings.n, speed=settings.speed,
+        )  # fmt: skip
+        bounds = np.cumsum([0, *(len(tables.rows[c]) for c in run.campaigns)])
+        stitches = []
+        for axis in axes:
+            displacement, stitched = _stitched_displacement(run, tables, axis, settings.runs)
+            stitches += stitched
+            cold = reference_value(
+                np.concatenate([displacement[c] for c in run.campaigns]), settings.reference,
+                settings.n,
+            )  # fmt: skip
+            for position, cid in enumerate(run.campaigns):
+                if not np.isfinite(displacement[cid]).any():
+                    continue
+                frames.append(
+                    _campaign_frame(
+                        axis,
+                        cid,
+                        run,
+                        position,
+                        tables,
+                        displacement[cid] - cold,
+                        displacement[cid],
+                        inputs.iloc[bounds[position] : bounds[position + 1]],
+                        meta[cid],
+                        settings,
+                    )  # fmt: skip
+                )
+        record["runs"].append(_run_record(run, tables, meta, stitches))
+        for position, cid in enumerate(run.campaigns):
+            record["campaigns"][cid] = {
+                "run_id": run.run_id,
+                "position": position,
+                "warm_start": position > 0 or not run.cold_start,
+                "reference": _reference_text(run, position, settings.reference, settings.n),
+            }
     if not frames:
         raise ValueError(
-            f"no valid spindle_drift campaign has a '{axis}' displacement column; check "
+            f"no valid spindle_drift campaign has readings along {axes}; check "
             "reports/validation.json and params.yaml separate.displacement_axis"
         )
-    return pd.concat(frames, ignore_index=True)
+    record["settings"] = {
+        "cold_reference": settings.reference, "cold_n": settings.n,
+        "resample_s": settings.resample_s,
+        "speed_responses": None if settings.speed is None else settings.speed.to_dict(),
+        "runs": vars(settings.runs),
+    }  # fmt: skip
+    return pd.concat(frames, ignore_index=True), record
+
+
+def _campaign_frame(
+    axis: str,
+    campaign_id: str,
+    run: Run,
+    position: int,
+    tables: _RunTables,
+    error: np.ndarray,
+    displacement: np.ndarray,
+    inputs: pd.DataFrame,
+    meta: Mapping,
+    settings: SeparationSettings,
+) -> pd.DataFrame:
+    rows = tables.rows[campaign_id]
+    frame = pd.DataFrame({
+        "axis": axis,
+        "campaign_id": campaign_id,
+        "run_id": run.run_id,
+        "source_row": rows["source_row"].to_numpy(dtype=np.int64),
+        "elapsed_s": rows["elapsed_s"].to_numpy(dtype=float),
+        "run_elapsed_s": tables.t_run[campaign_id],
+        "rpm": rows["rpm"].to_numpy(dtype=float),
+        "split": meta["split"],
+        "season": meta["season"],
+        "synthetic": bool(meta["synthetic"]),
+        "warm_start": position > 0 or not run.cold_start,
+        "reference": _reference_text(run, position, settings.reference, settings.n),
+        "displacement_um": displacement,
+        "thermal_error_um": error,
+    })  # fmt: skip
+    own = _sensors(meta)
+    for sensor in own:
+        frame[sensor] = rows[sensor].to_numpy(dtype=float) if sensor in rows else np.nan
+    columns = [f"rise_{s}" for s in own] + [c for c in inputs.columns if not c.startswith("rise_")]
+    return pd.concat([frame, inputs[columns].reset_index(drop=True)], axis=1)
+
+
+def _run_record(run: Run, tables: _RunTables, meta: Mapping, stitches: list[dict]) -> dict:
+    links = []
+    for link in run.links:
+        before = tables.rows[link.previous].reindex(columns=_sensors(meta[link.previous]))
+        after = tables.rows[link.campaign].reindex(columns=_sensors(meta[link.campaign]))
+        jump = temperature_jump(before, after)
+        links.append({
+            "previous": link.previous, "campaign": link.campaign, "how": link.how,
+            "gap_s": round(link.gap_s, 1), "contiguous": link.contiguous,
+            "temperature_jump_degC": None if np.isnan(jump) else round(jump, 4),
+            "displacement": [s for s in stitches if s["campaign"] == link.campaign],
+        })  # fmt: skip
+    return {
+        "run_id": run.run_id,
+        "campaigns": list(run.campaigns),
+        "cold_start": run.cold_start,
+        "links": links,
+        "notes": list(run.notes),
+    }

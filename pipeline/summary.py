@@ -19,6 +19,21 @@ def _um(value: float | None) -> str:
     return "-" if value is None else f"{value:.2f}"
 
 
+def champion_line(card: dict) -> str:
+    """One line on an axis' champion: what it is, its held-out score against no compensation."""
+    scores = card["scores"]
+    protocol = card.get("protocol")
+    held_out = scores.get(f"{protocol}_Mn_rms_um") if protocol else None
+    name = f"{card['model']}/{card['selection']}/{card['mode']}"
+    if not card["compensate"]:
+        return f"none: do not compensate ({card['reason']})"
+    return (
+        f"{name} on {', '.join(card['inputs']) or 'no input'}: held-out RMS {_um(held_out)} um "
+        f"vs {_um(card.get('none_score_um'))} um uncompensated ({card.get('protocol_name')}); "
+        f"validation RMS {_um(scores.get('pooled_Mn_val_rms_um'))} um"
+    )
+
+
 def summary_lines(root: Path) -> list[str]:
     """Lines describing the outputs found under ``root`` (the repository)."""
     lines = ["", "Results of dvc repro:"]
@@ -30,15 +45,9 @@ def summary_lines(root: Path) -> list[str]:
             f"{len(validation['quarantined'])} quarantined "
             f"{', '.join(validation['quarantined'])}"
         )
-    champion = root / paths.CHAMPION_CARD
-    if champion.is_file():
-        card = json.loads(champion.read_text())
-        scores = card["scores_um"]
+    for path in sorted((root / paths.CHAMPION).glob(f"*/{paths.CHAMPION_CARD_FILE}")):
         lines.append(
-            f"  champion         {card['model']}/{card['selection']}/{card['mode']} on "
-            f"{', '.join(card['sensors']) or 'no sensor'}: S {scores.get('S_um')} um, "
-            f"Mn {scores.get('Mn_um')} um, Sd {scores.get('Sd_um')} um, "
-            f"Mn_val {scores.get('Mn_val_um')} um (residual std)"
+            f"  champion {path.parent.name:<7} " + champion_line(json.loads(path.read_text()))
         )
     axis = root / paths.AXIS_MODEL_METRICS
     if axis.is_file():
@@ -80,10 +89,9 @@ def summary_lines(root: Path) -> list[str]:
             f"  MLflow           experiment '{tracking.get('experiment')}', parent run "
             f"{tracking.get('parent_run_id')} at {uri}"
         )
-        if tracking.get("champion_uri"):
-            lines.append(
-                f'  champion model   mlflow.pyfunc.load_model("{tracking["champion_uri"]}")'
-            )
+        for axis, champion in (tracking.get("champions") or {}).items():
+            if champion.get("uri"):
+                lines.append(f'  model {axis:<10} mlflow.pyfunc.load_model("{champion["uri"]}")')
     if uri.startswith("sqlite:"):
         lines += [
             "",

@@ -2,17 +2,21 @@
 
 ``thermal track`` (run from the repository root) reads the select and evaluate outputs
 (``reports/selection/selected.json``, ``reports/fitted_models.json``,
-``reports/cross_season_scores.csv``, ``metrics/cross_season.json``, ``data/models/champion``)
-and logs
+``reports/cross_season_scores.csv``, ``metrics/cross_season.json``,
+``data/models/champion/<axis>/``) and logs
 
 - one parent run per pipeline execution: overall scores
-  ``<model>.<selection>.<mode>.<scheme>.<key>`` (um), the whole ``params.yaml`` and every
-  selection's sensors (``selected.<method>.<unit>``) as parameters, tags ``run_identity``,
-  ``git_commit``, ``synthetic``, ``dvc.*`` (md5 hashes from ``dvc.lock``), the report files
-  (comparison report, matrices, selection evidence) as artifacts, and the champion model,
-  registered in the model registry as ``track.registered_model`` with the alias ``champion``;
-- one child run per candidate (model, selection, mode) with its summary scores, every
-  cross-campaign score and what each fit decided (see :mod:`pipeline.tracking.records`).
+  ``<axis>.<model>.<selection>.<mode>.<scheme>.<key>`` (um) and each axis' champion
+  (``<axis>.champion.*``), the whole ``params.yaml`` and every selection's inputs
+  (``selected.<axis>.<method>.<unit>``) as parameters, tags ``run_identity``, ``git_commit``,
+  ``synthetic``, ``dvc.*`` (md5 hashes from ``dvc.lock``), ``skipped.<axis>.<candidate>`` (why
+  a candidate was not scored), the report files (comparison report, matrices, selection
+  evidence) as artifacts;
+- one child run per candidate (axis, model, selection, mode) with its summary scores, every
+  cross-campaign score and what each fit decided (see :mod:`pipeline.tracking.records`); the
+  child of each axis' champion (tag ``champion: true``) also holds the champion model, with
+  its signature and an input example, registered as ``<track.registered_model>-<axis>`` with
+  the alias ``champion``.
 
 The store is ``$MLFLOW_TRACKING_URI`` when set, else ``track.default_tracking_uri``
 (``sqlite:///mlflow.db`` in the working directory, artifacts in ``mlartifacts/`` beside it).
@@ -45,8 +49,9 @@ from pipeline.paths import (
     AXIS_MODEL_PLOT,
     AXIS_MODEL_REPORT,
     CANDIDATE_SCORES,
-    CHAMPION_CARD,
-    CHAMPION_ESTIMATOR,
+    CHAMPION,
+    CHAMPION_CARD_FILE,
+    CHAMPION_ESTIMATOR_FILE,
     COMPARISON_FIGURES,
     CROSS_SEASON_METRICS,
     FITTED_MODELS,
@@ -76,7 +81,6 @@ SCORE_FILES = (
     CROSS_SEASON_METRICS,
     FITTED_MODELS,
     SELECTED,
-    CHAMPION_CARD,
     AXIS_MODEL_METRICS,
 )
 DEFAULT_REGISTERED_MODEL = "thermal-error-spindle"
@@ -214,7 +218,7 @@ def read_scores(path: Path) -> list[dict[str, Any]]:
         path,
         dtype=dict.fromkeys(text_columns, "str"),
         keep_default_na=False,
-        na_values=dict.fromkeys(records.SCORE_COLUMNS, nan_text),
+        na_values=dict.fromkeys([*records.SCORE_COLUMNS, "uncompensated_rms_um"], nan_text),
     )
     try:
         table = CrossSeasonScoresModel.validate(table, lazy=True)
@@ -268,6 +272,17 @@ def _parse_args(argv: list[str]) -> argparse.Namespace:
     return parser.parse_args(argv)
 
 
+def champion_cards() -> dict[str, dict]:
+    """Each axis' champion card (``data/models/champion/<axis>/champion.json``), by axis."""
+    if not CHAMPION.is_dir():
+        return {}
+    return {
+        folder.name: read_json(folder / CHAMPION_CARD_FILE)
+        for folder in sorted(CHAMPION.iterdir())
+        if (folder / CHAMPION_CARD_FILE).is_file() and (folder / CHAMPION_ESTIMATOR_FILE).is_file()
+    }
+
+
 @dataclass(frozen=True)
 class Prepared:
     """Everything to log, computed before MLflow is imported."""
@@ -277,6 +292,7 @@ class Prepared:
     git_commit: str
     parent: records.RunRecord
     children: list[records.RunRecord]
+    champions: dict[str, dict]
 
 
 def prepare(params_path: Path) -> Prepared:
@@ -284,12 +300,14 @@ def prepare(params_path: Path) -> Prepared:
     all_params = _load_params(params_path)
     fitted = read_json(FITTED_MODELS)
     cross_season = read_json(CROSS_SEASON_METRICS)
-    selected = read_json(SELECTED)["methods"]
+    selected = read_json(SELECTED)["axes"]
     axis_model = read_json(AXIS_MODEL_METRICS) if AXIS_MODEL_METRICS.is_file() else {}
     score_rows = read_scores(SCORES_LONG)
 
     code_dirs = [_package_dir("pipeline"), _package_dir("schemas")]
-    run_identity = ident.compute_identity(code_dirs, all_params, RAW, SCORE_FILES)
+    cards = champion_cards()
+    card_files = [CHAMPION / axis / CHAMPION_CARD_FILE for axis in cards]
+    run_identity = ident.compute_identity(code_dirs, all_params, RAW, [*SCORE_FILES, *card_files])
     synthetic = ident.synthetic_flag(RAW)
     commit = ident.git_commit()
     dvc_hashes = ident.dvc_lock_hashes(ident.read_dvc_lock(DVC_LOCK), RAW.as_posix())
@@ -298,7 +316,9 @@ def prepare(params_path: Path) -> Prepared:
     tags = records.provenance_tags(
         run_identity.value, run_identity.parts, commit, dvc_hashes, synthetic
     )
-    children = records.child_records(fitted, score_rows, cross_season, {"synthetic": synthetic})
+    children = records.child_records(
+        fitted, score_rows, cross_season, {"synthetic": synthetic}, cards
+    )
     parent = records.parent_record(
         f"pipeline-{run_identity.value[:12]}",
         cross_season,
@@ -307,19 +327,30 @@ def prepare(params_path: Path) -> Prepared:
         selected,
         axis_model,
     )
-    return Prepared(run_identity, synthetic, commit, parent, children)
+    return Prepared(run_identity, synthetic, commit, parent, children, cards)
 
 
-def champion_hook(tracking_uri: str, registered: str):
-    """Return a callback that logs and registers the champion (``None`` without one)."""
-    if not (CHAMPION_ESTIMATOR.is_file() and CHAMPION_CARD.is_file()):
-        logger.warning("%s not found: no champion model to register", CHAMPION_ESTIMATOR)
+def registered_name(prefix: str, axis: str) -> str:
+    """Return the registered model name of an axis' champion, e.g. ``thermal-error-spindle-Z``."""
+    return f"{prefix}-{axis}"
+
+
+def champion_hook(tracking_uri: str, prefix: str, cards: dict[str, dict]):
+    """Return a callback that logs and registers each axis' champion from its child run.
+
+    ``None`` (with a warning) when evaluate wrote no champion.
+    """
+    if not cards:
+        logger.warning("%s/<axis>/ not found: no champion model to register", CHAMPION)
         return None
 
-    def register(parent_id: str) -> None:
+    def register(record: records.RunRecord, run_id: str) -> None:
+        axis = record.tags.get("axis")
+        if record.tags.get(records.CHAMPION_TAG) != "true" or axis not in cards:
+            return
         from pipeline.tracking.champion_model import log_and_register
 
-        log_and_register(tracking_uri, parent_id, registered, CHAMPION_ESTIMATOR, CHAMPION_CARD)
+        log_and_register(tracking_uri, run_id, registered_name(prefix, axis), CHAMPION / axis)
 
     return register
 
@@ -355,7 +386,7 @@ def main(argv: list[str] | None = None) -> int:
             f"({str(error)[:300]}); start the server or fix MLFLOW_TRACKING_URI, or unset it "
             "to log to the local store sqlite:///mlflow.db"
         ) from error
-    registered = str(settings.get("registered_model") or DEFAULT_REGISTERED_MODEL)
+    prefix = str(settings.get("registered_model") or DEFAULT_REGISTERED_MODEL)
     existing = store.find_parent(client, experiment_id, prepared.identity.value)
     if existing is not None:
         parent_id = existing.info.run_id
@@ -370,7 +401,7 @@ def main(argv: list[str] | None = None) -> int:
     else:
         parent_id = store.log_pipeline(
             client, experiment_id, prepared.parent, prepared.children, artifact_files(),
-            batch_size, champion_hook(absolute_store_uri(uri), registered),
+            batch_size, champion_hook(absolute_store_uri(uri), prefix, prepared.champions),
         )  # fmt: skip
         logger.info(
             "logged parent run %s with %d child runs and %d metrics to experiment '%s' (%s)",
@@ -380,7 +411,10 @@ def main(argv: list[str] | None = None) -> int:
             experiment,
             public_uri(uri),
         )
-    champion = store.champion_version(client, registered, "champion")
+    registered = {axis: registered_name(prefix, axis) for axis in prepared.champions}
+    versions = {
+        axis: store.champion_version(client, name, "champion") for axis, name in registered.items()
+    }
     finished = time.perf_counter()
     logger.info(
         "track took %.2f s (reading and hashing %.2f s, MLflow %.2f s)",
@@ -397,9 +431,18 @@ def main(argv: list[str] | None = None) -> int:
         "identity_parts": prepared.identity.parts,
         "reused": existing is not None,
         "child_runs": len(prepared.children),
-        "registered_model": registered,
-        "champion_version": champion,
-        "champion_uri": f"models:/{registered}@champion" if champion else None,
+        "champions": {
+            axis: {
+                "registered_model": name,
+                "version": versions[axis],
+                "uri": f"models:/{name}@champion" if versions[axis] else None,
+                "model": "/".join(
+                    str(prepared.champions[axis][k]) for k in records.KEY_COLUMNS[1:]
+                ),
+                "compensate": prepared.champions[axis]["compensate"],
+            }
+            for axis, name in registered.items()
+        },
         "metrics": n_metrics,
         "git_commit": prepared.git_commit,
         "synthetic": prepared.synthetic,

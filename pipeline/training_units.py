@@ -4,12 +4,17 @@ A *training unit* is the set of campaigns one model is built on:
 
 - scheme ``campaign``: one training campaign (the PCDL paper, Miao et al. 2016, section 4.2: a
   model Mi built on batch Ki, applied to every batch);
-- scheme ``season``: leave one season out, all training campaigns of the three other seasons
-  (unit ``not_<season>``), applied to the held-out season and the validation campaigns;
+- scheme ``loso``: leave one season out, all training campaigns of the other seasons (unit
+  ``not_<season>``), applied to the held-out season and the validation campaigns; when the
+  training campaigns span a single season, scheme ``loco`` instead: leave one campaign out
+  (unit ``not_<campaign>``). Either is the *selection protocol*: a fit on several campaigns,
+  like the deployed one, scored on campaigns it has not seen; the champion is chosen on it;
 - scheme ``pooled``: every training campaign (unit ``all_training``), the model a user deploys;
   it is the one registered as MLflow champion.
 
-Splits follow campaigns and seasons, never random samples.
+Splits follow campaigns and seasons, never random samples. Each displacement axis has its own
+series (:func:`series_by_axis`); the units are the same for every axis that has the same
+campaigns.
 """
 
 from __future__ import annotations
@@ -19,9 +24,15 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
+from pipeline.features import input_column, input_names
+
 TARGET = "thermal_error_um"
 INDEX_NAMES = ("campaign_id", "elapsed_s")
 POOLED_UNIT = "all_training"
+CAMPAIGN, LOSO, LOCO, POOLED = "campaign", "loso", "loco", "pooled"
+SCHEMES = (CAMPAIGN, LOSO, LOCO, POOLED)
+HELD_OUT_SCHEMES = (LOSO, LOCO)
+PROTOCOL_NAMES = {LOSO: "leave-one-season-out", LOCO: "leave-one-campaign-out"}
 
 
 @dataclass(frozen=True)
@@ -35,10 +46,16 @@ class CampaignSeries:
         ``train`` or ``validation``.
     season : str
     features : DataFrame of shape (n, m)
-        Model inputs per sensor (temperature rise, K, or temperature, degC), indexed by
-        (``campaign_id``, ``elapsed_s``).
+        Model inputs (temperature rise, K, or temperature, degC, per sensor; speed responses),
+        indexed by (``campaign_id``, ``elapsed_s``).
     target : ndarray of shape (n,)
         Thermal error, um.
+    axis : str
+        Displacement axis of the target.
+    run_id : str
+        The run the campaign belongs to (:mod:`pipeline.runs`).
+    warm_start : bool
+        Whether the campaign starts away from its run's reference.
     """
 
     campaign_id: str
@@ -46,6 +63,9 @@ class CampaignSeries:
     season: str
     features: pd.DataFrame
     target: np.ndarray
+    axis: str = "Z"
+    run_id: str = ""
+    warm_start: bool = False
 
 
 @dataclass(frozen=True)
@@ -55,9 +75,10 @@ class TrainingUnit:
     Attributes
     ----------
     name : str
-        ``K01`` (a campaign), ``not_summer`` (leave-one-season-out) or ``all_training``.
+        ``K01`` (a campaign), ``not_summer`` (leave-one-season-out), ``not_K03``
+        (leave-one-campaign-out) or ``all_training``.
     scheme : str
-        ``campaign``, ``season`` or ``pooled``.
+        ``campaign``, ``loso``, ``loco`` or ``pooled``.
     campaigns : tuple of str
         Campaign ids, in time order of the table.
     """
@@ -67,20 +88,18 @@ class TrainingUnit:
     campaigns: tuple[str, ...]
 
 
-def campaign_series(
-    table: pd.DataFrame, sensors: list[str], feature_prefix: str
-) -> list[CampaignSeries]:
-    """Split the separated spindle table into per-campaign series.
+def campaign_series(table: pd.DataFrame, inputs: list[str], features: str) -> list[CampaignSeries]:
+    """Split one axis' rows of the separated spindle table into per-campaign series.
 
     Parameters
     ----------
     table : DataFrame
-        ``data/separated/spindle_thermal_error.parquet``.
-    sensors : list of str
-        Sensor names; the feature column of sensor ``s`` is ``feature_prefix + s`` (NaN when the
-        table lacks it).
-    feature_prefix : str
-        ``"rise_"`` for temperature rises, ``""`` for absolute temperatures.
+        Rows of ``data/separated/spindle_thermal_error.parquet`` for one axis.
+    inputs : list of str
+        Input names: sensors and speed responses (:func:`pipeline.features.input_names`);
+        NaN when the table lacks the column.
+    features : str
+        ``temperature_rise`` (sensor inputs from the ``rise_`` columns) or ``absolute``.
     """
     series = []
     for campaign_id, rows in table.groupby("campaign_id", sort=True):
@@ -89,12 +108,12 @@ def campaign_series(
             [np.full(len(rows), str(campaign_id)), rows["elapsed_s"].to_numpy(dtype=float)],
             names=INDEX_NAMES,
         )
-        columns = {
-            s: rows[feature_prefix + s].to_numpy(dtype=float)
-            if feature_prefix + s in rows
-            else np.full(len(rows), np.nan)
-            for s in sensors
-        }
+        columns = {}
+        for name in inputs:
+            column = input_column(name, features)
+            columns[name] = (
+                rows[column].to_numpy(dtype=float) if column in rows else np.full(len(rows), np.nan)
+            )
         series.append(
             CampaignSeries(
                 campaign_id=str(campaign_id),
@@ -102,15 +121,28 @@ def campaign_series(
                 season=str(rows["season"].iloc[0]),
                 features=pd.DataFrame(columns, index=index),
                 target=rows[TARGET].to_numpy(dtype=float),
+                axis=str(rows["axis"].iloc[0]) if "axis" in rows else "Z",
+                run_id=str(rows["run_id"].iloc[0]) if "run_id" in rows else str(campaign_id),
+                warm_start=bool(rows["warm_start"].iloc[0]) if "warm_start" in rows else False,
             )
         )
     return series
 
 
-def training_units(series: list[CampaignSeries]) -> list[TrainingUnit]:
-    """Every training unit of the protocol: each campaign, each season left out, all pooled.
+def series_by_axis(table: pd.DataFrame, features: str) -> dict[str, list[CampaignSeries]]:
+    """Per-campaign series of every axis of the separated table, axes in table order."""
+    inputs = input_names(list(table.columns), features)
+    return {
+        str(axis): campaign_series(rows, inputs, features)
+        for axis, rows in table.groupby("axis", sort=False)
+    }
 
-    Leave-one-season-out units exist only when the training campaigns span two seasons or more.
+
+def training_units(series: list[CampaignSeries]) -> list[TrainingUnit]:
+    """Every training unit of the protocol: each campaign, each season or campaign left out, all.
+
+    Leave-one-season-out units exist when the training campaigns span two seasons or more;
+    otherwise leave-one-campaign-out units, when there are two training campaigns or more.
 
     Raises
     ------
@@ -123,14 +155,23 @@ def training_units(series: list[CampaignSeries]) -> list[TrainingUnit]:
             "no training campaign among the valid campaigns "
             f"({[s.campaign_id for s in series]}); mark at least one campaign split: train"
         )
-    units = [TrainingUnit(s.campaign_id, "campaign", (s.campaign_id,)) for s in training]
+    units = [TrainingUnit(s.campaign_id, CAMPAIGN, (s.campaign_id,)) for s in training]
     seasons = list(dict.fromkeys(s.season for s in training))
     if len(seasons) >= 2:
         for season in seasons:
             kept = tuple(s.campaign_id for s in training if s.season != season)
-            units.append(TrainingUnit(f"not_{season}", "season", kept))
-    units.append(TrainingUnit(POOLED_UNIT, "pooled", tuple(s.campaign_id for s in training)))
+            units.append(TrainingUnit(f"not_{season}", LOSO, kept))
+    elif len(training) >= 2:
+        for left_out in training:
+            kept = tuple(s.campaign_id for s in training if s is not left_out)
+            units.append(TrainingUnit(f"not_{left_out.campaign_id}", LOCO, kept))
+    units.append(TrainingUnit(POOLED_UNIT, POOLED, tuple(s.campaign_id for s in training)))
     return units
+
+
+def protocol_scheme(units: list[TrainingUnit]) -> str | None:
+    """Return the held-out scheme of these units (``loso`` or ``loco``); None if there is none."""
+    return next((u.scheme for u in units if u.scheme in HELD_OUT_SCHEMES), None)
 
 
 def stack(series: list[CampaignSeries], sensors: list[str]) -> tuple[pd.DataFrame, np.ndarray]:

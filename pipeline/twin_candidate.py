@@ -18,13 +18,19 @@ with the same score rows (:func:`pipeline.cross_season.score_row`) as the regist
 
 The twin predicts the Z drift since the first sample (um, the sign of the probe reading); the
 separation stage defines the thermal error as displacement minus its cold value
-(:func:`pipeline.spindle_separation.cold_value`), so the same cold reference is applied to the
+(:func:`pipeline.features.reference_value`), so the same cold reference is applied to the
 prediction, over the samples where the displacement was measured: like for like.
 
 The effect *set* is named by the ``discrepancy`` stage on the training campaigns (it holds the
 validation campaigns back, ``discrepancy.hold_out_validation``); the parameters are fitted per
 unit. The LOSO and single-campaign units still use an effect set named on all training
 campaigns, which includes their own test campaigns of the training split.
+
+The candidate is skipped, with the reason in the comparison report and MLflow
+(:func:`skip_reason`), on axes other than Z (the twin models the Z drift), when the
+discrepancy stage found the campaigns untestable (no structure role, too few campaigns), and
+when campaigns continue one another in a run (the twin starts each campaign from its own first
+readings, so it cannot express a warm campaign's drift from its run's reference).
 """
 
 from __future__ import annotations
@@ -43,7 +49,8 @@ from pipeline.cross_season import STATIC, Candidate, UnitResult, score_row
 from pipeline.discrepancy.calibrate import Calibration, calibrate, predict
 from pipeline.discrepancy.data import DISPLACEMENT_COLUMN, MeasuredCampaign
 from pipeline.discrepancy.model import ROLE_NODES, TwinModel, build_model
-from pipeline.spindle_separation import cold_value
+from pipeline.discrepancy.report import STATUS_UNTESTABLE
+from pipeline.features import reference_value
 from pipeline.training_units import CampaignSeries, TrainingUnit
 
 LOGGER = logging.getLogger(__name__)
@@ -114,6 +121,41 @@ class CalibratedTwin:
     def predict_z(self, campaign: MeasuredCampaign) -> np.ndarray:
         """Predicted Z drift since the first sample, ndarray of shape (n,), um."""
         return np.asarray(predict(self.model(), self.calibration, campaign).z_um, dtype=float)
+
+
+def skip_reason(
+    axis: str, document: Mapping | None, series: Sequence[CampaignSeries], roles: frozenset[str]
+) -> str | None:
+    """Why the twin cannot be scored on this axis and these campaigns, or None if it can.
+
+    Parameters
+    ----------
+    axis : str
+        Displacement axis.
+    document : mapping or None
+        ``reports/discrepancy/discrepancy.json`` (None when absent).
+    series : sequence of CampaignSeries
+        The axis' campaigns.
+    roles : frozenset of str
+        Sensor roles of the campaigns.
+    """
+    if axis != DISPLACEMENT_COLUMN.removeprefix("disp_"):
+        return f"the twin models the {DISPLACEMENT_COLUMN.removeprefix('disp_')} drift only"
+    if document is not None and document.get("status") == STATUS_UNTESTABLE:
+        return f"the twin cannot be compared with these campaigns: {document.get('reason')}"
+    if not roles & set(ROLE_NODES):
+        return (
+            "no sensor has a structure role (campaign.yaml sensors: role), so the twin has "
+            "no node to attach to"
+        )
+    warm = [s.campaign_id for s in series if s.warm_start]
+    if warm:
+        return (
+            f"campaigns {', '.join(warm)} start warm within a run: the twin starts each "
+            "campaign from its own first readings and cannot count its drift from the run's "
+            "reference"
+        )
+    return None
 
 
 def named_effects(document: Mapping | None) -> tuple[frozenset[str], str]:
@@ -222,7 +264,7 @@ def as_thermal_error(z_um: np.ndarray, measured: np.ndarray, reference: str, n: 
         ``z_um`` minus its cold value over the measured samples, um.
     """
     z = np.asarray(z_um, dtype=float)
-    cold = cold_value(np.where(np.isfinite(measured), z, np.nan), reference, n)
+    cold = reference_value(np.where(np.isfinite(measured), z, np.nan), reference, n)
     return z - (0.0 if np.isnan(cold) else cold)
 
 

@@ -115,6 +115,7 @@ def stuck_free(
     min_samples: int,
     min_other_change: float,
     ignore: Mapping[str, Iterable[float]] | None = None,
+    min_duration_s: float = 0.0,
 ) -> pd.DataFrame:
     """Flag runs of identical readings of a sensor while the other sensors moved.
 
@@ -126,12 +127,16 @@ def stuck_free(
         Temperature columns to examine (those absent from ``frame`` are skipped).
     min_samples : int
         A sensor is stuck when it repeats exactly the same reading for at least this many
-        consecutive samples (a missing reading ends the run)...
+        consecutive samples (a missing reading ends the run), spanning at least
+        ``min_duration_s`` of ``frame["elapsed_s"]`` (a quiet sensor sampled every few seconds
+        can honestly repeat one 0.0625 degC code for minutes)...
     min_other_change : float, degC
         ...while at least one other sensor changed by at least this much (max - min) over the
         same samples.
     ignore : mapping of str to iterable of float, optional
         Per sensor, values that are not readings (fault codes): treated as missing.
+    min_duration_s : float, s
+        Shortest time span of a stuck run (needs an ``elapsed_s`` column; 0: samples only).
 
     Returns
     -------
@@ -146,6 +151,11 @@ def stuck_free(
     readings = pd.DataFrame(
         {s: frame[s].where(~frame[s].isin(list(ignore.get(s, ())))) for s in present}
     )
+    elapsed = (
+        frame["elapsed_s"].to_numpy(dtype=float)
+        if "elapsed_s" in frame
+        else np.arange(len(frame), dtype=float)
+    )
     for sensor in present:
         values = readings[sensor].to_numpy(dtype=float)
         others = readings.drop(columns=sensor).to_numpy(dtype=float)
@@ -155,7 +165,8 @@ def stuck_free(
             if not np.isnan(values[start]):
                 while stop < len(values) and values[stop] == values[start]:
                     stop += 1
-            if stop - start >= min_samples:
+            long_enough = not elapsed[stop - 1] - elapsed[start] < min_duration_s
+            if stop - start >= min_samples and long_enough:
                 window = others[start:stop]
                 with np.errstate(invalid="ignore"):
                     spread = np.nanmax(window, axis=0) - np.nanmin(window, axis=0)

@@ -1,8 +1,9 @@
 """Pandera model of ``reports/cross_season_scores.csv`` written by ``evaluate``.
 
-One row per (model, selection, mode, training unit, test campaign): the model built on the
-training unit (one campaign, the training campaigns of three seasons, or all of them) and scored on
-the test campaign (the PCDL paper's cross-season scheme, extended by leave-one-season-out).
+One row per (axis, model, selection, mode, training unit, test campaign): the model built on the
+training unit (one campaign, the training campaigns of all seasons but one or of all campaigns
+but one, or all of them) and scored on the test campaign (the PCDL paper's cross-season scheme,
+extended by leave-one-season-out or leave-one-campaign-out).
 """
 
 from __future__ import annotations
@@ -20,17 +21,22 @@ SCORE_ROLES = ("fit", "prediction", "validation")
 MODES = ("static", "one_step", "free_run")
 """``static``: from temperatures only; ``one_step``: with the measured error up to the previous
 sample; ``free_run``: the model's own predictions fed back as error history."""
-SCHEMES = ("campaign", "season", "pooled")
-"""Training unit: one campaign; all training campaigns but one season's; all of them."""
+SCHEMES = ("campaign", "loso", "loco", "pooled")
+"""Training unit: one campaign; all training campaigns but one season's (leave-one-season-out);
+all but one campaign (leave-one-campaign-out, when there is one season); all of them."""
 
 
 class CrossSeasonScoresModel(pa.DataFrameModel):
     """Long table of cross-season scores (um).
 
     ``rmse_um`` is the RMS of the residual e = measured - predicted; ``resid_std_um`` its
-    standard deviation with n - 1 (the PCDL paper's S), undefined (NaN) for one sample.
+    standard deviation with n - 1 (the PCDL paper's S), undefined (NaN) for one sample;
+    ``uncompensated_rms_um`` the RMS of the thermal error itself on the same samples (what no
+    compensation leaves) and ``eta`` = 1 - rmse_um / uncompensated_rms_um, the compensation
+    ratio (NaN when the error is zero).
     """
 
+    axis: Series[str]
     model: Series[str]
     selection: Series[str]
     mode: Series[str] = pa.Field(isin=MODES)
@@ -43,6 +49,8 @@ class CrossSeasonScoresModel(pa.DataFrameModel):
     n_samples: Series[np.int64] = pa.Field(ge=1)
     rmse_um: Series[float] = pa.Field(ge=0)
     resid_std_um: Series[float] = pa.Field(ge=0, nullable=True)
+    uncompensated_rms_um: Series[float] = pa.Field(ge=0)
+    eta: Series[float] = pa.Field(le=1, nullable=True)
 
     class Config:
         """Exactly these columns."""
@@ -67,6 +75,6 @@ class CrossSeasonScoresModel(pa.DataFrameModel):
     @pa.dataframe_check
     @classmethod
     def one_score_per_pair(cls, df: pd.DataFrame) -> Series[bool]:
-        """Check for one row per model, selection, mode, training unit and test campaign."""
-        keys = ["model", "selection", "mode", "train_unit", "test_campaign"]
+        """Check for one row per axis, model, selection, mode, training unit, test campaign."""
+        keys = ["axis", "model", "selection", "mode", "train_unit", "test_campaign"]
         return ~df.duplicated(keys, keep=False)

@@ -70,6 +70,8 @@ class ValidationLimits:
         Relative deviation of a sampling interval from the campaign's median interval allowed.
     stuck_min_samples : int
         Identical consecutive readings from which a sensor counts as stuck...
+    stuck_min_minutes : float, min
+        ...spanning at least this long...
     stuck_min_other_change_degC : float, degC
         ...when another sensor changed by at least this much meanwhile.
     spike_threshold_degC : float, degC
@@ -85,6 +87,7 @@ class ValidationLimits:
     ds18b20_disconnected_degC: float  # noqa: N815 (params.yaml key)
     interval_tolerance: float
     stuck_min_samples: int
+    stuck_min_minutes: float
     stuck_min_other_change_degC: float  # noqa: N815 (params.yaml key)
     spike_threshold_degC: float  # noqa: N815 (params.yaml key)
     displacement_range_um: tuple[float, float]
@@ -517,6 +520,7 @@ def campaign_samples_schema(
             limits.stuck_min_samples,
             limits.stuck_min_other_change_degC,
             fault_codes,
+            60.0 * limits.stuck_min_minutes,
         ),
         name="stuck_sensor",
     )

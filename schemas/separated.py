@@ -12,23 +12,40 @@ import pandas as pd
 import pandera.pandas as pa
 from pandera.typing import Series
 
+from schemas import checks
 from schemas.ingested import SamplesModel
 from schemas.vocabulary import SEASONS, SPLITS
 
 
 class SpindleThermalErrorModel(SamplesModel):
-    """``spindle_thermal_error.parquet``: one row per aligned sample of a spindle campaign.
+    """``spindle_thermal_error.parquet``: one row per (axis, aligned sample) of a spindle campaign.
 
-    The samples columns (time strictly increasing per campaign) plus the campaign's split and
-    season and ``thermal_error_um`` = ``displacement_um`` minus its cold value (um); sensor
-    columns (degC) and their ``rise_<sensor>`` twins (K) vary by campaign.
+    The samples columns plus ``axis`` (the displacement axis of the row), ``run_id`` (the first
+    campaign of the run the campaign belongs to) and ``run_elapsed_s`` (s since that run's
+    start), the campaign's split and season, ``warm_start`` (the campaign does not start from
+    its run's reference), ``reference`` (what the error is counted from, in words),
+    ``displacement_um`` (stitched across re-zeroed cuts) and ``thermal_error_um`` =
+    ``displacement_um`` minus its value at the run's reference (um); sensor columns (degC),
+    their ``rise_<sensor>`` twins (K) and the speed responses vary by campaign. Time strictly
+    increases within each (axis, campaign).
     """
 
+    axis: Series[str]
+    run_id: Series[str]
+    run_elapsed_s: Series[float]
     split: Series[str] = pa.Field(isin=SPLITS)
     season: Series[str] = pa.Field(isin=SEASONS)
     synthetic: Series[bool]
+    warm_start: Series[bool]
+    reference: Series[str]
     thermal_error_um: Series[float]
     displacement_um: Series[float]
+
+    @pa.dataframe_check
+    @classmethod
+    def time_increasing(cls, df: pd.DataFrame) -> Series[bool]:
+        """Check that ``elapsed_s`` strictly increases within each axis and campaign."""
+        return checks.increasing_within(df["elapsed_s"], df["axis"] + "/" + df["campaign_id"])
 
 
 class AxisSlopesModel(pa.DataFrameModel):

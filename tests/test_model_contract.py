@@ -96,8 +96,15 @@ def test_fit_does_not_modify_its_inputs(fitted):
 
 def test_feedback_flag_matches_the_registry(fitted):
     name, model = fitted
-    if not MODELS[name].uses_temperatures:
+    if not MODELS[name].uses_temperatures and name != "none":
         assert getattr(model, "needs_error_feedback", False), name
+
+
+def test_none_predicts_zero_and_ridge_has_no_lags():
+    assert not make_model("none").fit(*BOTH).predict(A[0]).any()
+    ridge = make_model("ridge").fit(*BOTH)
+    assert ridge.lag_order_ == 0 and ridge.chosen_params_["cv_scheme"].startswith("leave-one")
+    assert ridge.chosen_params_["alpha"] in ridge.alphas
 
 
 @pytest.mark.parametrize("name", sorted(n for n, e in MODELS.items() if not e.uses_temperatures))

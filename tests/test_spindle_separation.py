@@ -4,39 +4,167 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from pipeline.spindle_separation import cold_value, spindle_thermal_error
+from pipeline.features import SpeedResponses, reference_value
+from pipeline.runs import RunSettings
+from pipeline.spindle_separation import SeparationSettings, resample, spindle_thermal_error
+
+START = pd.Timestamp("2025-03-03T08:00:00")
 
 
-def _inputs(displacement, temperature):
-    campaigns = pd.DataFrame({
-        "campaign_id": ["K01"], "split": ["train"], "season": ["winter"], "synthetic": [True],
-        "sensors_json": [json.dumps({"T1": {"role": "headstock"}})],
+def _campaign(cid, start=START, axes=("Z",), follows=None, start_state=None):
+    return {
+        "campaign_id": cid, "machine": "m1", "start": start, "split": "train",
+        "season": "spring", "synthetic": True, "start_state": start_state, "follows": follows,
+        "sensors_json": json.dumps({"T1": {"role": "other"}}),
+        "displacement_json": json.dumps({a: {"probe": "eddy_current"} for a in axes}),
+    }  # fmt: skip
+
+
+def _samples(cid, temperature, interval_s=180.0, rpm=4000.0, **displacement):
+    n = len(temperature)
+    frame = pd.DataFrame({
+        "campaign_id": cid, "source_row": np.arange(1, n + 1),
+        "elapsed_s": interval_s * np.arange(n), "rpm": rpm, "T1": temperature,
     })  # fmt: skip
-    samples = pd.DataFrame({
-        "campaign_id": "K01", "source_row": np.arange(1, len(displacement) + 1),
-        "elapsed_s": 180.0 * np.arange(len(displacement)), "rpm": 4000.0,
-        "T1": temperature, "disp_Z": displacement,
-    })  # fmt: skip
-    return campaigns, samples
+    for axis, values in displacement.items():
+        frame[f"disp_{axis}"] = values
+    return frame
+
+
+def _separate(campaigns, samples, **settings):
+    return spindle_thermal_error(
+        pd.DataFrame(campaigns), pd.concat(samples, ignore_index=True),
+        SeparationSettings(**settings),
+    )  # fmt: skip
 
 
 def test_first_sample_reference():
-    campaigns, samples = _inputs([np.nan, 10.0, 12.0, 15.0], [20.0, 20.5, 21.0, 22.0])
-    table = spindle_thermal_error(campaigns, samples, "Z", "first_sample", 3)
+    table, record = _separate(
+        [_campaign("K01")], [_samples("K01", [20.0, 20.5, 21.0, 22.0], Z=[np.nan, 10, 12, 15])]
+    )
     np.testing.assert_allclose(table["thermal_error_um"], [np.nan, 0.0, 2.0, 5.0])
     np.testing.assert_allclose(table["rise_T1"], [0.0, 0.5, 1.0, 2.0])
+    assert record["campaigns"]["K01"]["reference"] == "first sample of K01 (cold start)"
+    assert not table["warm_start"].any()
 
 
 def test_mean_of_first_n_reference():
-    campaigns, samples = _inputs([10.0, 11.0, 12.0, 20.0], [20.0, 20.0, 21.0, 23.0])
-    table = spindle_thermal_error(campaigns, samples, "Z", "mean_first_n", 3)
+    table, _ = _separate(
+        [_campaign("K01")], [_samples("K01", [20.0, 20.0, 21.0, 23.0], Z=[10, 11, 12, 20])],
+        reference="mean_first_n", n=3,
+    )  # fmt: skip
     np.testing.assert_allclose(table["thermal_error_um"], [-1.0, 0.0, 1.0, 9.0])
     assert table["rise_T1"].iloc[-1] == pytest.approx(23.0 - 61.0 / 3)
 
 
-def test_unknown_reference_and_missing_axis_are_clear_errors():
+def test_every_declared_axis_gets_its_rows_unless_the_params_list_fewer():
+    campaigns = [_campaign("K01", axes=("X", "Z"))]
+    samples = [_samples("K01", [20, 21, 22], X=[1.0, 2.0, 4.0], Z=[5.0, 7.0, 9.0])]
+    table, record = _separate(campaigns, samples)
+    assert record["axes"] == ["X", "Z"]
+    np.testing.assert_allclose(table.query("axis == 'X'")["thermal_error_um"], [0, 1, 3])
+    np.testing.assert_allclose(table.query("axis == 'Z'")["thermal_error_um"], [0, 2, 4])
+    only_z, _ = _separate(campaigns, samples, axes=("Z",))
+    assert set(only_z["axis"]) == {"Z"}
+    with pytest.raises(ValueError, match="no valid spindle_drift campaign declares"):
+        _separate(campaigns, samples, axes=("Y",))
+
+
+def test_back_to_back_campaigns_form_a_run_referenced_at_its_cold_start():
+    """K02 starts one interval after K01 ends: warm, counted from K01's first sample."""
+    k02_start = START + pd.Timedelta(seconds=4 * 180)
+    table, record = _separate(
+        [_campaign("K01"), _campaign("K02", start=k02_start)],
+        [_samples("K01", [20.0, 21.0, 22.0, 23.0], Z=[0.0, 2.0, 4.0, 6.0]),
+         _samples("K02", [23.5, 23.0, 22.5], Z=[7.0, 6.0, 5.0])],
+    )  # fmt: skip
+    k02 = table[table["campaign_id"] == "K02"]
+    np.testing.assert_allclose(k02["thermal_error_um"], [7.0, 6.0, 5.0])
+    np.testing.assert_allclose(k02["rise_T1"], [3.5, 3.0, 2.5])
+    np.testing.assert_allclose(k02["run_elapsed_s"], [720.0, 900.0, 1080.0])
+    assert set(table["run_id"]) == {"K01"} and k02["warm_start"].all()
+    assert "continues run K01" in record["campaigns"]["K02"]["reference"]
+    link = record["runs"][0]["links"][0]
+    assert (link["how"], link["gap_s"], link["contiguous"]) == ("detected", 180.0, True)
+
+
+def test_a_re_zeroed_probe_is_stitched_across_a_contiguous_cut():
+    k02_start = START + pd.Timedelta(seconds=4 * 180)
+    table, record = _separate(
+        [_campaign("K01"), _campaign("K02", start=k02_start)],
+        [_samples("K01", [20.0, 21.0, 22.0, 23.0], Z=[0.0, 2.0, 4.0, 6.0]),
+         _samples("K02", [24.0, 25.0, 26.0], Z=[0.0, 2.0, 4.0])],
+    )  # fmt: skip
+    np.testing.assert_allclose(
+        table.query("campaign_id == 'K02'")["thermal_error_um"], [8.0, 10.0, 12.0]
+    )
+    stitch = record["runs"][0]["links"][0]["displacement"][0]
+    assert stitch["offset_um"] == pytest.approx(8.0) and stitch["jump_um"] == pytest.approx(-8.0)
+
+
+def test_no_run_across_a_long_gap_a_temperature_jump_or_a_declared_cold_start():
+    late = START + pd.Timedelta(hours=3)
+    soon = START + pd.Timedelta(seconds=4 * 180)
+    cases = [
+        (_campaign("K02", start=late), [23.0, 23.0]),  # 2.4 h gap
+        (_campaign("K02", start=soon), [30.0, 30.0]),  # temperatures jump by 7 K
+        (_campaign("K02", start=soon, start_state="cold"), [23.0, 23.0]),
+    ]
+    for campaign, temperature in cases:
+        table, record = _separate(
+            [_campaign("K01"), campaign],
+            [_samples("K01", [20, 21, 22, 23], Z=[0, 1, 2, 3]),
+             _samples("K02", temperature, Z=[9.0, 10.0])],
+        )  # fmt: skip
+        assert set(table["run_id"]) == {"K01", "K02"}
+        np.testing.assert_allclose(table.query("campaign_id == 'K02'")["thermal_error_um"], [0, 1])
+
+
+def test_declared_follows_links_across_any_gap_and_declared_warm_start_is_said():
+    later = START + pd.Timedelta(days=1)
+    table, record = _separate(
+        [_campaign("K01"), _campaign("K02", start=later, follows="K01"),
+         _campaign("K03", start=later + pd.Timedelta(days=1), start_state="warm")],
+        [_samples("K01", [20, 21, 22, 23], Z=[0, 1, 2, 3]),
+         _samples("K02", [22.0, 21.5], Z=[2.5, 2.0]), _samples("K03", [25.0, 24.0], Z=[4, 3])],
+    )  # fmt: skip
+    assert record["runs"][0]["links"][0]["how"] == "declared"
+    np.testing.assert_allclose(table.query("campaign_id == 'K02'")["thermal_error_um"], [2.5, 2])
+    assert "declared warm start" in record["campaigns"]["K03"]["reference"]
+    assert table.query("campaign_id == 'K03'")["warm_start"].all()
+
+
+def test_speed_responses_carry_across_the_cut_and_start_from_rest():
+    k02_start = START + pd.Timedelta(seconds=4 * 180)
+    speed = SpeedResponses((30.0,), (1.0,))
+    table, _ = _separate(
+        [_campaign("K01"), _campaign("K02", start=k02_start)],
+        [_samples("K01", [20, 21, 22, 23], Z=[0, 1, 2, 3], rpm=3000.0),
+         _samples("K02", [23, 23, 23], Z=[3, 3, 3], rpm=0.0)],
+        speed=speed,
+    )  # fmt: skip
+    response = table["speed_lag_30min"].to_numpy()
+    decay = np.exp(-180.0 / 1800.0)
+    expected = [0.0]
+    for k in range(6):
+        expected.append(expected[-1] * decay + (3.0 if k < 4 else 0.0) * (1 - decay))
+    np.testing.assert_allclose(response, expected)
+    assert response[4] > response[5] > response[6] > 0  # cooling in K02, not zero
+
+
+def test_fast_sampling_is_averaged_into_windows():
+    rows = _samples("K01", np.arange(12.0), interval_s=20.0, Z=np.arange(12.0) * 2)
+    out = resample(rows, 60.0)
+    np.testing.assert_allclose(out["T1"], [1.0, 4.0, 7.0, 10.0])
+    np.testing.assert_allclose(out["elapsed_s"], [20.0, 80.0, 140.0, 200.0])
+    assert list(out["source_row"]) == [1, 4, 7, 10]
+    assert resample(rows, 10.0) is rows
+
+
+def test_unknown_reference_and_bad_run_keys_are_clear_errors():
     with pytest.raises(ValueError, match="separate.cold_reference"):
-        cold_value(np.array([1.0]), "median", 3)
-    campaigns, samples = _inputs([1.0, 2.0], [20.0, 21.0])
-    with pytest.raises(ValueError, match="no valid spindle_drift campaign has a 'X'"):
-        spindle_thermal_error(campaigns, samples, "X", "first_sample", 1)
+        reference_value(np.array([1.0]), "median", 3)
+    with pytest.raises(ValueError, match="separate.cold_reference"):
+        SeparationSettings.from_params({"cold_reference": "median"})
+    with pytest.raises(KeyError, match="separate.runs: unknown key"):
+        RunSettings.from_params({"max_gap": 10})

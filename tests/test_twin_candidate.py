@@ -52,6 +52,7 @@ VALIDATE = {
     "ds18b20_disconnected_degC": -127.0,
     "interval_tolerance": 0.2,
     "stuck_min_samples": 20,
+    "stuck_min_minutes": 60.0,
     "stuck_min_other_change_degC": 0.5,
     "spike_threshold_degC": 3.0,
     "displacement_range_um": [-500.0, 500.0],

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import json
 import shutil
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -34,6 +35,7 @@ LIMITS = schemas.ValidationLimits(
     ds18b20_disconnected_degC=-127.0,
     interval_tolerance=0.2,
     stuck_min_samples=5,
+    stuck_min_minutes=0.0,
     stuck_min_other_change_degC=0.5,
     spike_threshold_degC=3.0,
     displacement_range_um=(-500.0, 500.0),
@@ -143,9 +145,9 @@ def make_tables():
     return {"campaigns": campaigns, "samples": samples, "laser": laser, "problems": problems}
 
 
-def run(tables):
+def run(tables, limits=LIMITS):
     return v.validate_tables(
-        tables["campaigns"], tables["samples"], tables["laser"], tables["problems"], LIMITS
+        tables["campaigns"], tables["samples"], tables["laser"], tables["problems"], limits
     )
 
 
@@ -262,6 +264,15 @@ def test_stuck_sensor():
     assert_located(problem, "K01", "temperature.csv", 3, "T2", "stuck_sensor")
     assert problem.value == 21.5
     assert "7 samples" in problem.message and "rows 3-9" in problem.message
+
+
+def test_a_short_repeat_at_fast_sampling_is_not_stuck():
+    """7 identical samples 60 s apart span 6 min: a quiet sensor, not a stuck one, at 10 min."""
+    tables = set_cells(make_tables(), "samples", "K01", range(3, 10), "T2", 21.5)
+    quiet = run(tables, replace(LIMITS, stuck_min_minutes=10.0))
+    assert "stuck_sensor" not in {p.check for p in quiet.problems}
+    problem = only(run(tables, replace(LIMITS, stuck_min_minutes=6.0)), "stuck_sensor")
+    assert "at least 6 min" in problem.message
 
 
 def test_constant_sensor_is_not_stuck_when_nothing_else_moves():
@@ -631,6 +642,7 @@ def test_main_fails_when_no_campaign_is_valid(tmp_path, monkeypatch):
 def test_cross_season_scores_model_checks_roles():
     scores = pd.DataFrame(
         {
+            "axis": ["Z", "Z"],
             "model": ["mlr", "mlr"],
             "selection": ["all", "all"],
             "mode": ["static", "static"],
@@ -643,6 +655,8 @@ def test_cross_season_scores_model_checks_roles():
             "n_samples": np.array([10, 10], dtype="int64"),
             "rmse_um": [1.0, 2.0],
             "resid_std_um": [1.0, 1.5],
+            "uncompensated_rms_um": [4.0, 4.0],
+            "eta": [0.75, 0.5],
         }
     )
     with pytest.raises(SchemaErrors, match="role_consistent"):
@@ -652,20 +666,29 @@ def test_cross_season_scores_model_checks_roles():
     validation = fixed.assign(test_split=["train", "validation"])
     with pytest.raises(SchemaErrors, match="role_consistent"):
         schemas.CrossSeasonScoresModel.validate(validation, lazy=True)
-    season = fixed.assign(scheme="season", train_unit="not_winter", role=["fit", "prediction"])
+    season = fixed.assign(scheme="loso", train_unit="not_winter", role=["fit", "prediction"])
     schemas.CrossSeasonScoresModel.validate(season)
+    campaign_out = fixed.assign(scheme="loco", train_unit="not_K02", role=["fit", "prediction"])
+    schemas.CrossSeasonScoresModel.validate(campaign_out)
+    with pytest.raises(SchemaErrors, match="less_than_or_equal_to"):
+        schemas.CrossSeasonScoresModel.validate(fixed.assign(eta=[1.5, 0.5]), lazy=True)
 
 
 def test_spindle_thermal_error_model_with_sensor_columns():
     frame = pd.DataFrame(
         {
+            "axis": ["Z"] * 3,
             "campaign_id": ["K01"] * 3,
+            "run_id": ["K01"] * 3,
             "elapsed_s": [0.0, 60.0, 120.0],
+            "run_elapsed_s": [0.0, 60.0, 120.0],
             "source_row": np.array([1, 2, 3], dtype="int64"),
             "rpm": [4000.0] * 3,
             "split": ["train"] * 3,
             "season": ["winter"] * 3,
             "synthetic": [True] * 3,
+            "warm_start": [False] * 3,
+            "reference": ["first sample of K01 (cold start)"] * 3,
             "T1": [20.0, 20.5, 21.0],
             "thermal_error_um": [0.0, 1.0, 2.0],
             "displacement_um": [5.0, 6.0, 7.0],

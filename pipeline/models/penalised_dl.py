@@ -190,6 +190,32 @@ class RidgeDistributedLag(LaggedLinearModel):
         return self
 
 
+RIDGE_ALPHAS = tuple(float(a) for a in np.logspace(-2, 6, 17))
+
+
+class RidgeRegression(RidgeDistributedLag):
+    """Ridge regression on the current inputs only (no lags), penalty chosen by campaign-wise CV.
+
+    The static member of :class:`RidgeDistributedLag` (lag order 0): ``y = a0 + X b`` with
+    ``min ||y - y_mean - Z b||^2 + alpha ||b||^2`` on the standardised inputs Z, alpha chosen
+    by leave-one-campaign-out cross-validation (:func:`cv_folds`). On every temperature it is
+    the plain all-sensor ridge baseline; on every temperature and the speed responses
+    (selection ``all_speed``) it is the candidate that lets the penalty, not a selection
+    method, decide which inputs carry weight. The alpha grid is wider than the lagged model's
+    (1e-2 to 1e6), since long records give large Z'Z.
+
+    Parameters
+    ----------
+    alphas : tuple of float, default 17 values log-spaced from 1e-2 to 1e6
+        Candidate penalties on the standardised slopes.
+    """
+
+    lag = 0
+
+    def __init__(self, alphas: tuple[float, ...] = RIDGE_ALPHAS):
+        self.alphas = alphas
+
+
 class PLSDistributedLag(LaggedLinearModel):
     """Partial-least-squares distributed-lag model, components chosen by campaign-wise CV.
 

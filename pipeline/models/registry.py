@@ -21,7 +21,8 @@ from pipeline.models.arma import ARMAErrorModel
 from pipeline.models.distributed_lag import DistributedLagRegressor
 from pipeline.models.neural import BackPropagationRegressor
 from pipeline.models.pcdl import PrincipalComponentDistributedLag
-from pipeline.models.penalised_dl import PLSDistributedLag, RidgeDistributedLag
+from pipeline.models.penalised_dl import PLSDistributedLag, RidgeDistributedLag, RidgeRegression
+from pipeline.models.reference import NoCompensation
 from pipeline.models.svr import EmbeddedSVR
 from pipeline.models.ts_bp import TimeSeriesBPHybrid
 from pipeline.models.tv_ar import TimeVaryingAR
@@ -36,7 +37,8 @@ class ModelEntry:
     estimator : type
         scikit-learn estimator class; ``estimator(**params)`` is unfitted.
     uses_temperatures : bool
-        False for models on the error series alone (they run on selection ``none``).
+        False for models on the error series alone and for ``none`` (they run on selection
+        ``none``).
     source : str
         Where the method comes from.
     """
@@ -47,9 +49,11 @@ class ModelEntry:
 
 
 MODELS: dict[str, ModelEntry] = {
+    "none": ModelEntry(NoCompensation, False, "no compensation: the reference of every score"),
     "mlr": ModelEntry(LinearRegression, True, "the patent (step 4), the PCDL paper's baseline"),
     "dl": ModelEntry(DistributedLagRegressor, True, "the PCDL paper, eq. 1"),
     "pcdl": ModelEntry(PrincipalComponentDistributedLag, True, "the PCDL paper, section 2.2"),
+    "ridge": ModelEntry(RidgeRegression, True, "ridge regression, no lags (PCDL paper 2.2)"),
     "ridge_dl": ModelEntry(RidgeDistributedLag, True, "the PCDL paper, section 2.2 (ridge)"),
     "pls_dl": ModelEntry(PLSDistributedLag, True, "the PCDL paper, section 2.2 (other)"),
     "bp": ModelEntry(BackPropagationRegressor, True, "the TS-BP paper, BP network"),

@@ -1,10 +1,15 @@
-"""The champion as an MLflow pyfunc model, logged and registered with the alias ``champion``.
+"""An axis' champion as an MLflow pyfunc model, logged from its child run, aliased ``champion``.
 
-``mlflow.pyfunc.load_model("models:/<name>@champion").predict(table)`` takes a temperature table
-(:func:`pipeline.champion.temperature_features`: one column per chosen sensor in degC, rows in
-time order, optional ``campaign_id`` and ``elapsed_s``) and returns the predicted thermal error
-(um) per row. The estimator is the candidate's fit on all training campaigns; models on the
-error's own history predict in free run.
+``mlflow.pyfunc.load_model("models:/thermal-error-spindle-<axis>@champion").predict(table)``
+takes a table as the machine logs it -- one column per input sensor in degC, rows in time order,
+``rpm`` and ``elapsed_s`` when the model uses speed responses, optional ``campaign_id`` for
+several runs -- and returns the predicted thermal error (um) per row. The inputs are prepared by
+:func:`pipeline.features.model_inputs` from the card's ``input_spec``, the same code that
+prepared them in training: rises from each run's first row (or the mean of its first rows), the
+speed responses from rest at each run's start. The signature says which columns are required
+(``rpm`` and ``elapsed_s`` only when the model needs the speed log). The estimator is the
+candidate's fit on all training campaigns; models on the error's own history predict in free
+run; the champion ``none`` predicts zero (do not compensate).
 """
 
 from __future__ import annotations
@@ -17,13 +22,17 @@ from pathlib import Path
 import joblib
 import mlflow
 import pandas as pd
+from mlflow.models import ModelSignature
 from mlflow.tracking import MlflowClient
+from mlflow.types.schema import ColSpec, Schema
 
-from pipeline.champion import temperature_features
+from pipeline import paths
+from pipeline.features import InputSpec, model_inputs
 
 logger = logging.getLogger(__name__)
 
 ALIAS = "champion"
+MODEL_NAME = "model"
 TRACKING_URI_ENV = "MLFLOW_TRACKING_URI"
 REQUIREMENTS = (
     "numpy==2.4.6",
@@ -36,7 +45,7 @@ REQUIREMENTS = (
 
 
 class ChampionModel(mlflow.pyfunc.PythonModel):
-    """Predict the thermal error (um) from a temperature table."""
+    """Predict the thermal error (um) from a table of the machine's inputs."""
 
     def load_context(self, context) -> None:
         """Load the fitted estimator and its card from the model's artifacts."""
@@ -45,44 +54,102 @@ class ChampionModel(mlflow.pyfunc.PythonModel):
 
     def predict(self, context, model_input: pd.DataFrame, params=None) -> pd.Series:
         """Thermal error, um, one value per row of ``model_input``."""
-        X = temperature_features(pd.DataFrame(model_input), self.card)
+        X = model_inputs(pd.DataFrame(model_input), InputSpec.from_dict(self.card["input_spec"]))
         return pd.Series(
             self.estimator.predict(X), index=model_input.index, name="thermal_error_um"
         )
 
 
-def log_and_register(
-    tracking_uri: str, run_id: str, registered_name: str, estimator: Path, card: Path
-) -> str:
-    """Log the champion to run ``run_id``, register it as ``registered_name`` and alias it.
+def signature(spec: InputSpec) -> ModelSignature:
+    """Input and output schema: the sensors (degC), ``rpm`` and ``elapsed_s`` when needed."""
+    columns = [ColSpec("double", name) for name in spec.sensors]
+    columns += [
+        ColSpec("double", "rpm", required=spec.needs_speed),
+        ColSpec("double", "elapsed_s", required=spec.needs_speed),
+        ColSpec("string", "campaign_id", required=False),
+    ]
+    return ModelSignature(Schema(columns), Schema([ColSpec("double", "thermal_error_um")]))
+
+
+def description(card: dict) -> str:
+    """Model-version description: inputs, decision, protocol and scores, in words."""
+    spec = InputSpec.from_dict(card["input_spec"])
+    scores = card.get("scores") or {}
+    protocol = card.get("protocol")
+    held_out = scores.get(f"{protocol}_Mn_rms_um") if protocol else None
+    lines = [
+        f"Axis {card['axis']}: {card['model']}/{card['selection']}/{card['mode']}, fitted on "
+        f"{len(card['trained_on'])} training campaign(s).",
+        "Compensate: "
+        + ("yes. " if card["compensate"] else "NO (predicts zero). ")
+        + str(card["reason"])
+        + ".",
+        f"Inputs: {', '.join(spec.inputs) or 'none'}"
+        + ("; needs the table's rpm and elapsed_s (speed log)." if spec.needs_speed else "."),
+        f"Reference: {spec.reference} of each run ({spec.features}).",
+        f"Chosen on {card.get('protocol_name')}: held-out RMS {held_out} um against "
+        f"{card.get('none_score_um')} um without compensation.",
+        f"Validation RMS (all-training fit): {scores.get('pooled_Mn_val_rms_um')} um.",
+    ]
+    return "\n".join(lines)
+
+
+def log_and_register(tracking_uri: str, run_id: str, registered_name: str, folder: Path) -> str:
+    """Log an axis' champion to its child run ``run_id``, register it and alias it.
+
+    Parameters
+    ----------
+    tracking_uri : str
+    run_id : str
+        The champion candidate's child run (still running).
+    registered_name : str
+        E.g. ``thermal-error-spindle-Z``.
+    folder : Path
+        ``data/models/champion/<axis>/`` (estimator, card, input example).
 
     Returns
     -------
     str
         The registered model version.
     """
+    card_path = folder / paths.CHAMPION_CARD_FILE
+    card = json.loads(card_path.read_text(encoding="utf-8"))
+    spec = InputSpec.from_dict(card["input_spec"])
+    example_path = folder / paths.CHAMPION_EXAMPLE_FILE
+    example = pd.read_csv(example_path) if example_path.is_file() else None
     previous_uri = os.environ.get(TRACKING_URI_ENV)
     package = Path(__file__).resolve().parents[1]
     mlflow.set_tracking_uri(tracking_uri)
-    # Not ``with start_run``: leaving the block would mark the parent run FINISHED before the
-    # rest of the pipeline execution is logged; the run is handed back still RUNNING.
+    # Not ``with start_run``: leaving the block would mark the child run FINISHED before its
+    # metrics are logged; the run is handed back still RUNNING.
     mlflow.start_run(run_id=run_id)
     try:
         info = mlflow.pyfunc.log_model(
-            name=ALIAS,
+            name=MODEL_NAME,
             python_model=ChampionModel(),
-            artifacts={"estimator": str(estimator), "card": str(card)},
+            artifacts={"estimator": str(folder / paths.CHAMPION_ESTIMATOR_FILE),
+                       "card": str(card_path)},
             code_paths=[str(package)],
             pip_requirements=list(REQUIREMENTS),
+            signature=signature(spec),
+            input_example=example,
             registered_model_name=registered_name,
-        )
+        )  # fmt: skip
     finally:
         mlflow.end_run(status="RUNNING")
         # set_tracking_uri also sets the environment variable: restore the caller's.
         mlflow.set_tracking_uri(previous_uri)
     version = str(info.registered_model_version)
-    MlflowClient(tracking_uri=tracking_uri).set_registered_model_alias(
-        registered_name, ALIAS, version
-    )
+    client = MlflowClient(tracking_uri=tracking_uri)
+    client.set_registered_model_alias(registered_name, ALIAS, version)
+    client.update_model_version(registered_name, version, description=description(card))
+    tags = {
+        "axis": card["axis"], "model": card["model"], "selection": card["selection"],
+        "mode": card["mode"], "compensate": str(card["compensate"]).lower(),
+        "protocol": str(card.get("protocol")), "needs_speed_log": str(spec.needs_speed).lower(),
+        "inputs": ",".join(spec.inputs) or "-",
+    }  # fmt: skip
+    for key, value in tags.items():
+        client.set_model_version_tag(registered_name, version, key, value)
     logger.info("registered %s version %s with alias @%s", registered_name, version, ALIAS)
     return version

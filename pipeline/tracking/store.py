@@ -162,10 +162,17 @@ def _create_run(
 
 
 def _log_one(
-    client: MlflowClient, experiment_id: str, record: RunRecord, batch_size: int, extra: dict
+    client: MlflowClient,
+    experiment_id: str,
+    record: RunRecord,
+    batch_size: int,
+    extra: dict,
+    hook: Callable[[RunRecord, str], None] | None = None,
 ) -> str:
     run_id = _create_run(client, experiment_id, record, batch_size, extra)
     try:
+        if hook is not None:
+            hook(record, run_id)
         log_record(client, run_id, record, batch_size)
     except BaseException:
         client.set_terminated(run_id, RunStatus.to_string(RunStatus.FAILED))
@@ -180,7 +187,7 @@ def log_pipeline(
     children: Sequence[RunRecord],
     artifacts: Sequence[tuple[Path, str]],
     batch_size: int,
-    with_parent: Callable[[str], None] | None = None,
+    with_child: Callable[[RunRecord, str], None] | None = None,
 ) -> str:
     """Log the parent run, its child runs and the parent's artifacts.
 
@@ -196,15 +203,16 @@ def log_pipeline(
     parent : RunRecord
         The pipeline execution (its tags carry the run identity).
     children : sequence of RunRecord
-        One per candidate (model, selection, mode); linked with ``mlflow.parentRunId``.
+        One per candidate (axis, model, selection, mode); linked with ``mlflow.parentRunId``.
     artifacts : sequence of (Path, str)
         Local file and the artifact folder it goes to on the parent (e.g. ``"reports"``).
     batch_size : int
         Most metrics per ``log_batch`` call.
-    with_parent : callable, optional
-        Called with the parent run id right after the parent is created, before its metrics are
-        logged (the champion model is logged and registered there: MLflow links a logged model
-        to every metric its run already has, one request per metric).
+    with_child : callable, optional
+        Called with each child's record and run id right after the child is created, before
+        its metrics are logged (an axis' champion model is logged and registered there, from
+        its own child run: MLflow links a logged model to every metric its run already has,
+        one request per metric).
 
     Returns
     -------
@@ -213,12 +221,10 @@ def log_pipeline(
     """
     parent_id = _create_run(client, experiment_id, parent, batch_size, {})
     try:
-        if with_parent is not None:
-            with_parent(parent_id)
         log_record(client, parent_id, parent, batch_size)
         for child in children:
             child_id = _log_one(
-                client, experiment_id, child, batch_size, {PARENT_RUN_TAG: parent_id}
+                client, experiment_id, child, batch_size, {PARENT_RUN_TAG: parent_id}, with_child
             )
             client.set_terminated(child_id)
         for path, folder in artifacts:

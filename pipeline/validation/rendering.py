@@ -75,6 +75,7 @@ def _limit_fields(limits: ValidationLimits) -> dict[str, Any]:
         "temperature_high": limits.temperature_range_degC[1],
         "interval_tolerance_pct": round(100 * limits.interval_tolerance, 6),
         "stuck_min_other_change": limits.stuck_min_other_change_degC,
+        "stuck_min_minutes": f"{limits.stuck_min_minutes:g}",
         "spike_threshold": limits.spike_threshold_degC,
         "displacement_low": limits.displacement_range_um[0],
         "displacement_high": limits.displacement_range_um[1],

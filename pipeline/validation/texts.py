@@ -91,7 +91,8 @@ PROBLEM_TEXTS: dict[str, ProblemText] = {
         f"{{campaign}}/{{file}} {{rows}} with empty cells, {RERUN}",
     ),
     "stuck_sensor": ProblemText(
-        "{column} repeats {value} degC for {n_rows} samples in a row at {where} while another "
+        "{column} repeats {value} degC for {n_rows} samples in a row (at least "
+        "{stuck_min_minutes} min) at {where} while another "
         "sensor changed by {stuck_min_other_change} degC or more: the sensor is stuck",
         "check sensor {column} and its logger channel; replace its readings in "
         f"{{campaign}}/{{file}} {{rows}} with empty cells, {RERUN}",
