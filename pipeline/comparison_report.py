@@ -82,6 +82,22 @@ def reference_table(separation: Mapping, series: Sequence[CampaignSeries]) -> st
     return "\n".join(lines)
 
 
+def twin_section(source: str) -> str:
+    """Paragraph on the physical-twin candidate ``twin`` (empty line before and after)."""
+    return f"""
+`twin` (selection `roles`, mode `static`) is the calibrated physical twin, not a regression on
+temperatures: driven by the spindle program, the ambient reading and the campaign's first
+temperatures, its parameters calibrated by least squares on the temperatures and Z drift of the
+training unit's campaigns only. Its effect set was named by the discrepancy stage on the
+training campaigns (the validation campaigns are held back from that search), so its validation
+scores are out-of-sample for the structure too (the held-out and single-campaign units share
+that set, named on all training campaigns). It is ranked here but never chosen as champion: the
+registered model predicts from the machine's table of inputs, the twin needs the spindle
+program and the sensor roles.
+Twin used: {source}.
+"""
+
+
 def _decision_text(axis: str, decision: Decision, card: Mapping) -> str:
     if decision.compensate:
         return (
@@ -153,7 +169,8 @@ def axis_section(
     n_validation = sum(s.split == "validation" for s in series)
     protocol = PROTOCOL_NAMES.get(decision.protocol or "", "none")
     skipped_lines = "\n".join(f"- `{name}` not scored: {why}." for name, why in skipped.items())
-    twin = f"\nTwin used: {twin_source}.\n" if twin_source and axis == "Z" else ""
+    scored = any(summary["model"] == "twin")
+    twin = twin_section(twin_source) if twin_source and scored else ""
     heatmap_lines = "\n".join(f"![{path}]({path})" for path in heatmaps)
     return f"""## Axis {axis}
 

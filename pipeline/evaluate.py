@@ -360,7 +360,7 @@ def write_outputs(
     metrics = {
         e.axis: {
             "candidates": tree[e.axis],
-            "champion": _champion_metrics(cards[e.axis]),
+            "champion": champion_metrics(cards[e.axis]),
             "skipped": dict(e.skipped),
         }
         for e in evaluations
@@ -420,7 +420,8 @@ def write_outputs(
     return cards
 
 
-def _champion_metrics(card: dict) -> dict:
+def champion_metrics(card: dict) -> dict:
+    """Return an axis' champion entry of ``metrics/cross_season.json`` (held-out, validation)."""
     scores = card["scores"]
     protocol = card["protocol"]
     return {

@@ -18,11 +18,13 @@ A run whose first campaign says ``start_state: warm`` starts warm with an unknow
 error is then counted from its first sample, and the reports say so.
 
 Displacement across a link: a probe that stayed mounted reads continuously, so B's first value
-continues A's last (extrapolated over the gap by A's last slope). A jump larger than
-``max(min_stitch_um, 6 x the step noise)`` across a contiguous cut (gap of at most 2.5 sampling
-intervals) is taken as a re-zeroed or re-mounted probe and removed: B's readings are shifted so
-that they continue A's (the *stitch*). Across a longer gap the change is not known and nothing is
-shifted; the jump is reported either way.
+continues A's last, up to what really changes across the cut (the drift over the gap, and an
+instant shift when the spindle starts or changes speed at the cut: centrifugal growth). A probe
+re-zeroed at the cut reads about zero at B's first sample instead. Only that case is stitched:
+across a contiguous cut (a gap of at most 2.5 sampling intervals), when B starts within
+``max(zero_um, 3 x the step noise)`` of zero and the jump from A's last value (extrapolated over
+the gap by A's last slope) exceeds ``max(min_stitch_um, 6 x the step noise)``, B's readings are
+shifted so that they continue A's. Every other jump is kept as measured; all are reported.
 """
 
 from __future__ import annotations
@@ -41,6 +43,9 @@ CONTIGUOUS_INTERVALS = 2.5
 """A cut is contiguous when B's first sample is at most this many sampling intervals after A's
 last one; only then is a displacement jump stitched."""
 STITCH_NOISE_FACTOR = 6.0
+ZERO_NOISE_FACTOR = 3.0
+ZERO_UM = 0.5
+"""A reading within max(ZERO_UM, 3 x step noise) of 0 um is taken as a re-zeroed probe."""
 SLOPE_SAMPLES = 10
 
 
@@ -362,5 +367,6 @@ def stitch(
     steps = np.diff(np.concatenate([before[ok_b], after[ok_a]]))
     noise = 1.4826 * float(np.median(np.abs(steps - np.median(steps)))) if steps.size else 0.0
     tolerance = max(float(min_stitch_um), STITCH_NOISE_FACTOR * noise)
-    offset = -jump if contiguous and abs(jump) > tolerance else 0.0
+    re_zeroed = abs(float(after[ok_a][0])) <= max(ZERO_UM, ZERO_NOISE_FACTOR * noise)
+    offset = -jump if contiguous and re_zeroed and abs(jump) > tolerance else 0.0
     return Stitch(jump, offset)

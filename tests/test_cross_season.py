@@ -5,7 +5,7 @@ from sklearn.base import BaseEstimator, RegressorMixin
 from sklearn.linear_model import LinearRegression
 
 from pipeline.cross_season import Candidate, fit_and_score, modes_of
-from pipeline.training_units import campaign_series, stack, training_units
+from pipeline.training_units import campaign_series, protocol_scheme, stack, training_units
 
 GAINS = np.array([3.0, -1.5])
 CAMPAIGNS = [
@@ -19,6 +19,7 @@ MLR = Candidate("mlr", "all")
 
 def _table(campaigns, seed=0, noisy=()):
     rng = np.random.default_rng(seed)
+    noise = np.random.default_rng(seed + 1)  # its own stream: the other campaigns stay the same
     frames = []
     for campaign, split, season in campaigns:
         t = np.arange(50) * 180.0
@@ -26,7 +27,7 @@ def _table(campaigns, seed=0, noisy=()):
         rise += rng.normal(0, 0.05, rise.shape)
         y = rise @ GAINS
         if campaign in noisy:
-            y = y + rng.normal(0, 2.0, len(y))
+            y = y + noise.normal(0, 2.0, len(y))
         frames.append(pd.DataFrame({
             "campaign_id": campaign, "split": split, "season": season, "elapsed_s": t,
             "rise_T1": rise[:, 0], "rise_T2": rise[:, 1], "thermal_error_um": y,
@@ -35,7 +36,7 @@ def _table(campaigns, seed=0, noisy=()):
 
 
 def _run(table, sensors=("T1", "T2")):
-    series = campaign_series(table, ["T1", "T2"], "rise_")
+    series = campaign_series(table, ["T1", "T2"], "temperature_rise")
     return [
         fit_and_score(MLR, unit, series, LinearRegression(), list(sensors))
         for unit in training_units(series)
@@ -43,20 +44,50 @@ def _run(table, sensors=("T1", "T2")):
 
 
 def test_units_are_each_campaign_each_left_out_season_and_all_training():
-    series = campaign_series(_table(CAMPAIGNS), ["T1", "T2"], "rise_")
+    series = campaign_series(_table(CAMPAIGNS), ["T1", "T2"], "temperature_rise")
     units = {(u.name, u.scheme): u.campaigns for u in training_units(series)}
     assert units == {
         ("K1", "campaign"): ("K1",),
         ("K2", "campaign"): ("K2",),
         ("K3", "campaign"): ("K3",),
-        ("not_winter", "season"): ("K2", "K3"),
-        ("not_summer", "season"): ("K1",),
+        ("not_winter", "loso"): ("K2", "K3"),
+        ("not_summer", "loso"): ("K1",),
         ("all_training", "pooled"): ("K1", "K2", "K3"),
     }
 
 
+def test_one_season_gives_leave_one_campaign_out_units():
+    one_season = [(c, split, "spring") for c, split, _ in CAMPAIGNS]
+    series = campaign_series(_table(one_season), ["T1", "T2"], "temperature_rise")
+    units = training_units(series)
+    held_out = {(u.name, u.scheme): u.campaigns for u in units if u.scheme == "loco"}
+    assert held_out == {
+        ("not_K1", "loco"): ("K2", "K3"),
+        ("not_K2", "loco"): ("K1", "K3"),
+        ("not_K3", "loco"): ("K1", "K2"),
+    }
+    assert protocol_scheme(units) == "loco"
+    single = training_units(series[:1] + series[3:])
+    assert protocol_scheme(single) is None
+    assert [u.scheme for u in single] == ["campaign", "pooled"]
+
+
+def test_score_rows_carry_the_uncompensated_error_and_eta():
+    table = _table(CAMPAIGNS)
+    series = campaign_series(table, ["T1", "T2"], "temperature_rise")
+    unit = training_units(series)[0]
+    result = fit_and_score(Candidate("none", "none"), unit, series, _Zero(), [])
+    row = result.scores.set_index("test_campaign").loc["K2"]
+    target = series[1].target
+    assert row["uncompensated_rms_um"] == pytest.approx(np.sqrt(np.mean(target**2)))
+    assert row["rmse_um"] == pytest.approx(row["uncompensated_rms_um"])
+    assert row["eta"] == pytest.approx(0.0) and row["axis"] == "Z"
+    exact = _run(table)[0].scores
+    np.testing.assert_allclose(exact["eta"], 1.0, atol=1e-9)
+
+
 def test_stacked_campaigns_are_contiguous_blocks_with_campaign_index():
-    series = campaign_series(_table(CAMPAIGNS), ["T1", "T2"], "rise_")
+    series = campaign_series(_table(CAMPAIGNS), ["T1", "T2"], "temperature_rise")
     X, y = stack(series[:2], ["T2"])
     assert list(X.index.names) == ["campaign_id", "elapsed_s"]
     assert list(X.index.get_level_values(0).unique()) == ["K1", "K2"]
@@ -97,9 +128,20 @@ def test_campaign_without_a_model_sensor_gets_no_score_row():
 
 
 def test_no_training_campaign_is_a_clear_error():
-    series = campaign_series(_table([("V1", "validation", "autumn")]), ["T1"], "rise_")
+    series = campaign_series(_table([("V1", "validation", "autumn")]), ["T1"], "temperature_rise")
     with pytest.raises(ValueError, match="mark at least one campaign split: train"):
         training_units(series)
+
+
+class _Zero(RegressorMixin, BaseEstimator):
+    """No compensation."""
+
+    def fit(self, X, y):
+        self.n_train_ = len(y)
+        return self
+
+    def predict(self, X):
+        return np.zeros(len(X))
 
 
 class _History(RegressorMixin, BaseEstimator):
@@ -118,7 +160,7 @@ class _History(RegressorMixin, BaseEstimator):
 
 
 def test_error_feedback_models_are_scored_one_step_and_free_run():
-    series = campaign_series(_table(CAMPAIGNS), ["T1", "T2"], "rise_")
+    series = campaign_series(_table(CAMPAIGNS), ["T1", "T2"], "temperature_rise")
     unit = training_units(series)[0]
     assert modes_of(_History()) == ("one_step", "free_run")
     result = fit_and_score(Candidate("h", "none"), unit, series, _History(), [])

@@ -4,6 +4,7 @@ import pytest
 
 from pipeline.scoring import (
     candidate_summary,
+    compensation_ratio,
     metrics_tree,
     residual_std,
     root_mean_square,
@@ -27,9 +28,9 @@ def test_residual_std_matches_eq_8_and_ignores_nan():
 
 def _rows(train, values, scheme="campaign", mode="static"):
     return [
-        {"model": "mlr", "selection": "all", "mode": mode, "scheme": scheme, "train_unit": train,
-         "test_campaign": test, "test_split": split, "role": role, "resid_std_um": v,
-         "rmse_um": 2 * v}
+        {"axis": "Z", "model": "mlr", "selection": "all", "mode": mode, "scheme": scheme,
+         "train_unit": train, "test_campaign": test, "test_split": split, "role": role,
+         "resid_std_um": v, "rmse_um": 2 * v, "uncompensated_rms_um": 10.0 * v}
         for test, split, role, v in values
     ]  # fmt: skip
 
@@ -45,6 +46,14 @@ def test_summary_uses_other_training_campaigns_for_mn_and_validation_separately(
     assert summary["Sd_um"] == pytest.approx(np.sqrt(2.0))
     assert summary["Mn_val_um"] == 8.0 and np.isnan(summary["Sd_val_um"])
     assert summary["Mn_rms_um"] == 8.0
+    assert summary["eta"] == pytest.approx(1 - 8.0 / 40.0)  # 1 - mean RMS / mean uncompensated
+    assert summary["eta_val"] == pytest.approx(0.8)
+
+
+def test_eta_is_one_minus_rms_over_the_uncompensated_rms():
+    assert compensation_ratio(1.0, 4.0) == 0.75
+    assert compensation_ratio(5.0, 4.0) == -0.25
+    assert np.isnan(compensation_ratio(1.0, 0.0))
 
 
 def _two_campaigns_and_a_season():
@@ -54,18 +63,18 @@ def _two_campaigns_and_a_season():
         + _rows("K2", [("K1", "train", "prediction", 2.0), ("K2", "train", "fit", 0.5),
                        ("V1", "validation", "validation", 4.0)])
         + _rows("not_winter", [("K1", "train", "prediction", 7.0), ("K2", "train", "fit", 0.2),
-                               ("V1", "validation", "validation", 5.0)], scheme="season")
+                               ("V1", "validation", "validation", 5.0)], scheme="loso")
     )  # fmt: skip
 
 
 def test_metrics_tree_and_matrix_layout():
     scores = _two_campaigns_and_a_season()
-    tree = metrics_tree(scores)["mlr"]["all"]["static"]
-    assert set(tree) == {"campaign", "season"}
+    tree = metrics_tree(scores)["Z"]["mlr"]["all"]["static"]
+    assert set(tree) == {"campaign", "loso"}
     assert set(tree["campaign"]["by_train_unit"]) == {"K1", "K2"}
     assert tree["campaign"]["overall"]["S_um"] == pytest.approx(0.75)
     assert tree["campaign"]["overall"]["Mn_um"] == pytest.approx(2.5)
-    assert tree["season"]["overall"]["Mn_um"] == 7.0
+    assert tree["loso"]["overall"]["Mn_um"] == 7.0
     matrix = score_matrix(scores, "resid_std_um")
     assert list(matrix.columns) == ["K1", "K2", "V1"]
     assert list(matrix.index) == ["K1", "K2", "not_winter"]
@@ -79,4 +88,5 @@ def test_candidate_summary_has_one_row_per_candidate_with_scheme_prefixes():
     row = summary.iloc[0]
     assert row["Mn_um"] == pytest.approx(2.5)
     assert row["loso_Mn_um"] == 7.0 and row["loso_Mn_val_um"] == 5.0
-    assert "pooled_Mn_val_um" not in summary
+    assert row["loso_eta"] == pytest.approx(0.8) and row["axis"] == "Z"
+    assert "pooled_Mn_val_um" not in summary and "loco_Mn_um" not in summary

@@ -3,10 +3,11 @@ import pandas as pd
 import pytest
 from sklearn.linear_model import LinearRegression
 
-from pipeline.champion import rank_candidates, temperature_features
+from pipeline.champion import choose_champion
 from pipeline.comparison_report import score_table
-from pipeline.select import select_all, selected_record, sensor_columns, stability_table
-from pipeline.training_units import campaign_series, training_units
+from pipeline.features import InputSpec, SpeedResponses, model_inputs, speed_responses
+from pipeline.select import method_entries, select_axis, selected_record, stability_table
+from pipeline.training_units import series_by_axis, training_units
 
 
 def _table(n=40):
@@ -23,68 +24,105 @@ def _table(n=40):
         rises = {f"rise_T{j}": g * heat + rng.normal(0, 0.05, n)
                  for j, g in zip((1, 2, 10), (5.0, 2.0, 1.0), strict=True)}  # fmt: skip
         frames.append(pd.DataFrame({
-            "campaign_id": campaign, "split": split, "season": season, "elapsed_s": t, **rises,
+            "axis": "Z", "campaign_id": campaign, "split": split, "season": season,
+            "elapsed_s": t, **rises, "speed_lag_30min": 4 * heat,
             "thermal_error_um": 3 * rises["rise_T1"] + rng.normal(0, 0.1, n),
         }))  # fmt: skip
     return pd.concat(frames, ignore_index=True)
 
 
 def test_select_runs_every_method_on_every_unit_and_counts_stability():
-    table = _table()
-    sensors = sensor_columns(table)
-    assert sensors == ["T1", "T2", "T10"]
-    series = campaign_series(table, sensors, "rise_")
+    series = series_by_axis(_table(), "temperature_rise")["Z"]
+    inputs = list(series[0].features.columns)
+    assert inputs == ["T1", "T2", "T10", "speed_lag_30min"]
     units = training_units(series)
-    selections = select_all(series, units, {"all": {}, "gra_top_k": {"k": 1}})
+    entries = method_entries({
+        "all": {"inputs": "temperatures"}, "all_speed": {"method": "all"},
+        "gra_top_k": {"k": 1},
+    })  # fmt: skip
+    selections = {"Z": select_axis(series, units, entries)}
     record = selected_record("temperature_rise", selections)
-    assert set(record["methods"]["gra_top_k"]) == {u.name for u in units}
-    assert record["methods"]["all"]["K1"]["sensors"] == sensors
-    stability = stability_table(selections, units, sensors).set_index(["method", "sensor"])
+    assert set(record["axes"]["Z"]["gra_top_k"]) == {u.name for u in units}
+    assert record["axes"]["Z"]["all"]["K1"]["inputs"] == ["T1", "T2", "T10"]
+    assert record["axes"]["Z"]["all_speed"]["K1"]["inputs"] == inputs
+    stability = stability_table(selections["Z"], units, inputs).set_index(["method", "sensor"])
     assert stability.loc[("all", "T10"), "times_chosen"] == 3
+    assert stability.loc[("all", "speed_lag_30min"), "times_chosen"] == 0
     chosen = stability.loc["gra_top_k", "times_chosen"]
     assert chosen.sum() == 3 and chosen.max() <= 3
     assert stability["frequency"].between(0, 1).all()
+    with pytest.raises(ValueError, match="select.methods.all.inputs"):
+        method_entries({"all": {"inputs": "everything"}})
 
 
-def _summary():
+def _summary(best_model_rms=2.0):
     return pd.DataFrame({
-        "model": ["arma", "arma", "mlr", "dl"], "selection": ["none", "none", "all", "all"],
-        "mode": ["one_step", "free_run", "static", "static"],
-        "Mn_um": [0.5, 9.0, 2.0, 2.5], "Mn_val_um": [0.4, 8.0, 1.9, 1.7],
+        "axis": "Z",
+        "model": ["arma", "arma", "mlr", "dl", "none", "twin"],
+        "selection": ["none", "none", "all", "all", "none", "roles"],
+        "mode": ["one_step", "free_run", "static", "static", "static", "static"],
+        "loco_Mn_rms_um": [0.5, 9.8, best_model_rms, best_model_rms + 0.1, 10.0, 0.1],
+        "loco_eta": [0.95, 0.1, 0.8, 0.75, 0.0, 0.99],
+        "Mn_rms_um": [0.5, 9.0, 2.0, 2.5, 10.0, 0.1],
+        "pooled_Mn_val_rms_um": [0.4, 8.0, 1.9, 1.7, 9.0, 0.1],
     })  # fmt: skip
 
 
-def test_champion_ignores_one_step_scores_which_need_the_measured_error():
-    ranked, column = rank_candidates(_summary())
-    assert column == "Mn_val_um"
-    assert list(ranked["model"]) == ["dl", "mlr", "arma"]
+def test_champion_is_chosen_on_the_held_out_protocol_never_on_one_step_or_the_twin():
+    decision = choose_champion(_summary(), "Z", "loco", 0.1)
+    assert decision.label == "mlr/all/static" and decision.compensate
+    assert decision.column == "loco_Mn_rms_um"
+    assert list(decision.ranked["model"]) == ["mlr", "dl", "arma", "none"]
+    assert decision.none_score == 10.0 and decision.best_score == 2.0
+    assert "80 % less" in decision.reason
 
 
-def test_without_validation_campaigns_the_champion_is_chosen_on_mn():
-    ranked, column = rank_candidates(_summary().assign(Mn_val_um=np.nan))
-    assert column == "Mn_um" and ranked.iloc[0]["model"] == "mlr"
+def test_without_a_model_beating_none_by_the_margin_the_champion_is_none():
+    decision = choose_champion(_summary(best_model_rms=9.5), "Z", "loco", 0.1)
+    assert decision.label == "none/none/static" and not decision.compensate
+    assert decision.best_score == 9.5
+    assert "no model removes 10 %" in decision.reason
+    assert choose_champion(_summary(best_model_rms=8.9), "Z", "loco", 0.1).compensate
 
 
-def test_without_any_prediction_score_there_is_no_champion_and_the_error_says_why():
-    with pytest.raises(ValueError, match="add a training campaign or a validation campaign"):
-        rank_candidates(_summary().drop(columns=["Mn_um", "Mn_val_um"]))
+def test_without_a_held_out_scheme_the_champion_is_none_and_errors_are_clear():
+    decision = choose_champion(_summary(), "Z", None, 0.1)
+    assert not decision.compensate and "single training campaign" in decision.reason
+    with pytest.raises(ValueError, match="add 'none: none'"):
+        choose_champion(_summary().query("model != 'none'"), "Z", "loco", 0.1)
+    with pytest.raises(ValueError, match="min_improvement"):
+        choose_champion(_summary(), "Z", "loco", 1.5)
 
 
-def test_report_table_puts_online_only_candidates_last_and_the_champion_in_bold():
-    text = score_table(_summary(), {"model": "dl", "selection": "all", "mode": "static"})
-    rows = [line for line in text.splitlines()[2:]]
-    assert rows[0].startswith("| **dl** |") and "one_step" in rows[-1]
+def test_report_table_puts_candidates_never_chosen_last_and_the_champion_in_bold():
+    decision = choose_champion(_summary(), "Z", "loco", 0.1)
+    rows = score_table(_summary(), decision).splitlines()[2:]
+    assert rows[0].startswith("| **mlr** |")
+    assert {tuple(cell.strip() for cell in row.split("|")[1:4]) for row in rows[-2:]} == {
+        ("arma", "none", "one_step"), ("twin", "roles", "static")
+    }
 
 
-def test_champion_input_is_the_rise_from_each_runs_first_row():
-    card = {"model": "mlr", "selection": "all", "sensors": ["T2", "T1"],
-            "features": "temperature_rise"}  # fmt: skip
-    table = pd.DataFrame({"campaign_id": ["a", "a", "b", "b"], "T1": [20.0, 21.0, 18.0, 18.5],
-                          "T2": [19.0, 19.5, 17.0, 19.0], "T9": 0.0})  # fmt: skip
-    X = temperature_features(table, card)
-    assert list(X.columns) == ["T2", "T1"]
-    np.testing.assert_allclose(X.to_numpy(), [[0, 0], [0.5, 1.0], [0, 0], [2.0, 0.5]])
-    model = LinearRegression().fit(X, [0.0, 1.0, 0.0, 2.0])
-    assert model.predict(X).shape == (4,)
-    with pytest.raises(ValueError, match=r"lacks sensor column\(s\) \['T2'\]"):
-        temperature_features(table.drop(columns="T2"), card)
+def test_model_inputs_are_rises_from_each_runs_first_row_and_speed_responses():
+    speed = SpeedResponses((30.0,), (1.0,))
+    spec = InputSpec(("T2", "T1", "speed_lag_30min"), "temperature_rise", "first_sample", 1,
+                     speed)  # fmt: skip
+    table = pd.DataFrame({
+        "campaign_id": ["a", "a", "b", "b"], "elapsed_s": [0.0, 60.0, 0.0, 60.0],
+        "rpm": [3000.0, 3000.0, 0.0, 0.0], "T1": [20.0, 21.0, 18.0, 18.5],
+        "T2": [19.0, 19.5, 17.0, 19.0], "T9": 0.0,
+    })  # fmt: skip
+    X = model_inputs(table, spec)
+    assert list(X.columns) == ["T2", "T1", "speed_lag_30min"]
+    lag = speed_responses(np.array([0.0, 60.0]), np.array([3000.0, 3000.0]), speed).iloc[1, 0]
+    np.testing.assert_allclose(
+        X.to_numpy(), [[0, 0, 0], [0.5, 1.0, lag], [0, 0, 0], [2.0, 0.5, 0.0]]
+    )
+    assert lag == pytest.approx(3 * (1 - np.exp(-2 / 60)))
+    assert InputSpec.from_dict(spec.to_dict()) == spec and spec.needs_speed
+    assert LinearRegression().fit(X, [0.0, 1.0, 0.0, 2.0]).predict(X).shape == (4,)
+    with pytest.raises(ValueError, match=r"lacks column\(s\) \['rpm'\]"):
+        model_inputs(table.drop(columns="rpm"), spec)
+    temperatures_only = InputSpec(("T1",), "temperature_rise", "mean_first_n", 2)
+    rises = model_inputs(table.drop(columns=["rpm", "elapsed_s"]), temperatures_only)
+    np.testing.assert_allclose(rises["T1"], [-0.5, 0.5, -0.25, 0.25])

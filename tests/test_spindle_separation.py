@@ -102,6 +102,21 @@ def test_a_re_zeroed_probe_is_stitched_across_a_contiguous_cut():
     assert stitch["offset_um"] == pytest.approx(8.0) and stitch["jump_um"] == pytest.approx(-8.0)
 
 
+def test_a_real_jump_at_the_cut_is_kept():
+    """The spindle starts at the cut: Z shifts at once (centrifugal), the probe was not zeroed."""
+    k02_start = START + pd.Timedelta(seconds=4 * 180)
+    table, record = _separate(
+        [_campaign("K01"), _campaign("K02", start=k02_start)],
+        [_samples("K01", [20.0, 20.0, 20.0, 20.0], Z=[9.0, 9.0, 9.0, 9.0]),
+         _samples("K02", [20.1, 20.5, 21.0], Z=[4.0, 3.5, 3.0])],
+    )  # fmt: skip
+    np.testing.assert_allclose(
+        table.query("campaign_id == 'K02'")["thermal_error_um"], [-5.0, -5.5, -6.0]
+    )
+    stitch = record["runs"][0]["links"][0]["displacement"][0]
+    assert stitch["offset_um"] == 0.0 and stitch["jump_um"] == pytest.approx(-5.0)
+
+
 def test_no_run_across_a_long_gap_a_temperature_jump_or_a_declared_cold_start():
     late = START + pd.Timedelta(hours=3)
     soon = START + pd.Timedelta(seconds=4 * 180)

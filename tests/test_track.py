@@ -1,13 +1,13 @@
 """Tests of the track stage on small evaluate outputs built with the real pipeline functions.
 
 The fixture fits small estimators with :func:`pipeline.cross_season.fit_and_score` on synthetic
-campaigns (four training campaigns in two seasons, one validation campaign, ``training_units``
-gives each campaign, each season left out and all of them), validates the scores with
-``schemas.evaluated.CrossSeasonScoresModel``, summarises them with ``pipeline.scoring`` and picks
-the champion with ``pipeline.champion``, then writes the files the select and evaluate stages
-write. So the fixture follows the code that produces the real outputs. The estimators are
-test-local (sklearn, a ridge reporting ``chosen_params_``, an AR(1) with error feedback) so the
-track tests do not depend on the model registry.
+campaigns of two displacement axes (four training campaigns in two seasons, one validation
+campaign, ``training_units`` gives each campaign, each season left out and all of them),
+validates the scores with ``schemas.evaluated.CrossSeasonScoresModel``, summarises them with
+``pipeline.scoring`` and picks each axis' champion with ``pipeline.champion``, then writes the
+files the select and evaluate stages write. So the fixture follows the code that produces the
+real outputs. The estimators are test-local (sklearn, a ridge reporting ``chosen_params_``, an
+AR(1) with error feedback) so the track tests do not depend on the model registry.
 """
 
 from __future__ import annotations
@@ -34,8 +34,11 @@ from sklearn.base import BaseEstimator, RegressorMixin
 from sklearn.linear_model import LinearRegression, Ridge
 
 from pipeline import track
-from pipeline.champion import champion_card, rank_candidates, temperature_features
+from pipeline.champion import champion_card, choose_champion
 from pipeline.cross_season import Candidate, fit_and_score
+from pipeline.evaluate import champion_metrics
+from pipeline.features import InputSpec, model_inputs
+from pipeline.models.reference import NoCompensation
 from pipeline.scoring import candidate_summary, metrics_tree
 from pipeline.tracking import identity, records, store
 from pipeline.training_units import (
@@ -49,7 +52,9 @@ from tests.mlflow_server import running_mlflow_server
 
 EXPERIMENT = "thermal-test"
 REGISTERED = "thermal-error-spindle"
-CHAMPION_URI = f"models:/{REGISTERED}@champion"
+AXES = ("X", "Z")
+NAMES = {axis: f"{REGISTERED}-{axis}" for axis in AXES}
+URIS = {axis: f"models:/{name}@champion" for axis, name in NAMES.items()}
 CAMPAIGNS = {  # campaign -> (split, season)
     "K01": ("train", "winter"),
     "K02": ("train", "winter"),
@@ -70,10 +75,13 @@ SELECTED_SENSORS = {  # method -> unit -> sensors, in order of preference
     "all": dict.fromkeys(UNITS, ["T1", "T2", "T3"]),
 }
 AXIS_METRICS = {"residual_band_um": 3.2, "rmse_um": 1.4, "n_samples": 120}
-SCHEME_PREFIX = {"campaign": "", "season": "loso.", "pooled": "pooled."}
+SCHEME_PREFIX = {"campaign": "", "loso": "loso.", "pooled": "pooled."}
 PNG = b"\x89PNG\r\n\x1a\nfake"
 PARAMS = {
-    "evaluate": {"candidates": {"mlr": "pair", "ridge": "all", "ar1": "none"}, "n_jobs": 2},
+    "evaluate": {
+        "candidates": {"none": "none", "mlr": "pair", "ridge": "all", "ar1": "none"},
+        "n_jobs": 2,
+    },
     "track": {
         "experiment": EXPERIMENT,
         "batch_size": 1000,
@@ -129,16 +137,23 @@ def _previous(y: np.ndarray, X: pd.DataFrame) -> np.ndarray:
 
 
 CANDIDATES = (  # (model, selection, estimator)
+    ("none", "none", NoCompensation()),
     ("mlr", "pair", LinearRegression()),
     ("ridge", "all", ReportingRidge(alpha=50.0)),
     ("ar1", "none", ErrorAR1()),
 )
 CHILDREN = {
-    ("mlr", "pair", "static"),
-    ("ridge", "all", "static"),
-    ("ar1", "none", "one_step"),
-    ("ar1", "none", "free_run"),
+    (axis, *key)
+    for axis in AXES
+    for key in (
+        ("none", "none", "static"),
+        ("mlr", "pair", "static"),
+        ("ridge", "all", "static"),
+        ("ar1", "none", "one_step"),
+        ("ar1", "none", "free_run"),
+    )
 }
+SPEC = InputSpec(("T2", "T1"), "temperature_rise", "first_sample", 1)
 
 
 @dataclass(frozen=True)
@@ -153,17 +168,17 @@ class EvaluateOutputs:
         ``reports/fitted_models.json``.
     selected : dict
         ``reports/selection/selected.json``.
-    card : dict
-        ``data/models/champion/champion.json``.
-    estimator : LinearRegression
-        The champion's fit on all training campaigns.
+    cards : dict
+        Axis -> ``data/models/champion/<axis>/champion.json``.
+    estimators : dict
+        Axis -> the champion's fit on all training campaigns.
     """
 
     scores: pd.DataFrame
     fitted: dict
     selected: dict
-    card: dict
-    estimator: object
+    cards: dict
+    estimators: dict
 
 
 def synthetic_rises(number: int, rng: np.random.Generator) -> tuple[pd.DataFrame, np.ndarray]:
@@ -179,8 +194,11 @@ def synthetic_rises(number: int, rng: np.random.Generator) -> tuple[pd.DataFrame
     return pd.DataFrame(rises).assign(elapsed_s=elapsed), error
 
 
-def synthetic_series() -> list[CampaignSeries]:
-    """The campaigns of :data:`CAMPAIGNS` as the evaluate stage sees them."""
+def synthetic_series(axis: str) -> list[CampaignSeries]:
+    """The campaigns of :data:`CAMPAIGNS` as the evaluate stage sees them on one axis.
+
+    The X error is the Z error scaled by -0.5 (another sign and size, the same physics).
+    """
     rng = np.random.default_rng(7)
     series = []
     for number, (campaign, (split, season)) in enumerate(CAMPAIGNS.items()):
@@ -189,7 +207,8 @@ def synthetic_series() -> list[CampaignSeries]:
             [np.full(N_SAMPLES, campaign), rises["elapsed_s"].to_numpy()], names=INDEX_NAMES
         )
         features = pd.DataFrame(rises[["T1", "T2", "T3"]].to_numpy(), index, ["T1", "T2", "T3"])
-        series.append(CampaignSeries(campaign, split, season, features, error))
+        target = error if axis == "Z" else -0.5 * error
+        series.append(CampaignSeries(campaign, split, season, features, target, axis=axis))
     return series
 
 
@@ -199,61 +218,69 @@ def unit_sensors(selection: str, unit: str) -> list[str]:
 
 def build_outputs() -> EvaluateOutputs:
     """Fit every candidate on every training unit and describe the results as evaluate does."""
-    series = synthetic_series()
-    results = [
-        fit_and_score(
-            Candidate(model, selection), unit, series, estimator,
-            unit_sensors(selection, unit.name),
-        )
-        for model, selection, estimator in CANDIDATES
-        for unit in training_units(series)
-    ]  # fmt: skip
-    assert {r.unit.name for r in results} == set(UNITS)
-    scores = pd.concat([r.scores for r in results], ignore_index=True)
+    results = {
+        axis: [
+            fit_and_score(
+                Candidate(model, selection), unit, series, estimator,
+                unit_sensors(selection, unit.name),
+            )
+            for model, selection, estimator in CANDIDATES
+            for unit in training_units(series)
+        ]
+        for axis in AXES
+        for series in [synthetic_series(axis)]
+    }  # fmt: skip
+    assert {r.unit.name for r in results["Z"]} == set(UNITS)
+    scores = pd.concat([r.scores for by in results.values() for r in by], ignore_index=True)
     scores = CrossSeasonScoresModel.validate(scores, lazy=True)
     fitted = {
-        f"{r.candidate.model}/{r.candidate.selection}/{r.unit.name}": {
+        f"{axis}/{r.candidate.model}/{r.candidate.selection}/{r.unit.name}": {
+            "axis": axis,
             "model": r.candidate.model,
             "selection": r.candidate.selection,
             "train_unit": r.unit.name,
             "scheme": r.unit.scheme,
-            "sensors": list(r.sensors),
+            "inputs": list(r.sensors),
             "chosen_params": dict(r.chosen_params),
         }
-        for r in results
+        for axis, by in results.items()
+        for r in by
     }
-    selected = {
-        "features": "temperature_rise",
-        "methods": {
-            method: {
-                unit: {
-                    "sensors": sensors,
-                    "details": {"rule": "fixture", "n_sensors": len(sensors)},
-                }
-                for unit, sensors in by_unit.items()
-            }
-            for method, by_unit in SELECTED_SENSORS.items()
-        },
+    methods = {
+        method: {
+            unit: {"inputs": inputs, "details": {"rule": "fixture", "n_inputs": len(inputs)}}
+            for unit, inputs in by_unit.items()
+        }
+        for method, by_unit in SELECTED_SENSORS.items()
     }
-    ranked, column = rank_candidates(candidate_summary(scores))
-    best = ranked.iloc[0]
-    assert (best["model"], best["selection"], column) == ("mlr", "pair", "Mn_val_um")
-    (pooled,) = [
-        r for r in results
-        if r.unit.name == POOLED_UNIT and r.candidate == Candidate("mlr", "pair")
-    ]  # fmt: skip
-    card = champion_card(best, column, pooled, "temperature_rise")
-    return EvaluateOutputs(scores, fitted, selected, card, pooled.estimator)
+    selected = {"features": "temperature_rise", "axes": dict.fromkeys(AXES, methods)}
+    summary = candidate_summary(scores)
+    cards, estimators = {}, {}
+    for axis in AXES:
+        decision = choose_champion(summary, axis, "loso", 0.1)
+        assert decision.label == "mlr/pair/static" and decision.compensate
+        (pooled,) = [
+            r for r in results[axis]
+            if r.unit.name == POOLED_UNIT and r.candidate == Candidate("mlr", "pair")
+        ]  # fmt: skip
+        cards[axis] = champion_card(decision, pooled, SPEC, SAMPLE_S)
+        estimators[axis] = pooled.estimator
+    return EvaluateOutputs(scores, fitted, selected, cards, estimators)
 
 
 def _json_ready(tree):
     """Round to 4 decimals, NaN as null: how evaluate writes ``metrics/cross_season.json``."""
     if isinstance(tree, dict):
         return {key: _json_ready(value) for key, value in tree.items()}
+    if isinstance(tree, bool | str) or tree is None:
+        return tree
     return None if not np.isfinite(tree) else round(float(tree), 4)
 
 
-def write_scores(root: Path, scores: pd.DataFrame) -> None:
+SKIPPED = {"twin/roles": "the twin models the Z drift only"}
+
+
+def write_scores(root: Path, scores: pd.DataFrame, cards: dict) -> None:
     """Write the long score table, the candidate table and the metrics tree as evaluate does."""
     (root / "reports").mkdir(parents=True, exist_ok=True)
     (root / "metrics").mkdir(parents=True, exist_ok=True)
@@ -261,16 +288,29 @@ def write_scores(root: Path, scores: pd.DataFrame) -> None:
     candidate_summary(scores).to_csv(
         root / "reports" / "model_scores.csv", index=False, float_format="%.4f"
     )
+    tree = metrics_tree(scores)
+    metrics = {
+        axis: {
+            "candidates": tree[axis],
+            "champion": champion_metrics(cards[axis]),
+            "skipped": SKIPPED if axis == "X" else {},
+        }
+        for axis in AXES
+    }
     (root / "metrics" / "cross_season.json").write_text(
-        json.dumps(_json_ready(metrics_tree(scores)), indent=2, sort_keys=True)
+        json.dumps(_json_ready(metrics), indent=2, sort_keys=True)
     )
 
 
 def write_champion(root: Path, outputs: EvaluateOutputs) -> None:
-    folder = root / "data" / "models" / "champion"
-    folder.mkdir(parents=True, exist_ok=True)
-    joblib.dump(outputs.estimator, folder / "estimator.joblib")
-    (folder / "champion.json").write_text(json.dumps(outputs.card, indent=2, sort_keys=True))
+    table, _ = temperature_table()
+    for axis in AXES:
+        folder = root / "data" / "models" / "champion" / axis
+        folder.mkdir(parents=True, exist_ok=True)
+        joblib.dump(outputs.estimators[axis], folder / "estimator.joblib")
+        card = json.dumps(outputs.cards[axis], indent=2, sort_keys=True)
+        (folder / "champion.json").write_text(card)
+        table.head(5).to_csv(folder / "input_example.csv", index=False)
 
 
 def write_evaluate_outputs(root: Path, outputs: EvaluateOutputs) -> None:
@@ -278,13 +318,13 @@ def write_evaluate_outputs(root: Path, outputs: EvaluateOutputs) -> None:
     reports = root / "reports"
     for folder in ("selection", "matrices", "comparison", "separation"):
         (reports / folder).mkdir(parents=True, exist_ok=True)
-    write_scores(root, outputs.scores)
+    write_scores(root, outputs.scores, outputs.cards)
     (reports / "fitted_models.json").write_text(json.dumps(outputs.fitted, indent=2))
     (reports / "selection" / "selected.json").write_text(json.dumps(outputs.selected, indent=2))
     (reports / "selection" / "pair_evidence.csv").write_text("unit,sensor,score\nK01,T1,0.9\n")
     (reports / "model_comparison.md").write_text("# Model comparison (SYNTHETIC data)\n")
     (reports / "cross_season_matrix.csv").write_text("model,selection,mode,score,train_unit\n")
-    (reports / "matrices" / "mlr__pair__static.png").write_bytes(PNG)
+    (reports / "matrices" / "Z__mlr__pair__static.png").write_bytes(PNG)
     (reports / "comparison" / "best_worst_validation.png").write_bytes(PNG)
     (reports / "validation.json").write_text('{"summary": {}, "problems": []}')
     (reports / "separation" / "axis_separation.png").write_bytes(PNG)
@@ -348,11 +388,11 @@ def split_runs(runs: list) -> tuple[list, list]:
     return parents, children
 
 
-def child_key(run) -> tuple[str, str, str]:
+def child_key(run) -> tuple[str, ...]:
     return tuple(run.data.params[key] for key in records.KEY_COLUMNS)
 
 
-def expected_child_metrics(root: Path, key: tuple[str, str, str]) -> dict[str, float]:
+def expected_child_metrics(root: Path, key: tuple[str, ...]) -> dict[str, float]:
     """Every score of one candidate from the CSV and the metrics JSON, named as documented."""
     expected = {}
     for row in read_scores(root):
@@ -360,8 +400,9 @@ def expected_child_metrics(root: Path, key: tuple[str, str, str]) -> dict[str, f
             for column in records.SCORE_COLUMNS:
                 name = f"{column}.{row['train_unit']}.{row['test_campaign']}"
                 expected[name] = float(row[column])
-    model, selection, mode = key
-    tree = read_json(root, "metrics/cross_season.json")[model][selection][mode]
+    axis, model, selection, mode = key
+    tree = read_json(root, "metrics/cross_season.json")[axis]["candidates"]
+    tree = tree[model][selection][mode]
     for scheme, body in tree.items():
         for name, value in body["overall"].items():
             if value is not None:
@@ -373,8 +414,9 @@ def expected_child_metrics(root: Path, key: tuple[str, str, str]) -> dict[str, f
     return expected
 
 
-def versions(client: MlflowClient) -> list[str]:
-    return sorted(str(v.version) for v in client.search_model_versions(f"name = '{REGISTERED}'"))
+def versions(client: MlflowClient, axis: str = "Z") -> list[str]:
+    found = client.search_model_versions(f"name = '{NAMES[axis]}'")
+    return sorted(str(v.version) for v in found)
 
 
 @pytest.fixture(autouse=True)
@@ -421,9 +463,11 @@ def test_fixture_scores_follow_the_schema_and_the_protocol(outputs):
     per_child = scores.groupby(list(records.KEY_COLUMNS)).size()
     assert set(per_child.index) == CHILDREN
     assert (per_child == len(UNITS) * len(CAMPAIGNS)).all()
-    assert set(scores["scheme"]) == {"campaign", "season", "pooled"}
-    assert outputs.card["sensors"] == ["T2", "T1"]
-    assert outputs.card["trained_on"] == ["K01", "K02", "K03", "K04"]
+    assert set(scores["scheme"]) == {"campaign", "loso", "pooled"}
+    assert set(scores["axis"]) == set(AXES)
+    for card in outputs.cards.values():
+        assert card["inputs"] == ["T2", "T1"] and card["protocol"] == "loso"
+        assert card["trained_on"] == ["K01", "K02", "K03", "K04"]
 
 
 def test_one_child_per_candidate_model_selection_mode(workdir, client):
@@ -450,31 +494,36 @@ def test_child_metrics_equal_the_scores_csv_and_the_metrics_json(workdir, client
             assert run.data.metrics[name] == float(row[column])
     for key, run in by_key.items():
         assert run.data.metrics == expected_child_metrics(workdir, key)
-    metrics = by_key[("mlr", "pair", "static")].data.metrics
-    assert {"S_um", "Mn_val_um", "loso.Mn_um", "pooled.Mn_val_um", "unit.K01.S_um"} <= set(metrics)
+    metrics = by_key[("Z", "mlr", "pair", "static")].data.metrics
+    assert {"S_um", "Mn_val_um", "loso.Mn_um", "pooled.Mn_val_um", "unit.K01.S_um", "loso.eta",
+            "eta.K01.K02"} <= set(metrics)  # fmt: skip
     assert "pooled.Mn_um" not in metrics  # no prediction role when built on all campaigns: null
+    assert by_key[("Z", "none", "none", "static")].data.metrics["loso.eta"] == 0.0
 
 
 def test_child_params_hold_sensors_and_chosen_params_per_unit(workdir, client, outputs):
     track.main([])
     _, children = split_runs(all_runs(client))
     by_key = {child_key(r): r for r in children}
-    for (model, selection, mode), run in by_key.items():
+    for (axis, model, selection, mode), run in by_key.items():
         params = run.data.params
-        expected = {"model": model, "selection": selection, "mode": mode}
+        expected = {"axis": axis, "model": model, "selection": selection, "mode": mode}
         for unit in UNITS:
-            fit = outputs.fitted[f"{model}/{selection}/{unit}"]
-            expected[f"sensors.{unit}"] = ",".join(fit["sensors"]) or "-"
+            fit = outputs.fitted[f"{axis}/{model}/{selection}/{unit}"]
+            expected[f"inputs.{unit}"] = ",".join(fit["inputs"]) or "-"
             for name, value in fit["chosen_params"].items():
                 assert json.loads(params[f"chosen.{unit}.{name}"]) == value
                 expected[f"chosen.{unit}.{name}"] = params[f"chosen.{unit}.{name}"]
         assert params == expected
-    assert by_key[("mlr", "pair", "static")].data.params["sensors.K04"] == "T1,T3"
-    assert by_key[("ridge", "all", "static")].data.params["chosen.K02.alpha"] == "50.0"
-    one_step = by_key[("ar1", "none", "one_step")].data.params
-    assert one_step["sensors.K01"] == "-"
+        champion = run.data.tags["champion"] == "true"
+        assert champion == ((model, selection) == ("mlr", "pair")), (axis, model, selection)
+    assert by_key[("Z", "mlr", "pair", "static")].data.params["inputs.K04"] == "T1,T3"
+    assert by_key[("X", "ridge", "all", "static")].data.params["chosen.K02.alpha"] == "50.0"
+    one_step = by_key[("Z", "ar1", "none", "one_step")].data.params
+    assert one_step["inputs.K01"] == "-"
     assert one_step["chosen.not_summer.ar_order"] == "1"
-    assert one_step == by_key[("ar1", "none", "free_run")].data.params | {"mode": "one_step"}
+    free_run = by_key[("Z", "ar1", "none", "free_run")].data.params
+    assert one_step == free_run | {"mode": "one_step"}
 
 
 def test_parent_has_overall_scores_selected_sensors_tags_and_artifacts(workdir, client):
@@ -505,18 +554,23 @@ def test_parent_has_overall_scores_selected_sensors_tags_and_artifacts(workdir, 
     assert "dvc.track.reports/mlflow_run.json" not in tags  # its own previous output
     expected = {}
     tree = read_json(workdir, "metrics/cross_season.json")
-    for model, selection, mode in CHILDREN:
-        for scheme, body in tree[model][selection][mode].items():
+    for axis, model, selection, mode in CHILDREN:
+        for scheme, body in tree[axis]["candidates"][model][selection][mode].items():
             for key, value in body["overall"].items():
                 if value is not None:
-                    expected[f"{model}.{selection}.{mode}.{scheme}.{key}"] = value
+                    expected[f"{axis}.{model}.{selection}.{mode}.{scheme}.{key}"] = value
+    for axis in AXES:
+        for key, value in tree[axis]["champion"].items():
+            if value is not None and not isinstance(value, bool):
+                expected[f"{axis}.champion.{key}"] = value
     expected |= {f"axis_model.{key}": value for key, value in AXIS_METRICS.items()}
     assert parent.data.metrics == expected
+    assert tags["skipped.X.twin/roles"] == SKIPPED["twin/roles"]
     params = parent.data.params
     for method, by_unit in SELECTED_SENSORS.items():
         for unit, sensors in by_unit.items():
-            assert params[f"selected.{method}.{unit}"] == ",".join(sensors)
-    assert params["selected.pair.all_training"] == "T2,T1"
+            assert params[f"selected.Z.{method}.{unit}"] == ",".join(sensors)
+    assert params["selected.X.pair.all_training"] == "T2,T1"
     assert params["evaluate.candidates.mlr"] == "pair"
     assert params["track.registered_model"] == REGISTERED
     listed = {f.path for f in client.list_artifacts(parent.info.run_id, "reports")}
@@ -531,36 +585,44 @@ def test_parent_has_overall_scores_selected_sensors_tags_and_artifacts(workdir, 
         "metrics/cross_season.json"
     }
     stored = workdir / "mlartifacts" / EXPERIMENT / parent.info.run_id / "artifacts"
-    assert (stored / "reports" / "matrices" / "mlr__pair__static.png").is_file()
+    assert (stored / "reports" / "matrices" / "Z__mlr__pair__static.png").is_file()
     assert info["metrics"] == len(parent.data.metrics) + sum(len(r.data.metrics) for r in children)
     assert info["tracking_uri"] == "sqlite:///mlflow.db"
     assert info["reused"] is False
 
 
-def test_champion_is_registered_and_predicts_from_a_temperature_table(workdir, client, outputs):
+def test_each_axis_champion_is_registered_from_its_child_run_and_predicts(workdir, client, outputs):
     track.main([])
     info = record(workdir)
-    (parent,), _ = split_runs(all_runs(client))
-    assert info["registered_model"] == REGISTERED
-    assert info["champion_version"] == "1"
-    assert info["champion_uri"] == CHAMPION_URI
-    version = client.get_model_version_by_alias(REGISTERED, "champion")
-    assert (str(version.version), version.run_id) == ("1", parent.info.run_id)
+    _, children = split_runs(all_runs(client))
+    for axis in AXES:
+        champion = info["champions"][axis]
+        assert champion["registered_model"] == NAMES[axis]
+        assert (champion["version"], champion["uri"]) == ("1", URIS[axis])
+        assert champion["model"] == "mlr/pair/static" and champion["compensate"] is True
+        version = client.get_model_version_by_alias(NAMES[axis], "champion")
+        (child,) = [r for r in children if child_key(r) == (axis, "mlr", "pair", "static")]
+        assert (str(version.version), version.run_id) == ("1", child.info.run_id)
+        assert version.tags["inputs"] == "T2,T1" and version.tags["needs_speed_log"] == "false"
+        assert "leave-one-season-out" in version.description
 
     mlflow.set_tracking_uri(f"sqlite:///{workdir / 'mlflow.db'}")
-    model = mlflow.pyfunc.load_model(CHAMPION_URI)
+    model = mlflow.pyfunc.load_model(URIS["Z"])
+    required = [c.name for c in model.metadata.get_input_schema().inputs if c.required]
+    assert required == ["T2", "T1"]
     table, rises = temperature_table()
     predicted = np.asarray(model.predict(table), dtype=float)
-    card = read_json(workdir, "data/models/champion/champion.json")
-    assert card == outputs.card
-    expected = outputs.estimator.predict(temperature_features(table, card))
+    card = read_json(workdir, "data/models/champion/Z/champion.json")
+    assert card == outputs.cards["Z"]
+    estimator = outputs.estimators["Z"]
+    expected = estimator.predict(model_inputs(table, InputSpec.from_dict(card["input_spec"])))
     np.testing.assert_array_equal(predicted, expected)
     index = pd.MultiIndex.from_arrays([table["campaign_id"], table["elapsed_s"]], names=INDEX_NAMES)
-    by_hand = outputs.estimator.predict(rises[card["sensors"]].set_axis(index))
+    by_hand = estimator.predict(rises[card["inputs"]].set_axis(index))
     np.testing.assert_allclose(predicted, by_hand, rtol=0, atol=1e-9)
     first_rows = table.groupby("campaign_id").head(1).index
-    np.testing.assert_allclose(predicted[first_rows], outputs.estimator.intercept_, atol=1e-9)
-    with pytest.raises(ValueError, match=r"lacks sensor column\(s\) \['T2'\]"):
+    np.testing.assert_allclose(predicted[first_rows], estimator.intercept_, atol=1e-9)
+    with pytest.raises(mlflow.exceptions.MlflowException, match="T2"):
         model.predict(table.drop(columns="T2"))
 
 
@@ -573,7 +635,7 @@ def test_missing_champion_warns_and_still_logs_the_runs(workdir, client, caplog)
     assert len(parents) == 1 and len(children) == len(CHILDREN)
     assert parents[0].info.status == "FINISHED"
     info = record(workdir)
-    assert info["champion_version"] is None and info["champion_uri"] is None
+    assert info["champions"] == {}
     assert versions(client) == []
 
 
@@ -600,11 +662,13 @@ def test_second_run_on_unchanged_inputs_logs_and_registers_nothing(workdir, clie
     assert second["run_identity"] == first["run_identity"]
     assert "already logged" in caplog.text
     assert versions(client) == ["1"]
-    assert second["champion_version"] == first["champion_version"] == "1"
+    assert second["champions"] == first["champions"]
+    assert second["champions"]["X"]["version"] == "1"
 
 
 def _change_scores(root: Path, outputs: EvaluateOutputs) -> None:
-    write_scores(root, outputs.scores.assign(rmse_um=outputs.scores["rmse_um"] + 0.5))
+    write_scores(root, outputs.scores.assign(rmse_um=outputs.scores["rmse_um"] + 0.5),
+                 outputs.cards)  # fmt: skip
 
 
 def _change_params(root: Path, outputs: EvaluateOutputs) -> None:
@@ -630,9 +694,11 @@ def test_changed_scores_params_or_data_log_a_new_parent(workdir, client, outputs
     assert len(parents) == 2
     assert len(children) == 2 * len(CHILDREN)
     assert versions(client) == ["1", "2"]  # the new parent registers the champion again
-    assert second["champion_version"] == "2"
-    alias = client.get_model_version_by_alias(REGISTERED, "champion")
-    assert alias.run_id == second["parent_run_id"]
+    assert second["champions"]["Z"]["version"] == "2"
+    alias = client.get_model_version_by_alias(NAMES["Z"], "champion")
+    assert (
+        client.get_run(alias.run_id).data.tags[records.PARENT_RUN_TAG] == (second["parent_run_id"])
+    )
 
 
 def test_identity_is_stable_and_sees_renamed_files(tmp_path, outputs):
@@ -751,7 +817,7 @@ def _row_number(rows: list[dict[str, str]], **match: str) -> int:
 
 def test_bad_score_cell_names_file_row_and_column(workdir):
     rows = read_scores(workdir)
-    number = _row_number(rows, model="mlr", train_unit="K01", test_campaign="V01")
+    number = _row_number(rows, axis="Z", model="mlr", train_unit="K01", test_campaign="V01")
     rows[number - 1]["rmse_um"] = "n/a"
     with pytest.raises(
         ValueError,
@@ -759,7 +825,7 @@ def test_bad_score_cell_names_file_row_and_column(workdir):
     ):
         records.scores_by_child(rows)
     rows[number - 1]["rmse_um"] = ""
-    scores = records.scores_by_child(rows)[("mlr", "pair", "static")]
+    scores = records.scores_by_child(rows)[("Z", "mlr", "pair", "static")]
     assert math.isnan(scores["rmse_um.K01.V01"])
 
 
@@ -801,7 +867,7 @@ def test_duplicate_score_row_is_an_error(workdir):
     rows = read_scores(workdir)
     with pytest.raises(
         ValueError,
-        match=r"data row 2: model=mlr selection=pair mode=static train_unit=K01 "
+        match=r"data row 2: axis=X model=none selection=none mode=static train_unit=K01 "
         r"test_campaign=K02 already on data row 1",
     ):
         records.scores_by_child([rows[1], rows[1]])
@@ -817,7 +883,7 @@ def test_tracking_uri_env_var_overrides_default(workdir, monkeypatch, tmp_path_f
     assert record(workdir)["tracking_uri"] == f"sqlite:///{other}"
     assert (other.parent / "mlartifacts" / EXPERIMENT).is_dir()
     assert not (workdir / "mlartifacts").exists()
-    assert MlflowClient(f"sqlite:///{other}").get_model_version_by_alias(REGISTERED, "champion")
+    assert MlflowClient(f"sqlite:///{other}").get_model_version_by_alias(NAMES["Z"], "champion")
     assert track.public_uri("https://user:secret@mlflow.example.org/x") == (
         "https://mlflow.example.org/x"
     )
@@ -863,13 +929,14 @@ def test_track_logs_and_registers_on_a_real_mlflow_server(tmp_path, outputs, mon
             assert run.data.metrics == expected_child_metrics(work, child_key(run))
         listed = {f.path for f in client.list_artifacts(parents[0].info.run_id, "reports")}
         assert "reports/model_comparison.md" in listed
-        assert versions(client) == ["1"]
-        assert first["champion_uri"] == CHAMPION_URI
+        assert versions(client) == ["1"] and versions(client, "X") == ["1"]
+        assert first["champions"]["Z"]["uri"] == URIS["Z"]
         assert first["tracking_uri"] == uri
         mlflow.set_tracking_uri(uri)
-        model = mlflow.pyfunc.load_model(CHAMPION_URI)
+        model = mlflow.pyfunc.load_model(URIS["X"])
         table, _ = temperature_table()
-        expected = outputs.estimator.predict(temperature_features(table, outputs.card))
+        spec = InputSpec.from_dict(outputs.cards["X"]["input_spec"])
+        expected = outputs.estimators["X"].predict(model_inputs(table, spec))
         np.testing.assert_array_equal(np.asarray(model.predict(table), dtype=float), expected)
     assert not (work / "mlflow.db").exists()  # nothing went to the default local store
 
@@ -891,5 +958,5 @@ def test_registering_the_champion_does_not_fetch_every_metric(workdir, monkeypat
 
     monkeypatch.setattr(MlflowClient, "get_metric_history", spy)
     track.main([])
-    assert record(workdir)["champion_version"] == "1"
+    assert record(workdir)["champions"]["Z"]["version"] == "1"
     assert fetched == []

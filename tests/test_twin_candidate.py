@@ -17,14 +17,13 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from pipeline.champion import rank_candidates
-from pipeline.comparison_report import render
-from pipeline.evaluate import evaluate
+from pipeline.champion import choose_champion, eligible
+from pipeline.comparison_report import axis_section
+from pipeline.evaluate import evaluate_axis
 from pipeline.ingest import ingest
 from pipeline.scoring import candidate_summary, metrics_tree
-from pipeline.select import feature_prefix, sensor_columns
-from pipeline.spindle_separation import spindle_thermal_error
-from pipeline.training_units import campaign_series, training_units
+from pipeline.spindle_separation import SeparationSettings, spindle_thermal_error
+from pipeline.training_units import series_by_axis, training_units
 from pipeline.twin.campaigns import SpindlePlan, simulate_spindle_campaign
 from pipeline.twin.params import SpindleParams
 from pipeline.twin.program import Program, Segment
@@ -36,6 +35,7 @@ from pipeline.twin_candidate import (
     as_thermal_error,
     fit_and_score_twin,
     named_effects,
+    skip_reason,
     split_twin,
     twin_campaigns,
 )
@@ -95,8 +95,8 @@ def _setup_from_raw(folder) -> tuple[pd.DataFrame, pd.DataFrame, list]:
     assert not result.quarantined
     spindle = select_valid(tables["campaigns"], tables["samples"], tables["laser"], result.valid)
     meta, samples = spindle["spindle"]["campaigns"], spindle["spindle"]["samples"]
-    table = spindle_thermal_error(meta, samples, "Z", "first_sample", 1)
-    series = campaign_series(table, sensor_columns(table), feature_prefix("temperature_rise"))
+    table, _ = spindle_thermal_error(meta, samples, SeparationSettings(axes=("Z",)))
+    series = series_by_axis(table, "temperature_rise")["Z"]
     return table, meta, series
 
 
@@ -128,9 +128,11 @@ def baseline_scores(hidden):
     """The evaluate stage's function with ``mlr`` and the baseline twin."""
     _, _, series = hidden
     units = training_units(series)
-    selected = {"all": {u.name: {"sensors": sensor_columns_of(series)} for u in units}}
-    params = {"candidates": {"mlr": "all", TWIN_MODEL: TWIN_SELECTION}, "n_jobs": 1}
-    return evaluate(series, selected, params, _twin_setup(hidden, frozenset()))
+    selected = {"all": {u.name: {"inputs": sensor_columns_of(series)} for u in units}}
+    params = {"candidates": {"none": "none", "mlr": "all", TWIN_MODEL: TWIN_SELECTION},
+              "n_jobs": 1}  # fmt: skip
+    item = evaluate_axis("Z", series, selected, params, _twin_setup(hidden, frozenset()))
+    return item.scores, item.results
 
 
 def sensor_columns_of(series) -> list[str]:
@@ -161,23 +163,37 @@ def test_twin_rows_exist_for_every_unit_and_campaign_with_finite_scores(hidden, 
     summary = candidate_summary(scores)
     row = summary[summary["model"] == TWIN_MODEL].iloc[0]
     assert np.isfinite(row[["S_um", "Mn_um", "Mn_val_um", "loso_Mn_um"]].astype(float)).all()
-    tree = metrics_tree(scores)
-    assert set(tree[TWIN_MODEL][TWIN_SELECTION]["static"]) == {"campaign", "season", "pooled"}
-    ranked, _ = rank_candidates(summary)
-    assert TWIN_MODEL not in set(ranked["model"])
+    tree = metrics_tree(scores)["Z"]
+    assert set(tree[TWIN_MODEL][TWIN_SELECTION]["static"]) == {"campaign", "loso", "pooled"}
+    assert TWIN_MODEL not in set(eligible(summary)["model"])
 
 
-def test_twin_is_never_champion_even_when_it_scores_best(baseline_scores):
+def test_twin_is_never_champion_even_when_it_scores_best(hidden, baseline_scores):
+    _, _, series = hidden
     summary = candidate_summary(baseline_scores[0])
-    best = summary.assign(Mn_val_um=np.where(summary["model"] == TWIN_MODEL, 0.0, 9.0))
-    ranked, column = rank_candidates(best)
-    assert column == "Mn_val_um" and list(ranked["model"]) == ["mlr"]
-    card = {"model": "mlr", "selection": "all", "mode": "static", "chosen_on": column,
-            "sensors": ["T1"]}  # fmt: skip
-    text = render(best, card, {}, [], "x.png", ("a", "b"), {"train": 3}, True, "the baseline")
+    is_twin = summary["model"] == TWIN_MODEL
+    best = summary.assign(loso_Mn_rms_um=np.where(is_twin, 0.0, summary["loso_Mn_rms_um"]))
+    decision = choose_champion(best, "Z", "loso", 0.1)
+    assert decision.label == "mlr/all/static"
+    assert list(decision.ranked["model"]) == ["mlr", "none"]
+    card = {"inputs": ["T1"]}
+    text = axis_section("Z", best, decision, card, {}, {}, series, {}, "x.png", ("a", "b"), [],
+                        None, "the baseline")  # fmt: skip
     assert "`twin` (selection `roles`, mode `static`)" in text
     assert "never chosen as champion" in text
     assert "| twin | roles | static | " in text
+
+
+def test_twin_is_skipped_where_it_cannot_apply_with_the_reason(hidden):
+    _, _, series = hidden
+    roles = frozenset({"spindle_front_bearing", "ambient"})
+    assert skip_reason("Z", None, series, roles) is None
+    assert "Z drift only" in skip_reason("X", None, series, roles)
+    untestable = {"status": "untestable", "reason": "no sensor has a structure role"}
+    assert "no sensor has a structure role" in skip_reason("Z", untestable, series, roles)
+    assert "structure role" in skip_reason("Z", None, series, frozenset({"other"}))
+    warm = [replace(series[1], warm_start=True), *series[2:]]
+    assert "H02 start warm" in skip_reason("Z", None, warm, roles)
 
 
 def test_augmented_twin_predicts_other_campaigns_better_than_the_baseline(hidden, baseline_scores):
@@ -187,7 +203,7 @@ def test_augmented_twin_predicts_other_campaigns_better_than_the_baseline(hidden
     after = candidate_summary(pd.concat(rows, ignore_index=True)).iloc[0]
     scores = baseline_scores[0]
     before = candidate_summary(scores[scores["model"] == TWIN_MODEL]).iloc[0]
-    for key in ("Mn_um", "Mn_val_um", "loso_Mn_um", "Mn_rms_um", "Mn_val_rms_um"):
+    for key in ("Mn_um", "Mn_val_um", "loso_Mn_um", "Mn_rms_um", "Mn_val_rms_um", "loso_Mn_rms_um"):
         assert after[key] < 0.5 * before[key], (key, after[key], before[key])
 
 
@@ -248,4 +264,4 @@ def test_twin_entry_and_effects_are_read_with_clear_messages():
 def test_evaluate_without_a_twin_setup_says_how_to_build_one(hidden):
     _, _, series = hidden
     with pytest.raises(ValueError, match="read_twin_setup"):
-        evaluate(series, {}, {"candidates": {TWIN_MODEL: TWIN_SELECTION}})
+        evaluate_axis("Z", series, {}, {"candidates": {TWIN_MODEL: TWIN_SELECTION}})
