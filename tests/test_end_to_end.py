@@ -57,7 +57,8 @@ def _fewer_candidates(work: Path, candidates: dict[str, str]) -> None:
 
 def test_new_campaign_is_scored_old_scores_kept_unrelated_stages_skipped(tmp_path):
     work = copy_repository(ROOT, tmp_path / "repo")
-    _fewer_candidates(work, {"mlr": "best_subset", "dl": "fc_grd", "arma": "none"})
+    _fewer_candidates(work, {"none": "none", "mlr": "best_subset", "dl": "fc_grd",
+                             "arma": "none"})  # fmt: skip
     env = _env(f"sqlite:///{work / 'mlflow.db'}")
     _repro(work, env)
     before = _scores(work)
@@ -77,7 +78,7 @@ def test_new_campaign_is_scored_old_scores_kept_unrelated_stages_skipped(tmp_pat
     assert len(after) > len(before)
     # Models built without K13 (each campaign alone; the seasons other than summer) keep
     # their scores; the others now include it.
-    keys = ["model", "selection", "mode", "train_unit", "test_campaign"]
+    keys = ["axis", "model", "selection", "mode", "train_unit", "test_campaign"]
     unchanged = before[(before["scheme"] == "campaign") | (before["train_unit"] == "not_summer")]
     merged = unchanged.merge(after, on=keys, suffixes=("_before", "_after"), validate="1:1")
     assert len(merged) == len(unchanged)
@@ -101,7 +102,7 @@ def test_malformed_campaign_is_quarantined_while_the_others_are_scored(tmp_path)
     temperature.loc[0, "T3"] = "85.0"  # DS18B20 power-on value in data row 1
     temperature.to_csv(bad / "temperature.csv", index=False)
     raw_bytes = {p: p.read_bytes() for p in bad.iterdir()}
-    _fewer_candidates(work, {"mlr": "best_subset"})
+    _fewer_candidates(work, {"none": "none", "mlr": "best_subset"})
 
     _repro(work, _env(f"sqlite:///{work / 'mlflow.db'}"))
 
@@ -133,21 +134,22 @@ def test_every_score_reaches_a_real_mlflow_server_once_and_the_champion_loads(tm
         scores = _scores(work)
         params = yaml.safe_load((work / "params.yaml").read_text())
         assert set(scores["model"]) == set(params["evaluate"]["candidates"])
+        assert set(scores["axis"]) == {"Z"}  # the demo campaigns have a Z probe only
         assert len(parents) == 1
-        assert len(children) == scores.groupby(["model", "selection", "mode"]).ngroups
+        assert len(children) == scores.groupby(["axis", "model", "selection", "mode"]).ngroups
         logged = sum(
             1
             for r in children
             for k in r.data.metrics
-            if k.startswith(("rmse_um.", "resid_std_um."))
+            if k.startswith(("rmse_um.", "resid_std_um.", "eta."))
         )
-        assert logged == 2 * len(scores)
-        child = next(r for r in children if r.info.run_name == "dl/fc_grd/static")
+        assert logged == 3 * len(scores)
+        child = next(r for r in children if r.info.run_name == "Z/dl/fc_grd/static")
         expected = scores.query("model == 'dl' and train_unit == 'K01'")
         for _, row in expected.iterrows():
             key = f"rmse_um.K01.{row['test_campaign']}"
             assert child.data.metrics[key] == pytest.approx(row["rmse_um"])
-        assert child.data.params["sensors.K01"]
+        assert child.data.params["inputs.K01"]
         assert parents[0].data.tags.get("git_commit")
         assert (work / "reports" / "model_comparison.md").is_file()
         twin = scores.query("model == 'twin'")
@@ -177,19 +179,23 @@ def test_every_score_reaches_a_real_mlflow_server_once_and_the_champion_loads(tm
         assert metric == pytest.approx(val["rmse_um_after"])
 
         record = json.loads((work / "reports" / "mlflow_run.json").read_text())
-        card = json.loads((work / "data" / "models" / "champion" / "champion.json").read_text())
+        champion = work / "data" / "models" / "champion" / "Z" / "champion.json"
+        card = json.loads(champion.read_text())
+        assert card["protocol"] == "loso" and card["compensate"]
         os.environ["MLFLOW_TRACKING_URI"] = uri
         try:
             import mlflow
 
             mlflow.set_tracking_uri(uri)
-            model = mlflow.pyfunc.load_model(record["champion_uri"])
+            model = mlflow.pyfunc.load_model(record["champions"]["Z"]["uri"])
         finally:
             del os.environ["MLFLOW_TRACKING_URI"]
-        table = pd.read_csv(work / "data" / "raw" / "V01" / "temperature.csv")
-        predicted = model.predict(table).to_numpy()
         separated = pd.read_parquet(work / "data" / "separated" / "spindle_thermal_error.parquet")
         measured = separated.query("campaign_id == 'V01'").sort_values("elapsed_s")
+        # the machine's own table: degC readings, the speed and the time, as logged
+        table = measured[["campaign_id", "elapsed_s", "rpm", *card["input_spec"]["inputs"]]]
+        table = table[[c for c in table.columns if not c.startswith("speed")]]
+        predicted = model.predict(table.reset_index(drop=True)).to_numpy()
         rmse = float(((measured["thermal_error_um"].to_numpy() - predicted) ** 2).mean() ** 0.5)
         pooled = scores[
             (scores["model"] == card["model"])
