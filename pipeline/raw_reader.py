@@ -20,6 +20,8 @@ import numpy as np
 import pandas as pd
 import yaml
 
+from schemas.vocabulary import is_displacement_name
+
 LOGGER = logging.getLogger(__name__)
 
 CONTRACT_FILES = {
@@ -28,7 +30,6 @@ CONTRACT_FILES = {
 }
 LASER_COLUMNS = ("elapsed_min", "run", "direction", "target_mm", "deviation_um")
 RESERVED_COLUMNS = frozenset({"campaign_id", "source_row", "elapsed_s", "rpm"})
-DISPLACEMENT_AXES = frozenset({"X", "Y", "Z"})
 SEASON_BY_MONTH = {
     12: "winter", 1: "winter", 2: "winter",
     3: "spring", 4: "spring", 5: "spring",
@@ -310,14 +311,15 @@ def _align_displacement(samples: pd.DataFrame, displacement: pd.DataFrame, max_g
     too_far = np.abs(times[nearest] - target) > max_gap_s if len(times) else np.ones(len(target))
     aligned = samples.copy()
     for axis in [c for c in displacement.columns if c not in ("elapsed_s", "source_row")]:
-        if axis not in DISPLACEMENT_AXES:
+        if not is_displacement_name(axis):
             report(
                 "displacement.csv",
                 None,
                 axis,
                 "unknown_axis",
-                f"displacement column '{axis}' is not one of X, Y, Z",
-                "name displacement columns X, Y or Z as declared under displacement:",
+                f"displacement column '{axis}' is not an axis name (X, Y, Z, or letters and "
+                "digits starting with a letter, e.g. Z2)",
+                "name displacement columns X, Y, Z (or e.g. Z2) as declared under displacement:",
             )
             continue
         values = displacement[axis].to_numpy()[order]

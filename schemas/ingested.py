@@ -24,7 +24,8 @@ from schemas.vocabulary import (
     AMBIENT_ROLE,
     AXIS_KIND,
     DIRECTIONS,
-    DISPLACEMENT_AXES,
+    DISPLACEMENT_COLUMN_RE,
+    DISPLACEMENT_ROW_COLUMN_RE,
     KINDS,
     SEASONS,
     SENSOR_ROLES,
@@ -33,6 +34,7 @@ from schemas.vocabulary import (
     START_STATES,
     displacement_column,
     displacement_row_column,
+    is_displacement_name,
     uses_ds18b20_codes,
 )
 
@@ -220,11 +222,11 @@ class CampaignsModel(pa.DataFrameModel):
     @pa.check("displacement_json")
     @classmethod
     def displacement_axis_known(cls, s: Series[str]) -> Series[bool]:
-        """Check that ``displacement:`` names only the axes X, Y, Z."""
+        """Check that ``displacement:`` names axes of letters and digits (X, Y, Z, Z2...)."""
 
         def known(text: object) -> bool:
             axes = parse_json(text)
-            return not isinstance(axes, dict) or set(axes) <= set(DISPLACEMENT_AXES)
+            return not isinstance(axes, dict) or all(is_displacement_name(a) for a in axes)
 
         return s.map(known).astype(bool)
 
@@ -300,9 +302,9 @@ class SpindleSamplesModel(SamplesModel):
     ``disp_<A>_source_row`` is the nearest displacement.csv data row (1-based) of each sample.
     """
 
-    disp: Series[float] = pa.Field(alias=r"^disp_[XYZ]$", regex=True, nullable=True)
+    disp: Series[float] = pa.Field(alias=DISPLACEMENT_COLUMN_RE.pattern, regex=True, nullable=True)
     disp_source_row: Series[pd.Int64Dtype] | None = pa.Field(
-        alias=r"^disp_[XYZ]_source_row$", regex=True, nullable=True, ge=1
+        alias=DISPLACEMENT_ROW_COLUMN_RE.pattern, regex=True, nullable=True, ge=1
     )
 
 

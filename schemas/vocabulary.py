@@ -45,7 +45,12 @@ DIRECTIONS = ("+", "-")
 """Laser run directions."""
 
 DISPLACEMENT_AXES = ("X", "Y", "Z")
-"""Axes a displacement probe may measure along."""
+"""The machine axes a displacement probe usually measures along (sign: positive = tool away from
+the table / workpiece). Other probes (a second Z probe, a tilt pair...) may be declared under any
+name of letters and digits starting with a letter (:func:`is_displacement_name`), e.g. ``Z2``;
+their sign is the user's."""
+
+DISPLACEMENT_NAME_RE = re.compile(r"^[A-Za-z][A-Za-z0-9]{0,15}$")
 
 DS18B20_TYPE = "DS18B20"
 """Sensor type whose fault codes (85.0 power-on, -127 disconnected) are checked."""
@@ -53,8 +58,13 @@ DS18B20_TYPE = "DS18B20"
 SAMPLE_BASE_COLUMNS = ("campaign_id", "source_row", "elapsed_s", "rpm")
 """Columns every samples table starts with; the rest are temperatures and displacements."""
 
-DISPLACEMENT_COLUMN_RE = re.compile(r"^disp_([XYZ])$")
-DISPLACEMENT_ROW_COLUMN_RE = re.compile(r"^disp_([XYZ])_source_row$")
+DISPLACEMENT_COLUMN_RE = re.compile(r"^disp_([A-Za-z][A-Za-z0-9]{0,15})$")
+DISPLACEMENT_ROW_COLUMN_RE = re.compile(r"^disp_([A-Za-z][A-Za-z0-9]{0,15})_source_row$")
+
+
+def is_displacement_name(name: object) -> bool:
+    """Return True for a valid displacement column name: X, Y, Z, or e.g. ``Z2``, ``Xrear``."""
+    return bool(DISPLACEMENT_NAME_RE.match(str(name)))
 
 
 def displacement_column(axis: str) -> str:

@@ -98,3 +98,13 @@ def test_start_state_and_follows_are_read_and_optional(tmp_path):
     assert campaigns.loc["K02", "start_state"] == "warm"
     assert campaigns.loc["K02", "follows"] == "K01"
     assert campaigns.loc["K01", ["start_state", "follows"]].isna().all()
+
+
+def test_a_second_probe_under_another_name_is_read(tmp_path):
+    folder = write_spindle_campaign(tmp_path, "K01", n=10)
+    displacement = pd.read_csv(folder / "displacement.csv")
+    displacement["Z2"] = displacement["Z"] * 0.5
+    displacement.to_csv(folder / "displacement.csv", index=False)
+    tables = ingest(tmp_path, max_alignment_gap_s=200.0)
+    np.testing.assert_allclose(tables["samples"]["disp_Z2"], 0.5 * tables["samples"]["disp_Z"])
+    assert tables["problems"].empty

@@ -64,6 +64,12 @@ def test_every_declared_axis_gets_its_rows_unless_the_params_list_fewer():
     assert record["axes"] == ["X", "Z"]
     np.testing.assert_allclose(table.query("axis == 'X'")["thermal_error_um"], [0, 1, 3])
     np.testing.assert_allclose(table.query("axis == 'Z'")["thermal_error_um"], [0, 2, 4])
+    second, record = _separate(
+        [_campaign("K01", axes=("Z2", "Z"))],
+        [_samples("K01", [20, 21, 22], Z=[5.0, 7.0, 9.0], Z2=[1.0, 1.5, 2.0])],
+    )  # fmt: skip
+    assert record["axes"] == ["Z", "Z2"]
+    np.testing.assert_allclose(second.query("axis == 'Z2'")["thermal_error_um"], [0, 0.5, 1])
     only_z, _ = _separate(campaigns, samples, axes=("Z",))
     assert set(only_z["axis"]) == {"Z"}
     with pytest.raises(ValueError, match="no valid spindle_drift campaign declares"):

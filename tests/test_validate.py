@@ -356,6 +356,20 @@ def test_declared_displacement_axis_without_data():
     assert_located(problem, "K01", "displacement.csv", None, "X", "displacement_column_missing")
 
 
+def test_other_probe_names_are_accepted_and_bad_ones_reported():
+    displacement = {"Z": {"probe": "eddy_current"}, "Z2": {"probe": "eddy_current"}}
+    tables = set_campaign(make_tables(), "K01", "displacement_json", json.dumps(displacement))
+    tables = set_cells(tables, "samples", "K01", range(1, N + 1), "disp_Z2", 2.0)
+    rows = tables["samples"]["disp_Z_source_row"]
+    tables["samples"]["disp_Z2_source_row"] = rows.where(tables["samples"]["disp_Z2"].notna())
+    assert run(tables).problems == ()
+    bad = {"Z": {"probe": "eddy_current"}, "Z-2": {"probe": "eddy_current"}}
+    tables = set_campaign(make_tables(), "K01", "displacement_json", json.dumps(bad))
+    problem = only(run(tables), "displacement_axis_known")
+    assert_located(problem, "K01", "campaign.yaml", None, "displacement",
+                   "displacement_axis_known")  # fmt: skip
+
+
 def test_undeclared_displacement_data():
     tables = set_cells(make_tables(), "samples", "A01", range(1, N + 1), "disp_Z", 1.0)
     tables = set_cells(tables, "samples", "A01", range(1, N + 1), "disp_Z_source_row", 1)

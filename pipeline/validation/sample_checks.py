@@ -15,11 +15,11 @@ from pipeline.validation.tables import campaign_samples
 from schemas import ValidationLimits, campaign_samples_schema, parse_json
 from schemas import checks as check_functions
 from schemas.vocabulary import (
-    DISPLACEMENT_AXES,
     DISPLACEMENT_COLUMN_RE,
     DISPLACEMENT_ROW_COLUMN_RE,
     SAMPLE_BASE_COLUMNS,
     displacement_row_column,
+    is_displacement_name,
 )
 
 _DISPLACEMENT_CHECK_IDS = {
@@ -40,11 +40,11 @@ _BASE_CHECK_IDS = {"not_nullable": "missing_value"}
 
 
 def _declared_axes(campaign: Mapping[str, Any]) -> list[str]:
-    """Return the known axes (X, Y, Z) declared under ``displacement:``, in yaml order."""
+    """Return the validly named axes declared under ``displacement:``, in yaml order."""
     axes = parse_json(campaign.get("displacement_json"))
     if not isinstance(axes, dict):
         return []
-    return [str(a) for a in axes if str(a) in DISPLACEMENT_AXES]
+    return [str(a) for a in axes if is_displacement_name(a)]
 
 
 def _sensor_map(campaign: Mapping[str, Any]) -> dict[str, Any]:

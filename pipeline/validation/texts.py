@@ -252,8 +252,10 @@ PROBLEM_TEXTS: dict[str, ProblemText] = {
         column="displacement",
     ),
     "displacement_axis_known": ProblemText(
-        "displacement: in {campaign}/campaign.yaml names an axis other than X, Y, Z ({value})",
-        f"use only X, Y or Z as displacement axes in {{campaign}}/campaign.yaml, {RERUN}",
+        "displacement: in {campaign}/campaign.yaml names an axis that is not a name of letters "
+        "and digits starting with a letter ({value})",
+        "name the displacement axes X, Y, Z (or e.g. Z2 for a second probe) in "
+        f"{{campaign}}/campaign.yaml, {RERUN}",
         column="displacement",
     ),
     "axis_declared": ProblemText(
