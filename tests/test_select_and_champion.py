@@ -99,7 +99,8 @@ def test_report_table_puts_candidates_never_chosen_last_and_the_champion_in_bold
     rows = score_table(_summary(), decision).splitlines()[2:]
     assert rows[0].startswith("| **mlr** |")
     assert {tuple(cell.strip() for cell in row.split("|")[1:4]) for row in rows[-2:]} == {
-        ("arma", "none", "one_step"), ("twin", "roles", "static")
+        ("arma", "none", "one_step"),
+        ("twin", "roles", "static"),
     }
 
 
