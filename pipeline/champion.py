@@ -152,9 +152,9 @@ def choose_champion(
     threshold = (1.0 - min_improvement) * none_score
     if best_score <= threshold:
         reason = (
-            f"{'/'.join(str(best[k]) for k in KEYS)} leaves {best_score:.2f} um RMS on the "
-            f"campaigns it did not see ({name}), against {none_score:.2f} um without "
-            f"compensation: {100 * (1 - best_score / none_score):.0f} % less, above the "
+            f"on the campaigns it did not see ({name}) it leaves {best_score:.2f} um RMS, "
+            f"against {none_score:.2f} um without compensation: "
+            f"{100 * (1 - best_score / none_score):.0f} % less, above the "
             f"{100 * min_improvement:.0f} % margin"
         )
         return Decision(axis, protocol, column, ranked, best, none_score, best_score, True, reason)

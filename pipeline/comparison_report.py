@@ -102,9 +102,10 @@ def _decision_text(axis: str, decision: Decision, card: Mapping) -> str:
     if decision.compensate:
         return (
             f"Champion: **{decision.label}** on {', '.join(card['inputs']) or 'no input'}. "
-            f"{decision.reason[0].upper()}{decision.reason[1:]}. Registered in MLflow (model "
-            f"`thermal-error-spindle-{axis}`, alias `champion`), fitted on all training "
-            "campaigns."
+            f"{decision.reason[0].upper()}{decision.reason[1:]}. Fitted on all training "
+            f"campaigns and registered in MLflow by the `track` stage as "
+            f"`<track.registered_model>-{axis}` (by default `thermal-error-spindle-{axis}`), "
+            "alias `champion`."
         )
     return (
         f"**Do not compensate axis {axis} with these inputs.** {decision.reason[0].upper()}"

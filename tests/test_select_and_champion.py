@@ -74,7 +74,7 @@ def test_champion_is_chosen_on_the_held_out_protocol_never_on_one_step_or_the_tw
     assert decision.column == "loco_Mn_rms_um"
     assert list(decision.ranked["model"]) == ["mlr", "dl", "arma", "none"]
     assert decision.none_score == 10.0 and decision.best_score == 2.0
-    assert "80 % less" in decision.reason
+    assert "80 % less" in decision.reason and "leave-one-campaign-out" in decision.reason
 
 
 def test_without_a_model_beating_none_by_the_margin_the_champion_is_none():

@@ -626,6 +626,34 @@ def test_each_axis_champion_is_registered_from_its_child_run_and_predicts(workdi
         model.predict(table.drop(columns="T2"))
 
 
+def test_a_none_champion_is_registered_and_predicts_no_compensation(workdir, client, outputs):
+    summary = candidate_summary(outputs.scores)
+    decision = choose_champion(summary, "X", "loso", 0.99)  # no model removes 99 %
+    assert decision.label == "none/none/static" and not decision.compensate
+    series = synthetic_series("X")
+    (pooled,) = [
+        fit_and_score(Candidate("none", "none"), unit, series, NoCompensation(), [])
+        for unit in training_units(series)
+        if unit.name == POOLED_UNIT
+    ]
+    spec = InputSpec((), "temperature_rise", "first_sample", 1)
+    folder = workdir / "data" / "models" / "champion" / "X"
+    joblib.dump(pooled.estimator, folder / "estimator.joblib")
+    card = champion_card(decision, pooled, spec, SAMPLE_S)
+    (folder / "champion.json").write_text(json.dumps(card, indent=2, sort_keys=True))
+    track.main([])
+    _, children = split_runs(all_runs(client))
+    version = client.get_model_version_by_alias(NAMES["X"], "champion")
+    (child,) = [r for r in children if child_key(r) == ("X", "none", "none", "static")]
+    assert version.run_id == child.info.run_id and version.tags["compensate"] == "false"
+    assert "NO (predicts zero)" in version.description
+    assert record(workdir)["champions"]["X"]["compensate"] is False
+    mlflow.set_tracking_uri(f"sqlite:///{workdir / 'mlflow.db'}")
+    model = mlflow.pyfunc.load_model(URIS["X"])
+    table, _ = temperature_table()
+    assert not np.asarray(model.predict(table), dtype=float).any()
+
+
 def test_missing_champion_warns_and_still_logs_the_runs(workdir, client, caplog):
     shutil.rmtree(workdir / "data" / "models" / "champion")
     caplog.set_level("WARNING", logger="pipeline.track")
