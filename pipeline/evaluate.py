@@ -279,7 +279,8 @@ def write_matrices(scores: pd.DataFrame, title_suffix: str) -> list[str]:
             out,
         )
         figures.append(out.relative_to(paths.REPORTS).as_posix())
-    pd.concat(frames).to_csv(paths.MATRIX_CSV, float_format="%.4f")
+    matrix = pd.concat(frames) if frames else pd.DataFrame(columns=[*keys_all, "score"])
+    matrix.to_csv(paths.MATRIX_CSV, float_format="%.4f")
     return figures
 
 
@@ -347,11 +348,20 @@ def write_outputs(
     features: str,
     separation: dict,
     twin_source: str | None = None,
+    skipped_axes: dict[str, str] | None = None,
 ) -> dict[str, dict]:
-    """Write every output declared for the stage in ``dvc.yaml``; return the champion cards."""
-    for path in (paths.SCORES_LONG, paths.CROSS_SEASON_METRICS, paths.PLOT_MODEL_SCORES):
+    """Write every output declared for the stage in ``dvc.yaml``; return the champion cards.
+
+    Axes of ``skipped_axes`` (axis -> why it has no model) are named in the report and the
+    metrics; with no axis at all every output is still written, empty, and the report says why.
+    """
+    skipped_axes = dict(skipped_axes or {})
+    for path in (paths.SCORES_LONG, paths.CROSS_SEASON_METRICS, paths.PLOT_MODEL_SCORES,
+                 paths.COMPARISON_FIGURES / "x", paths.CHAMPION / "x"):  # fmt: skip
         path.parent.mkdir(parents=True, exist_ok=True)
-    scores = pd.concat([e.scores for e in evaluations], ignore_index=True)
+    scores = pd.concat(
+        [empty_scores(), *(e.scores for e in evaluations)], ignore_index=True
+    )
     scores.to_csv(paths.SCORES_LONG, index=False, float_format="%.6g")
     summary = candidate_summary(scores)
     summary.to_csv(paths.CANDIDATE_SCORES, index=False, float_format="%.4f")
@@ -365,6 +375,7 @@ def write_outputs(
         }
         for e in evaluations
     }
+    metrics |= {axis: {"skipped": {"axis": why}} for axis, why in skipped_axes.items()}
     paths.CROSS_SEASON_METRICS.write_text(json.dumps(_round(metrics), indent=2, sort_keys=True))
     paths.FITTED_MODELS.write_text(json.dumps(fitted_record(evaluations), indent=2, sort_keys=True))
 
@@ -409,6 +420,7 @@ def write_outputs(
                 frame.rename(columns={"first_um": "predicted_um"}).drop(columns="second_um")
                 .assign(axis=item.axis, campaign_id=campaign)
             )  # fmt: skip
+    sections += [f"## Axis {axis}\n\nNo model: {why}.\n" for axis, why in skipped_axes.items()]
     paths.MODEL_COMPARISON.write_text(
         comparison_report.render(sections, separation, synthetic, [e.axis for e in evaluations])
     )
@@ -418,6 +430,12 @@ def write_outputs(
     )  # fmt: skip
     predictions.round(4).to_csv(paths.PLOT_PREDICTIONS, index=False)
     return cards
+
+
+def empty_scores() -> pd.DataFrame:
+    """Return the long score table with its columns and no row."""
+    columns = CrossSeasonScoresModel.to_schema().columns
+    return pd.DataFrame({name: pd.Series(dtype=str(col.dtype)) for name, col in columns.items()})
 
 
 def champion_metrics(card: dict) -> dict:
@@ -499,7 +517,10 @@ def main(argv: list[str] | None = None) -> int:
     discrepancy = read_discrepancy() if with_twin else None
     roles = sensor_roles() if with_twin else frozenset()
     evaluations, twin_source = [], None
+    skipped_axes = dict(document.get("skipped_axes") or {})
     for axis, series in series_by_axis(table, features).items():
+        if axis not in selected:
+            continue
         skipped, twin = None, None
         if with_twin:
             skipped = skip_reason(axis, discrepancy, series, roles)
@@ -507,8 +528,12 @@ def main(argv: list[str] | None = None) -> int:
                 twin = read_twin_setup(table[table["axis"] == axis], series)
                 twin_source = twin.effects_source
         evaluations.append(evaluate_axis(axis, series, selected[axis], params, twin, skipped))
-    summary = candidate_summary(pd.concat([e.scores for e in evaluations], ignore_index=True))
+    summary = candidate_summary(
+        pd.concat([empty_scores(), *(e.scores for e in evaluations)], ignore_index=True)
+    )
     champion_params = params.get("champion") or {}
     decide(evaluations, summary, float(champion_params.get("min_improvement", DEFAULT_MARGIN)))
-    write_outputs(evaluations, table, document, features, separation, twin_source)
+    write_outputs(
+        evaluations, table, document, features, separation, twin_source, skipped_axes
+    )
     return 0

@@ -42,6 +42,7 @@ from pipeline.training_units import (
 LOGGER = logging.getLogger(__name__)
 
 INPUT_SETS = ("temperatures", "temperatures_and_speed")
+STABILITY_COLUMNS = ["method", "sensor", "times_chosen", "n_campaigns", "frequency"]
 
 
 def method_entries(methods: Mapping[str, Mapping | None]) -> dict[str, tuple[str, str, dict]]:
@@ -147,10 +148,18 @@ def stability_table(
     return pd.DataFrame(rows)
 
 
-def selected_record(features: str, selections: dict[str, dict[str, dict[str, Selection]]]) -> dict:
-    """JSON-ready record of the choices: inputs and decision details per axis, method and unit."""
+def selected_record(
+    features: str,
+    selections: dict[str, dict[str, dict[str, Selection]]],
+    skipped: dict[str, str] | None = None,
+) -> dict:
+    """JSON-ready record of the choices: inputs and decision details per axis, method and unit.
+
+    ``skipped``: axis -> why nothing was selected on it (no training campaign).
+    """
     return {
         "features": features,
+        "skipped_axes": dict(skipped or {}),
         "axes": {
             axis: {
                 method: {
@@ -174,15 +183,15 @@ def write_outputs(
     units: dict[str, list[TrainingUnit]],
     inputs: dict[str, list[str]],
     synthetic: bool,
+    skipped: dict[str, str] | None = None,
 ) -> None:
     """Write every output declared for the stage in ``dvc.yaml``."""
     paths.SELECTION.mkdir(parents=True, exist_ok=True)
     for stale in [*paths.SELECTION.glob("*_evidence.csv"), *paths.SELECTION.glob("*.png")]:
         stale.unlink()
-    paths.SELECTED.write_text(
-        json.dumps(selected_record(features, selections), indent=2, sort_keys=True) + "\n"
-    )
-    methods = list(next(iter(selections.values())))
+    record = selected_record(features, selections, skipped)
+    paths.SELECTED.write_text(json.dumps(record, indent=2, sort_keys=True) + "\n")
+    methods = list(next(iter(selections.values()))) if selections else []
     for method in methods:
         evidence = pd.concat(
             [
@@ -197,7 +206,7 @@ def write_outputs(
         evidence.to_csv(paths.SELECTION / f"{method}_evidence.csv", index=False,
                         float_format="%.6g")  # fmt: skip
     label = "SYNTHETIC data from the physical twin" if synthetic else "measured data"
-    tables = []
+    tables = [pd.DataFrame(columns=["axis", *STABILITY_COLUMNS])]
     for axis, by_method in selections.items():
         stability = stability_table(by_method, units[axis], inputs[axis]).assign(axis=axis)
         tables.append(stability)
@@ -206,8 +215,7 @@ def write_outputs(
             f"Axis {axis}: how often each input is chosen, across the training campaigns ({label})",
             paths.SELECTION / f"stability_{axis}.png",
         )
-    stability = pd.concat(tables, ignore_index=True)
-    stability = stability[["axis", *[c for c in stability.columns if c != "axis"]]]
+    stability = pd.concat(tables, ignore_index=True)[["axis", *STABILITY_COLUMNS]]
     stability.to_csv(paths.SELECTION_STABILITY, index=False, float_format="%.4f")
 
 
@@ -219,8 +227,15 @@ def main(argv: list[str] | None = None) -> int:
     features = check_features(str(params.get("features", "temperature_rise")))
     entries = method_entries(params["methods"])
     table = pd.read_parquet(paths.SPINDLE_THERMAL_ERROR)
-    selections, units, inputs = {}, {}, {}
+    selections, units, inputs, skipped = {}, {}, {}, {}
     for axis, series in series_by_axis(table, features).items():
+        if not any(s.split == "train" for s in series):
+            skipped[axis] = (
+                f"no training campaign measured axis {axis} (only "
+                f"{', '.join(s.campaign_id for s in series)}, split validation)"
+            )
+            LOGGER.warning("axis %s: %s; nothing selected", axis, skipped[axis])
+            continue
         units[axis] = training_units(series)
         inputs[axis] = list(series[0].features.columns)
         selections[axis] = select_axis(series, units[axis], entries)
@@ -229,5 +244,7 @@ def main(argv: list[str] | None = None) -> int:
                 "axis %s, %s: all training campaigns -> %s", axis, method,
                 ", ".join(by_unit["all_training"].sensors),
             )  # fmt: skip
-    write_outputs(features, selections, units, inputs, bool(table["synthetic"].any()))
+    if table.empty:
+        LOGGER.warning("no spindle thermal error to select inputs for (see %s)", paths.SPINDLE_RUNS)
+    write_outputs(features, selections, units, inputs, bool(table["synthetic"].any()), skipped)
     return 0

@@ -38,6 +38,8 @@ def run_spindle(params: dict) -> None:
     paths.SEPARATED.mkdir(parents=True, exist_ok=True)
     table.to_parquet(paths.SPINDLE_THERMAL_ERROR, index=False)
     paths.SPINDLE_RUNS.write_text(json.dumps(record, indent=2, sort_keys=True) + "\n")
+    if table.empty:
+        LOGGER.warning("%s; the model stages will say so and go on", record["note"])
     for axis, rows in table.groupby("axis", sort=False):
         LOGGER.info(
             "axis %s: thermal error of %d spindle campaigns in %d runs: %.1f to %.1f um",

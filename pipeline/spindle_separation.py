@@ -98,13 +98,7 @@ class SeparationSettings:
 
 
 def modelled_axes(campaigns: pd.DataFrame, wanted: Sequence[str] | None) -> list[str]:
-    """Axes to separate: those the campaigns declare, restricted to ``wanted``.
-
-    Raises
-    ------
-    ValueError
-        If no campaign declares any of the wanted axes.
-    """
+    """Axes to separate: those the campaigns declare, restricted to ``wanted`` (may be empty)."""
     declared: set[str] = set()
     for text in campaigns["displacement_json"]:
         declared |= set(json.loads(text or "{}"))
@@ -121,12 +115,6 @@ def modelled_axes(campaigns: pd.DataFrame, wanted: Sequence[str] | None) -> list
                 "declares; separating %s", missing, [a for a in order if a in wanted]
             )  # fmt: skip
         axes = [a for a in order if a in wanted]
-    if not axes:
-        raise ValueError(
-            f"no valid spindle_drift campaign declares a displacement axis among {wanted or 'any'}"
-            " (campaign.yaml displacement:); check reports/validation.json and params.yaml "
-            "separate.displacement_axis"
-        )
     return axes
 
 
@@ -273,22 +261,23 @@ def spindle_thermal_error(
         ``rise_<sensor>`` (K) and the speed responses.
     record : dict
         JSON-ready: settings, runs (campaigns, links with gaps, temperature jumps and
-        displacement stitches, notes) and each campaign's run, position and reference.
-
-    Raises
-    ------
-    ValueError
-        If no campaign measured a wanted axis.
+        displacement stitches, notes) and each campaign's run, position and reference; with
+        nothing to separate (no valid spindle campaign, or none measured a wanted axis) the
+        table is empty and ``note`` says why.
     """
-    axes = modelled_axes(campaigns, settings.axes)
+    axes = modelled_axes(campaigns, settings.axes) if len(campaigns) else []
     meta = {str(m["campaign_id"]): m for m in campaigns.to_dict("records")}
     per_campaign = {
         cid: resample(rows.sort_values("elapsed_s").reset_index(drop=True), settings.resample_s)
         for cid, rows in samples.groupby("campaign_id", sort=True)
         if cid in meta
     }
-    runs = find_runs(campaigns[campaigns["campaign_id"].isin(per_campaign)], per_campaign,
-                     settings.runs)  # fmt: skip
+    runs = (
+        find_runs(campaigns[campaigns["campaign_id"].isin(per_campaign)], per_campaign,
+                  settings.runs)
+        if per_campaign and axes
+        else []
+    )  # fmt: skip
     frames, record = [], {"axes": axes, "runs": [], "campaigns": {}}
     for run in runs:
         tables = _run_tables(run, per_campaign)
@@ -336,18 +325,33 @@ def spindle_thermal_error(
                 "warm_start": position > 0 or not run.cold_start,
                 "reference": _reference_text(run, position, settings.reference, settings.n),
             }
-    if not frames:
-        raise ValueError(
-            f"no valid spindle_drift campaign has readings along {axes}; check "
-            "reports/validation.json and params.yaml separate.displacement_axis"
-        )
     record["settings"] = {
         "cold_reference": settings.reference, "cold_n": settings.n,
         "resample_s": settings.resample_s,
         "speed_responses": None if settings.speed is None else settings.speed.to_dict(),
         "runs": vars(settings.runs),
     }  # fmt: skip
+    if not frames:
+        wanted = "any axis" if settings.axes is None else f"the axes {list(settings.axes)}"
+        record["axes"] = []
+        record["note"] = (
+            f"no valid spindle_drift campaign has displacement readings along {wanted}: there "
+            "is no spindle thermal error to model (check reports/validation.json and "
+            "params.yaml separate.displacement_axis)"
+        )
+        return empty_table(), record
     return pd.concat(frames, ignore_index=True), record
+
+
+def empty_table() -> pd.DataFrame:
+    """Return the separated table with its columns and no row (nothing to separate)."""
+    columns = {
+        "axis": "str", "campaign_id": "str", "run_id": "str", "source_row": "int64",
+        "elapsed_s": "float64", "run_elapsed_s": "float64", "rpm": "float64", "split": "str",
+        "season": "str", "synthetic": "bool", "warm_start": "bool", "reference": "str",
+        "displacement_um": "float64", "thermal_error_um": "float64",
+    }  # fmt: skip
+    return pd.DataFrame({name: pd.Series(dtype=dtype) for name, dtype in columns.items()})
 
 
 def _campaign_frame(

@@ -220,6 +220,8 @@ def read_scores(path: Path) -> list[dict[str, Any]]:
         keep_default_na=False,
         na_values=dict.fromkeys([*records.SCORE_COLUMNS, "uncompensated_rms_um"], nan_text),
     )
+    if table.empty:
+        return []
     try:
         table = CrossSeasonScoresModel.validate(table, lazy=True)
     except pa.errors.SchemaErrors as errors:
