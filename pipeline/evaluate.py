@@ -359,9 +359,7 @@ def write_outputs(
     for path in (paths.SCORES_LONG, paths.CROSS_SEASON_METRICS, paths.PLOT_MODEL_SCORES,
                  paths.COMPARISON_FIGURES / "x", paths.CHAMPION / "x"):  # fmt: skip
         path.parent.mkdir(parents=True, exist_ok=True)
-    scores = pd.concat(
-        [empty_scores(), *(e.scores for e in evaluations)], ignore_index=True
-    )
+    scores = pd.concat([empty_scores(), *(e.scores for e in evaluations)], ignore_index=True)
     scores.to_csv(paths.SCORES_LONG, index=False, float_format="%.6g")
     summary = candidate_summary(scores)
     summary.to_csv(paths.CANDIDATE_SCORES, index=False, float_format="%.4f")
@@ -533,7 +531,5 @@ def main(argv: list[str] | None = None) -> int:
     )
     champion_params = params.get("champion") or {}
     decide(evaluations, summary, float(champion_params.get("min_improvement", DEFAULT_MARGIN)))
-    write_outputs(
-        evaluations, table, document, features, separation, twin_source, skipped_axes
-    )
+    write_outputs(evaluations, table, document, features, separation, twin_source, skipped_axes)
     return 0
