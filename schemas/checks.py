@@ -127,9 +127,10 @@ def stuck_free(
         Temperature columns to examine (those absent from ``frame`` are skipped).
     min_samples : int
         A sensor is stuck when it repeats exactly the same reading for at least this many
-        consecutive samples (a missing reading ends the run), spanning at least
-        ``min_duration_s`` of ``frame["elapsed_s"]`` (a quiet sensor sampled every few seconds
-        can honestly repeat one 0.0625 degC code for minutes)...
+        consecutive samples (a missing reading ends the run), covering at least
+        ``min_duration_s`` of ``frame["elapsed_s"]`` (n samples cover n median sampling
+        intervals; a quiet sensor sampled every few seconds can honestly repeat one 0.0625 degC
+        code for minutes)...
     min_other_change : float, degC
         ...while at least one other sensor changed by at least this much (max - min) over the
         same samples.
@@ -156,6 +157,9 @@ def stuck_free(
         if "elapsed_s" in frame
         else np.arange(len(frame), dtype=float)
     )
+    steps = np.diff(elapsed)
+    steps = steps[np.isfinite(steps)]
+    interval = float(np.median(steps)) if steps.size else 0.0  # n samples cover n intervals
     for sensor in present:
         values = readings[sensor].to_numpy(dtype=float)
         others = readings.drop(columns=sensor).to_numpy(dtype=float)
@@ -165,7 +169,7 @@ def stuck_free(
             if not np.isnan(values[start]):
                 while stop < len(values) and values[stop] == values[start]:
                     stop += 1
-            long_enough = not elapsed[stop - 1] - elapsed[start] < min_duration_s
+            long_enough = not elapsed[stop - 1] - elapsed[start] + interval < min_duration_s
             if stop - start >= min_samples and long_enough:
                 window = others[start:stop]
                 with np.errstate(invalid="ignore"):
