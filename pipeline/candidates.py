@@ -102,10 +102,12 @@ def run_all(
             unit,
             series,
             make_model(candidate.model, **dict(model_params.get(candidate.model) or {})),
-            unit_sensors(candidate, unit, selected),
+            sensors,
         )
         for candidate in candidates
         for unit in units
+        for sensors in [unit_sensors(candidate, unit, selected)]
+        if sensors or not MODELS[candidate.model].uses_temperatures
     ]
     LOGGER.info("%d candidates x %d training units = %d fits", len(candidates), len(units),
                 len(jobs))  # fmt: skip

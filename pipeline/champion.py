@@ -14,9 +14,12 @@ Eligible: candidates that run from the machine's own inputs (temperatures, spind
 trivially; the physical twin (model ``twin``) needs the spindle program and the sensor roles,
 which the registered model does not take; both are ranked in the report, never chosen.
 
-No compensation (model ``none``) is always a candidate. A model becomes champion only if it beats
-``none`` by the margin ``evaluate.champion.min_improvement`` (a fraction of none's held-out RMS,
-i.e. its compensation ratio eta on the protocol is at least that fraction); otherwise the
+No compensation (model ``none``) is always a candidate. A model is compared with it on the same
+samples: it is eligible only if it predicted at least ``evaluate.champion.min_coverage`` of the
+held-out samples ``none`` was scored on (a model whose input is missing in a campaign cannot
+skip that campaign), and it becomes champion only if its compensation ratio on the protocol,
+eta = 1 - mean RMS(residual) / mean RMS(uncompensated error) over the same held-out samples,
+is at least the margin ``evaluate.champion.min_improvement`` (and above 0); otherwise the
 champion is ``none`` and the report says plainly not to compensate that axis with these inputs.
 With a single training campaign there is no held-out score, and the champion is ``none``.
 
@@ -94,8 +97,20 @@ def eligible(summary: pd.DataFrame) -> pd.DataFrame:
     ]
 
 
+def covered(rows: pd.DataFrame, protocol: str, min_coverage: float) -> pd.Series:
+    """Whether each row predicted at least ``min_coverage`` of none's held-out samples."""
+    column = f"{protocol}_coverage"
+    if column not in rows:
+        return pd.Series(True, index=rows.index)
+    return rows[column].fillna(0.0) >= min_coverage
+
+
 def choose_champion(
-    summary: pd.DataFrame, axis: str, protocol: str | None, min_improvement: float
+    summary: pd.DataFrame,
+    axis: str,
+    protocol: str | None,
+    min_improvement: float,
+    min_coverage: float = 0.95,
 ) -> Decision:
     """Choose the champion of one axis on the selection protocol.
 
@@ -107,7 +122,9 @@ def choose_champion(
     protocol : str or None
         ``loso``, ``loco``, or None without a held-out scheme.
     min_improvement : float
-        Fraction of none's held-out RMS a model must remove to be chosen (0 to 1).
+        Compensation ratio a model must reach on the protocol to be chosen (0 to 1).
+    min_coverage : float
+        Share of none's held-out samples a model must have predicted to be eligible.
 
     Returns
     -------
@@ -138,8 +155,9 @@ def choose_champion(
             "no held-out score to choose a compensation by",
         )  # fmt: skip
     ranked = eligible(rows)
-    ranked = ranked[ranked[column].notna()].sort_values([column, "model", "selection"])
-    ranked = ranked.reset_index(drop=True)
+    deployable = ranked["pooled_S_rms_um"].notna() if "pooled_S_rms_um" in ranked else True
+    ranked = ranked[ranked[column].notna() & covered(ranked, protocol, min_coverage) & deployable]
+    ranked = ranked.sort_values([column, "model", "selection"]).reset_index(drop=True)
     none_row = ranked[ranked["model"] == NO_COMPENSATION].iloc[0]
     none_score = float(none_row[column])
     models = ranked[ranked["model"] != NO_COMPENSATION]
@@ -149,19 +167,21 @@ def choose_champion(
                         f"no model has a {name} score")  # fmt: skip
     best = models.iloc[0]
     best_score = float(best[column])
-    threshold = (1.0 - min_improvement) * none_score
-    if best_score <= threshold:
+    eta = float(best.get(f"{protocol}_eta", 1.0 - best_score / none_score))
+    uncompensated = best_score / (1.0 - eta) if eta < 1.0 else none_score
+    if eta > 0.0 and eta >= min_improvement:
         reason = (
             f"on the campaigns it did not see ({name}) it leaves {best_score:.2f} um RMS, "
-            f"against {none_score:.2f} um without compensation: "
-            f"{100 * (1 - best_score / none_score):.0f} % less, above the "
-            f"{100 * min_improvement:.0f} % margin"
+            f"against {uncompensated:.2f} um without compensation on the same samples: "
+            f"{100 * eta:.0f} % less (eta {eta:.2f}), above the {100 * min_improvement:.0f} % "
+            "margin"
         )
         return Decision(axis, protocol, column, ranked, best, none_score, best_score, True, reason)
     reason = (
         f"no model removes {100 * min_improvement:.0f} % of the error on the campaigns it did "
         f"not see ({name}): the best, {'/'.join(str(best[k]) for k in KEYS)}, leaves "
-        f"{best_score:.2f} um RMS against {none_score:.2f} um without compensation"
+        f"{best_score:.2f} um RMS against {uncompensated:.2f} um without compensation (eta "
+        f"{eta:.2f})"
     )
     return Decision(axis, protocol, column, ranked, none_row, none_score, best_score, False, reason)
 

@@ -4,16 +4,18 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
 
 import pandas as pd
 
-from pipeline.champion import Decision, eligible
+from pipeline.champion import NO_COMPENSATION, Decision, eligible
 from pipeline.training_units import PROTOCOL_NAMES, CampaignSeries
 
 PROTOCOL_COLUMNS = {
     "Mn_rms_um": "held-out RMS",
     "eta": "eta",
     "Mn_um": "held-out S",
+    "coverage": "coverage",
 }
 """Columns of the selection protocol (prefixed ``loso_`` or ``loco_``) and their headers."""
 OTHER_COLUMNS = {
@@ -82,18 +84,26 @@ def reference_table(separation: Mapping, series: Sequence[CampaignSeries]) -> st
     return "\n".join(lines)
 
 
-def twin_section(source: str) -> str:
-    """Paragraph on the physical-twin candidate ``twin`` (empty line before and after)."""
+def twin_section(source: str, held_back: bool = True) -> str:
+    """Paragraph on the physical-twin candidate ``twin`` (empty line before and after).
+
+    ``held_back``: whether the discrepancy search left the validation campaigns out.
+    """
+    search = (
+        "on the training campaigns (the validation campaigns are held back from that search), "
+        "so its validation scores are out-of-sample for the structure too"
+        if held_back
+        else "on every campaign, the validation ones included (too few others to search on), "
+        "so its validation scores are not out-of-sample for the structure"
+    )
     return f"""
 `twin` (selection `roles`, mode `static`) is the calibrated physical twin, not a regression on
 temperatures: driven by the spindle program, the ambient reading and the campaign's first
 temperatures, its parameters calibrated by least squares on the temperatures and Z drift of the
-training unit's campaigns only. Its effect set was named by the discrepancy stage on the
-training campaigns (the validation campaigns are held back from that search), so its validation
-scores are out-of-sample for the structure too (the held-out and single-campaign units share
-that set, named on all training campaigns). It is ranked here but never chosen as champion: the
-registered model predicts from the machine's table of inputs, the twin needs the spindle
-program and the sensor roles.
+training unit's campaigns only. Its effect set was named by the discrepancy stage {search} (the
+held-out and single-campaign units share that set, named on all searched campaigns). It is
+ranked here but never chosen as champion: the registered model predicts from the machine's
+table of inputs, the twin needs the spindle program and the sensor roles.
 Twin used: {source}.
 """
 
@@ -114,7 +124,36 @@ def _decision_text(axis: str, decision: Decision, card: Mapping) -> str:
     )
 
 
-def _validation_text(summary: pd.DataFrame, decision: Decision, n_validation: int) -> str:
+def _protocol_text(decision: Decision, series: Sequence[CampaignSeries]) -> str:
+    """Which protocol chose, and when its held-out campaigns are not independent of training."""
+    train = [s for s in series if s.split == "train"]
+    if decision.protocol is None:
+        return (
+            "Selection protocol: **none** (a single training campaign: no fit can be scored on "
+            "a training campaign it did not see)."
+        )
+    text = (
+        f"Selection protocol: **{PROTOCOL_NAMES[decision.protocol]}** (each fit built on the "
+        "training campaigns but "
+        + ("one season's, scored on the ones" if decision.protocol == "loso" else "one, scored "
+           "on the one")
+        + " left out)."
+    )  # fmt: skip
+    runs = {s.run_id for s in train}
+    if decision.protocol == "loco" and len(train) > 1 and len(runs) == 1:
+        text += (
+            f" The training campaigns are one continuous run ({next(iter(runs))}): a held-out "
+            "campaign's neighbours in the same record are in the training set, so the held-out "
+            "score measures prediction between parts of one record, not on a new day."
+        )
+    return text
+
+
+def _validation_text(
+    summary: pd.DataFrame, decision: Decision, series: Sequence[CampaignSeries]
+) -> str:
+    validation = [s for s in series if s.split == "validation"]
+    n_validation = len(validation)
     if n_validation == 0:
         return (
             "**No independent check exists**: there is no validation campaign "
@@ -123,21 +162,29 @@ def _validation_text(summary: pd.DataFrame, decision: Decision, n_validation: in
             "day or season back as validation to get an independent one."
         )
     champion = decision.champion
-    none = summary[summary["model"] == "none"]
+    none = summary[summary["model"] == NO_COMPENSATION]
     rms = champion.get("pooled_Mn_val_rms_um")
     eta = champion.get("pooled_eta_val")
     none_rms = none["pooled_Mn_val_rms_um"].iloc[0] if len(none) else float("nan")
-    return (
+    text = (
         f"Check on the {n_validation} validation campaign(s), which chose nothing: the champion "
         f"built on all training campaigns leaves {_number(rms)} um RMS (eta {_number(eta)}); no "
         f"compensation leaves {_number(none_rms)} um."
     )
+    train_runs = {s.run_id for s in series if s.split == "train"}
+    shared = [s.campaign_id for s in validation if s.run_id in train_runs]
+    if shared:
+        text += (
+            f" {', '.join(shared)} continue(s) a run of training campaigns: they share its "
+            "reference and thermal history, so this check is not fully independent."
+        )
+    return text
 
 
 def _baseline_text(decision: Decision, plain: pd.Series | None) -> str:
     if plain is None or decision.column is None:
         return ""
-    models = decision.ranked[decision.ranked["model"] != "none"]
+    models = decision.ranked[decision.ranked["model"] != NO_COMPENSATION]
     if models.empty:
         return ""
     best = models.iloc[0]
@@ -150,60 +197,87 @@ def _baseline_text(decision: Decision, plain: pd.Series | None) -> str:
     )
 
 
+@dataclass(frozen=True)
+class AxisContext:
+    """What one axis' part of the report is written from.
+
+    Attributes
+    ----------
+    axis : str
+    summary : DataFrame
+        The axis' rows of :func:`pipeline.scoring.candidate_summary` (um).
+    decision : Decision
+    card : mapping
+        The champion card.
+    selected : mapping
+        ``selected.json`` ``axes[axis]``.
+    series : sequence of CampaignSeries
+    skipped : mapping
+        Candidate -> why it was not scored.
+    plain : Series or None
+        The best plain all-temperature regression's summary row.
+    """
+
+    axis: str
+    summary: pd.DataFrame
+    decision: Decision
+    card: Mapping
+    selected: Mapping[str, Mapping[str, Mapping]]
+    series: Sequence[CampaignSeries]
+    skipped: Mapping[str, str]
+    plain: pd.Series | None = None
+
+
+@dataclass(frozen=True)
+class AxisFigures:
+    """The figures of one axis: held-out predictions (path, legend labels) and heat-maps."""
+
+    predictions: str
+    labels: tuple[str, str]
+    heatmaps: Sequence[str] = ()
+
+
 def axis_section(
-    axis: str,
-    summary: pd.DataFrame,
-    decision: Decision,
-    card: Mapping,
-    selected: Mapping[str, Mapping[str, Mapping]],
-    separation: Mapping,
-    series: Sequence[CampaignSeries],
-    skipped: Mapping[str, str],
-    figure: str,
-    labels: tuple[str, str],
-    heatmaps: Sequence[str],
-    plain: pd.Series | None,
-    twin_source: str | None,
+    context: AxisContext, separation: Mapping, figures: AxisFigures, twin_text: str = ""
 ) -> str:
-    """One axis' part of the report: decision, scores, check, references, inputs, figures."""
-    n_train = sum(s.split == "train" for s in series)
-    n_validation = sum(s.split == "validation" for s in series)
-    protocol = PROTOCOL_NAMES.get(decision.protocol or "", "none")
-    skipped_lines = "\n".join(f"- `{name}` not scored: {why}." for name, why in skipped.items())
-    scored = any(summary["model"] == "twin")
-    twin = twin_section(twin_source) if twin_source and scored else ""
-    heatmap_lines = "\n".join(f"![{path}]({path})" for path in heatmaps)
-    return f"""## Axis {axis}
+    """One axis' part of the report: decision, scores, check, references, inputs, figures.
 
-{n_train} training and {n_validation} validation campaigns. Selection protocol:
-**{protocol}** (each fit built on the training campaigns but {
-        "one season's" if decision.protocol == "loso" else "one"
-    }, scored on the one{"s" if decision.protocol == "loso" else ""} left out).
+    ``twin_text``: :func:`twin_section`, shown when the twin was scored on this axis.
+    """
+    c = context
+    n_train = sum(s.split == "train" for s in c.series)
+    n_validation = sum(s.split == "validation" for s in c.series)
+    skipped_lines = "\n".join(f"- `{name}` not scored: {why}." for name, why in c.skipped.items())
+    twin = twin_text if any(c.summary["model"] == "twin") else ""
+    heatmap_lines = "\n".join(f"![{path}]({path})" for path in figures.heatmaps)
+    return f"""## Axis {c.axis}
 
-{_decision_text(axis, decision, card)}
+{n_train} training and {n_validation} validation campaigns. {_protocol_text(c.decision, c.series)}
 
-{_validation_text(summary, decision, n_validation)}
+{_decision_text(c.axis, c.decision, c.card)}
 
-{_baseline_text(decision, plain)}
+{_validation_text(c.summary, c.decision, c.series)}
 
-{score_table(summary, decision)}
+{_baseline_text(c.decision, c.plain)}
+
+{score_table(c.summary, c.decision)}
 {skipped_lines}
 {twin}
 ### What the error is counted from
 
-{reference_table(separation, series)}
+{reference_table(separation, c.series)}
 
 ### Inputs chosen
 
-{selection_table(selected)}
+{selection_table(c.selected)}
 
-![stability](selection/stability_{axis}.png)
+![stability](selection/stability_{c.axis}.png)
 
 ### Held-out predictions
 
-{labels[0].capitalize()}; {labels[1]}.
+{figures.labels[0].capitalize()}; {figures.labels[1]}.
 
-![held-out predictions]({figure})
+![held-out predictions]({figures.predictions})
 
 ### Matrices (RMS of the residual, um)
 
@@ -266,12 +340,14 @@ campaigns it did not see (leave-one-season-out when the training campaigns span 
 else leave-one-campaign-out). **held-out RMS**: mean over the held-out campaigns of the RMS of
 the residual (counts offsets; um); **held-out S**: the same with the residual standard
 deviation (the PCDL paper's score, blind to offsets); **eta** = 1 - RMS(residual) / RMS(no
-compensation), summarised as 1 - mean RMS / mean RMS of `none`. `none` (no compensation) is a
-candidate: a model must beat it by the margin in `params.yaml` `evaluate.champion`, or the
-champion is `none`. Validation campaigns never choose; **validation RMS / eta**: the model built
-on all training campaigns, applied to them. The PCDL paper's own protocol stays beside it:
-**fit S** on the campaign a model was built on, **one-campaign RMS / S** its mean on every other
-training campaign.
+compensation) on the same samples, summarised as 1 - mean RMS / mean uncompensated RMS;
+**coverage**: the share of the held-out samples `none` was scored on that a model predicted (an
+input missing in a campaign leaves it unpredicted). `none` (no compensation) is a candidate: a
+model must cover the held-out samples and reach the eta margin of `params.yaml`
+`evaluate.champion`, or the champion is `none`. Validation campaigns never choose;
+**validation RMS / eta**: the model built on all training campaigns, applied to them. The PCDL
+paper's own protocol stays beside it: **fit S** on the campaign a model was built on,
+**one-campaign RMS / S** its mean on every other training campaign.
 
 Mode `static`: from the machine's inputs only. Models on the error's own history are scored
 twice: `one_step` uses the measured error up to the previous sample (only possible on a machine

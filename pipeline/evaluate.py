@@ -60,6 +60,7 @@ CANDIDATE = ["model", "selection", "mode"]
 PLAIN_BASELINES = (("mlr", "all"), ("ridge", "all"))
 """Every temperature, no lag, no speed: the references a model must clearly beat."""
 DEFAULT_MARGIN = 0.1
+DEFAULT_COVERAGE = 0.95
 EXAMPLE_ROWS = 10
 
 
@@ -157,10 +158,15 @@ def evaluate_axis(
     return AxisEvaluation(axis, series, units, scores, results, skipped)
 
 
-def decide(evaluations: list[AxisEvaluation], summary: pd.DataFrame, margin: float) -> None:
-    """Choose every axis' champion (sets ``decision``)."""
+def decide(
+    evaluations: list[AxisEvaluation], summary: pd.DataFrame, settings: dict | None = None
+) -> None:
+    """Choose every axis' champion (sets ``decision``); ``settings``: ``evaluate.champion``."""
+    settings = settings or {}
+    margin = float(settings.get("min_improvement", DEFAULT_MARGIN))
+    min_coverage = float(settings.get("min_coverage", DEFAULT_COVERAGE))
     for item in evaluations:
-        item.decision = choose_champion(summary, item.axis, item.protocol, margin)
+        item.decision = choose_champion(summary, item.axis, item.protocol, margin, min_coverage)
         LOGGER.info("axis %s: champion %s: %s", item.axis, item.decision.label,
                     item.decision.reason)  # fmt: skip
 
@@ -285,19 +291,17 @@ def write_matrices(scores: pd.DataFrame, title_suffix: str) -> list[str]:
 
 
 def input_spec(inputs: list[str], features: str, separation: dict) -> InputSpec:
-    """How the champion's inputs are prepared, from the separation record (speed responses)."""
+    """How the champion's inputs are prepared: reference, speed responses, window (separation)."""
     settings = separation.get("settings") or {}
-    speed = settings.get("speed_responses")
+    window = settings.get("resample_s")
     return InputSpec(
         tuple(inputs),
         features,
         str(settings.get("cold_reference", "first_sample")),
         int(settings.get("cold_n", 1)),
-        None if not speed else SpeedResponses(
-            tuple(float(t) for t in speed["time_constants_min"]),
-            tuple(float(a) for a in speed["exponents"]),
-        ),
-    )  # fmt: skip
+        SpeedResponses.from_dict(settings.get("speed_responses")),
+        None if window is None else float(window),
+    )
 
 
 def input_example(table: pd.DataFrame, spec: InputSpec, campaign_id: str) -> pd.DataFrame:
@@ -341,21 +345,74 @@ def champions(
     return cards
 
 
-def write_outputs(
+@dataclass(frozen=True)
+class AxisReport:
+    """What one axis adds to the report and the DVC plot tables."""
+
+    section: str
+    plot_rows: list[dict]
+    predictions: list[pd.DataFrame]
+
+
+def report_axis(
+    item: AxisEvaluation,
+    summary: pd.DataFrame,
+    card: dict,
+    selected: dict,
+    separation: dict,
+    heatmaps: list[str],
+    origin: str,
+    twin_text: str,
+) -> AxisReport:
+    """One axis' report section, its held-out figure and its rows of the DVC plot tables."""
+    rows = summary[summary["axis"] == item.axis]
+    decision = item.decision
+    models = decision.ranked[decision.ranked["model"] != NO_COMPENSATION]
+    first = models.iloc[0] if len(models) else decision.champion
+    second = best_plain_baseline(rows, decision.column)
+    panels = prediction_panels(item, first, second)
+    figure = paths.COMPARISON_FIGURES / f"heldout_{item.axis}.png"
+    labels = (f"best model: {label(first)}",
+              "no plain baseline" if second is None else f"plain: {label(second)}")  # fmt: skip
+    where = (
+        "validation campaigns, built on all training campaigns"
+        if any(s.split == "validation" for s in item.series)
+        else "each training campaign, predicted by the fit that left it out"
+    )
+    plots.predicted_vs_measured(panels, labels, f"Axis {item.axis}: {where} ({origin})", figure)
+    context = comparison_report.AxisContext(
+        item.axis, rows, decision, card, selected["axes"][item.axis], item.series,
+        item.skipped, second,
+    )  # fmt: skip
+    figures = comparison_report.AxisFigures(
+        figure.relative_to(paths.REPORTS).as_posix(), labels,
+        [h for h in heatmaps if h.startswith(f"matrices/{item.axis}__")],
+    )  # fmt: skip
+    plot_rows = [
+        {
+            "axis": item.axis, "candidate": f"{item.axis}: {label(row)}",
+            "heldout_rms_um": row.get(decision.column) if decision.column else np.nan,
+            "eta": row.get(f"{item.protocol}_eta") if item.protocol else np.nan,
+        }
+        for _, row in rows.iterrows()
+    ]  # fmt: skip
+    predictions = [
+        frame.rename(columns={"first_um": "predicted_um"}).drop(columns="second_um")
+        .assign(axis=item.axis, campaign_id=campaign)
+        for campaign, frame in panels.items()
+    ]  # fmt: skip
+    section = comparison_report.axis_section(context, separation, figures, twin_text)
+    return AxisReport(section, plot_rows, predictions)
+
+
+def write_tables(
     evaluations: list[AxisEvaluation],
     table: pd.DataFrame,
-    selected: dict,
     features: str,
     separation: dict,
-    twin_source: str | None = None,
-    skipped_axes: dict[str, str] | None = None,
-) -> dict[str, dict]:
-    """Write every output declared for the stage in ``dvc.yaml``; return the champion cards.
-
-    Axes of ``skipped_axes`` (axis -> why it has no model) are named in the report and the
-    metrics; with no axis at all every output is still written, empty, and the report says why.
-    """
-    skipped_axes = dict(skipped_axes or {})
+    skipped_axes: dict[str, str],
+) -> tuple[pd.DataFrame, pd.DataFrame, dict[str, dict]]:
+    """Scores, summary, metrics, fitted record and champions; return scores, summary, cards."""
     for path in (paths.SCORES_LONG, paths.CROSS_SEASON_METRICS, paths.PLOT_MODEL_SCORES,
                  paths.COMPARISON_FIGURES / "x", paths.CHAMPION / "x"):  # fmt: skip
         path.parent.mkdir(parents=True, exist_ok=True)
@@ -376,54 +433,42 @@ def write_outputs(
     metrics |= {axis: {"skipped": {"axis": why}} for axis, why in skipped_axes.items()}
     paths.CROSS_SEASON_METRICS.write_text(json.dumps(_round(metrics), indent=2, sort_keys=True))
     paths.FITTED_MODELS.write_text(json.dumps(fitted_record(evaluations), indent=2, sort_keys=True))
+    return scores, summary, cards
 
+
+def write_outputs(
+    evaluations: list[AxisEvaluation],
+    table: pd.DataFrame,
+    selected: dict,
+    features: str,
+    separation: dict,
+    twin_text: str = "",
+    skipped_axes: dict[str, str] | None = None,
+) -> dict[str, dict]:
+    """Write every output declared for the stage in ``dvc.yaml``; return the champion cards.
+
+    Axes of ``skipped_axes`` (axis -> why it has no model) are named in the report and the
+    metrics; with no axis at all every output is still written, empty, and the report says why.
+    ``twin_text``: the report's paragraph on the twin candidate (:func:`twin_section`).
+    """
+    skipped_axes = dict(skipped_axes or {})
+    scores, summary, cards = write_tables(evaluations, table, features, separation, skipped_axes)
     synthetic = bool(table["synthetic"].any())
     origin = "SYNTHETIC data from the physical twin" if synthetic else "measured data"
     heatmaps = write_matrices(scores, origin)
-    sections, plot_rows, prediction_rows = [], [], []
-    for item in evaluations:
-        rows = summary[summary["axis"] == item.axis]
-        decision = item.decision
-        models = decision.ranked[decision.ranked["model"] != NO_COMPENSATION]
-        first = models.iloc[0] if len(models) else decision.champion
-        second = best_plain_baseline(rows, decision.column)
-        panels = prediction_panels(item, first, second)
-        figure = paths.COMPARISON_FIGURES / f"heldout_{item.axis}.png"
-        labels = (f"best model: {label(first)}",
-                  "no plain baseline" if second is None else f"plain: {label(second)}")  # fmt: skip
-        where = (
-            "validation campaigns, built on all training campaigns"
-            if any(s.split == "validation" for s in item.series)
-            else "each training campaign, predicted by the fit that left it out"
-        )
-        plots.predicted_vs_measured(panels, labels, f"Axis {item.axis}: {where} ({origin})", figure)
-        sections.append(
-            comparison_report.axis_section(
-                item.axis, rows, decision, cards[item.axis], selected["axes"][item.axis],
-                separation, item.series, item.skipped,
-                figure.relative_to(paths.REPORTS).as_posix(), labels,
-                [h for h in heatmaps if h.startswith(f"matrices/{item.axis}__")],
-                second, twin_source,
-            )
-        )  # fmt: skip
-        column = decision.column
-        for _, row in rows.iterrows():
-            plot_rows.append({
-                "axis": item.axis, "candidate": f"{item.axis}: {label(row)}",
-                "heldout_rms_um": row.get(column) if column else np.nan,
-                "eta": row.get(f"{item.protocol}_eta") if item.protocol else np.nan,
-            })  # fmt: skip
-        for campaign, frame in panels.items():
-            prediction_rows.append(
-                frame.rename(columns={"first_um": "predicted_um"}).drop(columns="second_um")
-                .assign(axis=item.axis, campaign_id=campaign)
-            )  # fmt: skip
+    parts = [
+        report_axis(e, summary, cards[e.axis], selected, separation, heatmaps, origin, twin_text)
+        for e in evaluations
+    ]
+    sections = [part.section for part in parts]
     sections += [f"## Axis {axis}\n\nNo model: {why}.\n" for axis, why in skipped_axes.items()]
     paths.MODEL_COMPARISON.write_text(
         comparison_report.render(sections, separation, synthetic, [e.axis for e in evaluations])
     )
+    plot_rows = [row for part in parts for row in part.plot_rows]
     pd.DataFrame(plot_rows).to_csv(paths.PLOT_MODEL_SCORES, index=False, float_format="%.4f")
-    predictions = pd.concat(prediction_rows, ignore_index=True) if prediction_rows else (
+    frames = [frame for part in parts for frame in part.predictions]
+    predictions = pd.concat(frames, ignore_index=True) if frames else (
         pd.DataFrame(columns=["elapsed_min", "measured_um", "predicted_um", "axis", "campaign_id"])
     )  # fmt: skip
     predictions.round(4).to_csv(paths.PLOT_PREDICTIONS, index=False)
@@ -513,6 +558,7 @@ def main(argv: list[str] | None = None) -> int:
     separation = json.loads(paths.SPINDLE_RUNS.read_text())
     with_twin = split_twin(params["candidates"])[1]
     discrepancy = read_discrepancy() if with_twin else None
+    held_back = discrepancy is None or discrepancy.get("validation") is not None
     roles = sensor_roles() if with_twin else frozenset()
     evaluations, twin_source = [], None
     skipped_axes = dict(document.get("skipped_axes") or {})
@@ -529,7 +575,9 @@ def main(argv: list[str] | None = None) -> int:
     summary = candidate_summary(
         pd.concat([empty_scores(), *(e.scores for e in evaluations)], ignore_index=True)
     )
-    champion_params = params.get("champion") or {}
-    decide(evaluations, summary, float(champion_params.get("min_improvement", DEFAULT_MARGIN)))
-    write_outputs(evaluations, table, document, features, separation, twin_source, skipped_axes)
+    decide(evaluations, summary, params.get("champion"))
+    twin_text = (
+        "" if twin_source is None else comparison_report.twin_section(twin_source, held_back)
+    )
+    write_outputs(evaluations, table, document, features, separation, twin_text, skipped_axes)
     return 0

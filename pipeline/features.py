@@ -15,15 +15,21 @@ the user's table at a time), so training and serving cannot drift apart:
   ``s_{a,tau}(t_{k+1}) = s_{a,tau}(t_k) exp(-dt/tau) + (rpm_k / 1000)^a (1 - exp(-dt/tau))``,
 
   exact for a speed held between samples (zero-order hold), starting from rest
-  (``s = 0``) at the run's first sample. This is the input of the speed-based spindle growth
-  compensation of machine-tool controllers: the growth as a sum of first-order responses to the
-  friction power, which grows with speed like n^a (a = 1 for load-dependent friction, 5/3 for
-  viscous friction after Palmgren; two exponents, 1 and 2, span that range linearly). The
-  spindle shaft that carries much of the drift has no sensor; these inputs stand in for its
-  temperature.
+  (``s = 0``) at the run's first sample. A missing speed is 0 rpm (outside the segments of a
+  ``spindle_program`` the spindle stands, as for the twin); across a break longer than
+  :data:`MAX_HOLD_INTERVALS` sampling intervals (a declared ``follows:`` over a gap) the spindle
+  is taken as stopped; a run with no speed at all has no speed responses (NaN). This is the
+  input of the speed-based spindle growth compensation of machine-tool controllers: the growth
+  as a sum of first-order responses to the friction power, which grows with speed like n^a
+  (a = 1 for load-dependent friction, 5/3 for viscous friction after Palmgren; two exponents, 1
+  and 2, span that range linearly). The spindle shaft that carries much of the drift has no
+  sensor; these inputs stand in for its temperature.
 
 Inputs are named ``rise_<sensor>`` (or the sensor name for absolute temperatures) and
-``speed_lag_<tau>min`` (a = 1) / ``speed<a>_lag_<tau>min`` (other a).
+``speed_lag_<tau>min`` (a = 1) / ``speed<a>_lag_<tau>min`` (other a). Records sampled faster
+than the model's window (``separate.resample_s``) are averaged into windows of that length
+before the inputs are computed, in training (:func:`resample`) and in serving
+(:mod:`pipeline.serving`) alike.
 """
 
 from __future__ import annotations
@@ -40,6 +46,8 @@ COLD_REFERENCES = ("first_sample", "mean_first_n")
 FEATURE_KINDS = ("temperature_rise", "absolute")
 RPM_SCALE = 1000.0
 """Speeds enter the responses in krpm."""
+MAX_HOLD_INTERVALS = 3.0
+"""A speed is held over at most this many median sampling intervals; longer breaks: stopped."""
 
 _SPEED_NAME = re.compile(r"^speed(?P<a>[0-9.]+)?_lag_(?P<tau>[0-9.]+)min$")
 
@@ -86,6 +94,16 @@ class SpeedResponses:
                 f"speed exponents must be positive, got {self.exponents}; fix params.yaml "
                 "separate.speed_responses.exponents"
             )
+
+    @classmethod
+    def from_dict(cls, section: Mapping | None) -> SpeedResponses | None:
+        """Inverse of :meth:`to_dict`; None or empty: no speed responses."""
+        if not section:
+            return None
+        return cls(
+            tuple(float(t) for t in section["time_constants_min"]),
+            tuple(float(a) for a in section["exponents"]),
+        )
 
     @classmethod
     def from_params(cls, section: Mapping | None) -> SpeedResponses | None:
@@ -142,15 +160,27 @@ def reference_value(values: np.ndarray, reference: str, n: int) -> float:
     return float(finite[0]) if reference == "first_sample" else float(np.mean(finite[: int(n)]))
 
 
-def held_speed(rpm: np.ndarray) -> np.ndarray:
-    """Speed held over missing entries (previous value; leading gaps take the first known), rpm.
+def check_feature_kind(features: str) -> str:
+    """Return ``features`` if it is ``temperature_rise`` or ``absolute``.
 
-    Returns all-NaN when no speed is known at all.
+    Raises
+    ------
+    ValueError
+        Naming params.yaml select.features and the kinds it may take.
     """
-    series = pd.Series(np.asarray(rpm, dtype=float))
-    if series.notna().sum() == 0:
-        return series.to_numpy()
-    return series.ffill().bfill().to_numpy()
+    if features not in FEATURE_KINDS:
+        raise ValueError(
+            f"params.yaml select.features is '{features}'; use one of {list(FEATURE_KINDS)}"
+        )
+    return features
+
+
+def known_speed(rpm: np.ndarray) -> np.ndarray:
+    """Speed with missing entries as 0 rpm (the spindle stands); all-NaN when none is known."""
+    speed = np.asarray(rpm, dtype=float)
+    if not np.isfinite(speed).any():
+        return np.full(speed.shape, np.nan)
+    return np.where(np.isfinite(speed), speed, 0.0)
 
 
 def speed_responses(t_s: np.ndarray, rpm: np.ndarray, spec: SpeedResponses) -> pd.DataFrame:
@@ -161,8 +191,9 @@ def speed_responses(t_s: np.ndarray, rpm: np.ndarray, spec: SpeedResponses) -> p
     t_s : ndarray of shape (n,), s
         Sample instants of one run, increasing.
     rpm : ndarray of shape (n,), rpm
-        Speed at each instant, held until the next (missing values held, see
-        :func:`held_speed`); all missing gives NaN responses.
+        Speed at each instant, held until the next sample (missing: 0 rpm, see
+        :func:`known_speed`; all missing gives NaN responses); over an interval longer than
+        :data:`MAX_HOLD_INTERVALS` median intervals the spindle is taken as stopped.
     spec : SpeedResponses
 
     Returns
@@ -171,10 +202,13 @@ def speed_responses(t_s: np.ndarray, rpm: np.ndarray, spec: SpeedResponses) -> p
         Columns :meth:`SpeedResponses.names`, in (krpm)^a; the first row is 0.
     """
     t = np.asarray(t_s, dtype=float)
-    speed = held_speed(rpm)
+    speed = known_speed(rpm)
     names = spec.names()
     if t.size == 0 or not np.isfinite(speed).any():
         return pd.DataFrame(np.full((t.size, len(names)), np.nan), columns=names)
+    steps = np.diff(t)
+    if steps.size:
+        speed[:-1] = np.where(steps > MAX_HOLD_INTERVALS * np.median(steps), 0.0, speed[:-1])
     drive = np.column_stack(
         [np.repeat((np.clip(speed, 0.0, None) / RPM_SCALE) ** a, len(spec.time_constants_min))
          .reshape(-1, len(spec.time_constants_min)) for a in spec.exponents]
@@ -225,10 +259,7 @@ def run_inputs(
     ValueError
         For an unknown ``features`` or ``reference``.
     """
-    if features not in FEATURE_KINDS:
-        raise ValueError(
-            f"params.yaml select.features is '{features}'; use one of {list(FEATURE_KINDS)}"
-        )
+    check_feature_kind(features)
     values = temperatures.astype(float)
     if features == "temperature_rise":
         cold = {c: reference_value(values[c].to_numpy(), reference, n) for c in values.columns}
@@ -240,6 +271,39 @@ def run_inputs(
     if speed is not None:
         inputs = pd.concat([inputs, speed_responses(t_s, rpm, speed)], axis=1)
     return inputs
+
+
+def resample(rows: pd.DataFrame, window_s: float | None) -> pd.DataFrame:
+    """Average one run's (or campaign's) samples into windows of ``window_s`` if sampled faster.
+
+    Parameters
+    ----------
+    rows : DataFrame
+        Samples in time order with ``elapsed_s`` (s) and numeric columns (``rpm``,
+        temperatures, ``disp_<A>``...); optional ``campaign_id`` and ``source_row``.
+    window_s : float or None, s
+
+    Returns
+    -------
+    DataFrame
+        ``rows`` unchanged when the median interval is at least ``window_s`` (or None, or there is
+        no ``elapsed_s``); else one row per window ``[first + k w, first + (k + 1) w)``: the
+        means of every numeric column (missing readings left out; ``elapsed_s`` the mean
+        instant), ``source_row`` the window's first data row, ``campaign_id`` kept.
+    """
+    if window_s is None or len(rows) < 2 or "elapsed_s" not in rows:
+        return rows
+    t = rows["elapsed_s"].to_numpy(dtype=float)
+    if np.median(np.diff(t)) >= window_s * 0.999:
+        return rows
+    window = np.floor((t - t[0]) / window_s).astype(np.int64)
+    numeric = [c for c in rows.columns if c not in ("campaign_id", "source_row")
+               and pd.api.types.is_numeric_dtype(rows[c])]  # fmt: skip
+    out = rows[numeric].astype(float).groupby(window, sort=True).mean()
+    for column in ("source_row", "campaign_id"):
+        if column in rows:
+            out.insert(0, column, rows[column].groupby(window, sort=True).first().to_numpy())
+    return out.reset_index(drop=True)
 
 
 def input_column(name: str, features: str) -> str:
@@ -265,6 +329,8 @@ class InputSpec:
     reference_n : int
     speed : SpeedResponses or None
         How the speed responses were computed (None when the model uses none).
+    resample_s : float or None, s
+        Records sampled faster are averaged into windows of this length first (None: never).
     """
 
     inputs: tuple[str, ...]
@@ -272,6 +338,7 @@ class InputSpec:
     reference: str
     reference_n: int
     speed: SpeedResponses | None = None
+    resample_s: float | None = None
 
     @property
     def sensors(self) -> list[str]:
@@ -291,22 +358,21 @@ class InputSpec:
             "reference": self.reference,
             "reference_n": int(self.reference_n),
             "speed": None if self.speed is None else self.speed.to_dict(),
+            "resample_s": self.resample_s,
         }
 
     @classmethod
     def from_dict(cls, card: Mapping) -> InputSpec:
         """Inverse of :meth:`to_dict`."""
-        speed = card.get("speed")
+        window = card.get("resample_s")
         return cls(
             tuple(card["inputs"]),
             str(card["features"]),
             str(card["reference"]),
             int(card["reference_n"]),
-            None if not speed else SpeedResponses(
-                tuple(float(t) for t in speed["time_constants_min"]),
-                tuple(float(a) for a in speed["exponents"]),
-            ),
-        )  # fmt: skip
+            SpeedResponses.from_dict(card.get("speed")),
+            None if window is None else float(window),
+        )
 
 
 def model_inputs(table: pd.DataFrame, spec: InputSpec) -> pd.DataFrame:

@@ -29,14 +29,11 @@ shifted so that they continue A's. Every other jump is kept as measured; all are
 
 from __future__ import annotations
 
-import logging
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
 import pandas as pd
-
-logger = logging.getLogger(__name__)
 
 DECLARED, DETECTED = "declared", "detected"
 CONTIGUOUS_INTERVALS = 2.5
@@ -235,7 +232,15 @@ def candidate_links(
     links, notes = [], []
     for span in spans:
         if span.follows is not None:
-            if span.follows in by_id:
+            if (
+                span.follows in by_id
+                and (span.begins - by_id[span.follows].ends).total_seconds() < 0
+            ):
+                notes.append(
+                    f"{span.campaign_id} follows {span.follows} but starts before it ends "
+                    "(start and elapsed_s overlap): not linked"
+                )
+            elif span.follows in by_id:
                 links.append(_link(by_id[span.follows], span, DECLARED))
             else:
                 notes.append(
@@ -355,7 +360,8 @@ def stitch(
     Returns
     -------
     Stitch
-        NaN jump and zero offset when either side has fewer than two readings.
+        NaN jump and zero offset when the earlier side has fewer than two readings or the later
+        one none.
     """
     ok_b, ok_a = np.isfinite(before), np.isfinite(after)
     if ok_b.sum() < 2 or ok_a.sum() < 1:

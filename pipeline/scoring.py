@@ -141,15 +141,46 @@ def metrics_tree(scores: pd.DataFrame) -> dict:
     return tree
 
 
+REFERENCE_MODEL = "none"
+PAIR = ["axis", "scheme", "train_unit", "test_campaign"]
+
+
+def coverage(part: pd.DataFrame, reference: pd.DataFrame) -> float:
+    """Share of the reference's prediction samples a candidate predicted too (0 to 1).
+
+    Parameters
+    ----------
+    part : DataFrame
+        One candidate's score rows of one scheme.
+    reference : DataFrame
+        ``none``'s score rows of the same axis and scheme.
+
+    Returns
+    -------
+    float
+        Sum over ``none``'s (training unit, campaign) pairs of role ``prediction`` of
+        min(candidate samples, none's samples), over the sum of none's samples: a campaign the
+        candidate could not predict (an input missing there) counts 0. NaN without reference.
+    """
+    wanted = reference[reference["role"] == "prediction"].set_index(PAIR)["n_samples"]
+    if wanted.empty:
+        return float("nan")
+    got = part[part["role"] == "prediction"].set_index(PAIR)["n_samples"].reindex(wanted.index)
+    return float(np.minimum(got.fillna(0).to_numpy(), wanted.to_numpy()).sum() / wanted.sum())
+
+
 def candidate_summary(scores: pd.DataFrame) -> pd.DataFrame:
     """One row per (axis, model, selection, mode): the overall scores of every scheme.
 
     Columns are the candidate keys, then ``S_um``, ``Mn_um``... of the ``campaign`` scheme (the
     PCDL paper's protocol), ``loso_`` or ``loco_`` + the same for leave-one-season-out or
     leave-one-campaign-out and ``pooled_`` + the same for the model built on all training
-    campaigns; all in um (``eta``: dimensionless).
+    campaigns; all in um (``eta``: dimensionless); ``<prefix>coverage``, the share of the
+    held-out samples ``none`` was scored on that the candidate predicted too
+    (:func:`coverage`; when ``none`` was scored).
     """
     rows = []
+    reference = scores[scores["model"] == REFERENCE_MODEL]
     for keys, group in scores.groupby(CANDIDATE_KEYS, sort=True):
         row = dict(zip(CANDIDATE_KEYS, keys, strict=True))
         for scheme in SCHEMES:
@@ -157,6 +188,11 @@ def candidate_summary(scores: pd.DataFrame) -> pd.DataFrame:
             part = group[group["scheme"] == scheme]
             if len(part):
                 row.update({prefix + key: value for key, value in summarise(part).items()})
+                mine = reference[
+                    (reference["axis"] == row["axis"]) & (reference["scheme"] == scheme)
+                ]
+                if len(mine):
+                    row[f"{prefix}coverage"] = coverage(part, mine)
         rows.append(row)
     return pd.DataFrame(rows)
 

@@ -88,7 +88,9 @@ def select_unit(
     """Run one selection method on the campaigns of one training unit.
 
     Only inputs with readings in every campaign of the unit are candidates; with the input set
-    ``temperatures``, the speed responses are not offered.
+    ``temperatures``, the speed responses are not offered. When the unit's campaigns share no
+    input (a sensor renamed, the only common one dead), the selection is empty and says why;
+    the models fed by it are not fitted on that unit.
     """
     method, inputs, settings = entry
     training = [s for s in series if s.campaign_id in unit.campaigns]
@@ -98,6 +100,10 @@ def select_unit(
         if all(s.features[column].notna().any() for s in training)
         and (inputs == "temperatures_and_speed" or not is_speed_feature(column))
     ]
+    if not offered:
+        reason = f"no input has readings in every campaign of {unit.name}"
+        LOGGER.warning("%s: %s; nothing selected", method, reason)
+        return Selection(method, [], pd.DataFrame(columns=["sensor"]), {"empty": reason})
     temperatures, error = stack(training, offered)
     return make_selector(method, **settings)(temperatures, error)
 

@@ -29,7 +29,13 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
-from pipeline.features import COLD_REFERENCES, SpeedResponses, reference_value, run_inputs
+from pipeline.features import (
+    COLD_REFERENCES,
+    SpeedResponses,
+    reference_value,
+    resample,
+    run_inputs,
+)
 from pipeline.runs import (
     DECLARED,
     Run,
@@ -116,39 +122,6 @@ def modelled_axes(campaigns: pd.DataFrame, wanted: Sequence[str] | None) -> list
             )  # fmt: skip
         axes = [a for a in order if a in wanted]
     return axes
-
-
-def resample(rows: pd.DataFrame, window_s: float | None) -> pd.DataFrame:
-    """Average a campaign's samples into windows of ``window_s`` when it is sampled faster.
-
-    Parameters
-    ----------
-    rows : DataFrame
-        One campaign's samples in time order (``elapsed_s``, ``source_row``, ``rpm``,
-        temperatures, ``disp_<A>``).
-    window_s : float or None, s
-
-    Returns
-    -------
-    DataFrame
-        ``rows`` unchanged when the median interval is at least ``window_s`` (or None); else one
-        row per window ``[first + k w, first + (k + 1) w)``: the means of every numeric column
-        (missing readings left out; ``elapsed_s`` the mean instant), ``source_row`` the window's
-        first data row.
-    """
-    if window_s is None or len(rows) < 2:
-        return rows
-    t = rows["elapsed_s"].to_numpy(dtype=float)
-    if np.median(np.diff(t)) >= window_s * 0.999:
-        return rows
-    window = np.floor((t - t[0]) / window_s).astype(np.int64)
-    numeric = [c for c in rows.columns if c not in ("campaign_id", "source_row")
-               and pd.api.types.is_numeric_dtype(rows[c])]  # fmt: skip
-    grouped = rows[numeric].astype(float).groupby(window, sort=True)
-    out = grouped.mean()
-    out.insert(0, "source_row", rows["source_row"].groupby(window, sort=True).first().to_numpy())
-    out.insert(0, "campaign_id", rows["campaign_id"].iloc[0])
-    return out.reset_index(drop=True)
 
 
 def _sensors(meta: Mapping) -> list[str]:
@@ -281,43 +254,13 @@ def spindle_thermal_error(
     frames, record = [], {"axes": axes, "runs": [], "campaigns": {}}
     for run in runs:
         tables = _run_tables(run, per_campaign)
-        sensors = list(dict.fromkeys(s for c in run.campaigns for s in _sensors(meta[c])))
-        run_frame = pd.concat([tables.rows[c].reindex(columns=sensors) for c in run.campaigns])
-        t_all = np.concatenate([tables.t_run[c] for c in run.campaigns])
-        rpm_all = np.concatenate(
-            [tables.rows[c]["rpm"].to_numpy(dtype=float) for c in run.campaigns]
-        )
-        inputs = run_inputs(
-            t_all, run_frame, rpm_all, features="temperature_rise", reference=settings.reference,
-            n=settings.n, speed=settings.speed,
-        )  # fmt: skip
-        bounds = np.cumsum([0, *(len(tables.rows[c]) for c in run.campaigns)])
+        inputs, notes = _inputs_of_run(run, tables, meta, settings)
         stitches = []
         for axis in axes:
-            displacement, stitched = _stitched_displacement(run, tables, axis, settings.runs)
+            axis_frames, stitched = _axis_frames(axis, run, tables, inputs, meta, settings)
+            frames += axis_frames
             stitches += stitched
-            cold = reference_value(
-                np.concatenate([displacement[c] for c in run.campaigns]), settings.reference,
-                settings.n,
-            )  # fmt: skip
-            for position, cid in enumerate(run.campaigns):
-                if not np.isfinite(displacement[cid]).any():
-                    continue
-                frames.append(
-                    _campaign_frame(
-                        axis,
-                        cid,
-                        run,
-                        position,
-                        tables,
-                        displacement[cid] - cold,
-                        displacement[cid],
-                        inputs.iloc[bounds[position] : bounds[position + 1]],
-                        meta[cid],
-                        settings,
-                    )  # fmt: skip
-                )
-        record["runs"].append(_run_record(run, tables, meta, stitches))
+        record["runs"].append(_run_record(run, tables, meta, stitches, notes))
         for position, cid in enumerate(run.campaigns):
             record["campaigns"][cid] = {
                 "run_id": run.run_id,
@@ -354,17 +297,95 @@ def empty_table() -> pd.DataFrame:
     return pd.DataFrame({name: pd.Series(dtype=dtype) for name, dtype in columns.items()})
 
 
+def _inputs_of_run(
+    run: Run, tables: _RunTables, meta: Mapping, settings: SeparationSettings
+) -> tuple[pd.DataFrame, list[str]]:
+    """Model inputs of a whole run, on its rows (campaigns in order), and what was left out.
+
+    Every input is referenced at the run's first campaign: a sensor with no reading in it gets
+    no rise in this run (its first reading would be a warm one); a run with a campaign without
+    any spindle speed gets no speed responses (the speed history is broken there).
+    """
+    sensors = list(dict.fromkeys(s for c in run.campaigns for s in _sensors(meta[c])))
+    frame = pd.concat([tables.rows[c].reindex(columns=sensors) for c in run.campaigns])
+    rpm = [tables.rows[c]["rpm"].to_numpy(dtype=float) for c in run.campaigns]
+    notes = []
+    speed = settings.speed
+    silent = [c for c, r in zip(run.campaigns, rpm, strict=True) if not np.isfinite(r).any()]
+    if speed is not None and silent and len(silent) < len(run.campaigns):
+        notes.append(f"no spindle speed in {', '.join(silent)}: no speed responses in run "
+                     f"{run.run_id}")  # fmt: skip
+        speed = None
+    inputs = run_inputs(
+        np.concatenate([tables.t_run[c] for c in run.campaigns]), frame, np.concatenate(rpm),
+        features="temperature_rise", reference=settings.reference, n=settings.n, speed=speed,
+    )  # fmt: skip
+    if speed is None and settings.speed is not None:
+        for name in settings.speed.names():
+            inputs[name] = np.nan
+    first = tables.rows[run.campaigns[0]]
+    late = [s for s in sensors if s not in first or not first[s].notna().any()]
+    for sensor in late:
+        inputs[f"rise_{sensor}"] = np.nan
+    if late:
+        notes.append(f"{', '.join(late)} not read in {run.run_id}, the run's first campaign: no "
+                     f"rise in run {run.run_id}")  # fmt: skip
+    return inputs, notes
+
+
+def _axis_frames(
+    axis: str,
+    run: Run,
+    tables: _RunTables,
+    inputs: pd.DataFrame,
+    meta: Mapping,
+    settings: SeparationSettings,
+) -> tuple[list[pd.DataFrame], list[dict]]:
+    """Rows of one axis for every campaign of the run that measured it, and the stitches.
+
+    The reference is the axis' first reading in the run's first campaign; when that campaign
+    did not measure the axis, the axis' first reading later in the run, which is a warm one,
+    and the ``reference`` column says so.
+    """
+    displacement, stitches = _stitched_displacement(run, tables, axis, settings.runs)
+    head = next((c for c in run.campaigns if np.isfinite(displacement[c]).any()), None)
+    if head is None:
+        return [], stitches
+    cold = reference_value(displacement[head], settings.reference, settings.n)
+    bounds = np.cumsum([0, *(len(tables.rows[c]) for c in run.campaigns)])
+    frames = []
+    for position, cid in enumerate(run.campaigns):
+        if not np.isfinite(displacement[cid]).any():
+            continue
+        reference = _reference_text(run, position, settings.reference, settings.n)
+        if head != run.run_id:
+            reference = (
+                f"first reading of {axis} in {head}: {run.run_id}, the run's first campaign, "
+                f"did not measure {axis}, so this reference is a warm one"
+            )
+        frames.append(
+            _campaign_frame(
+                axis, cid, run, tables, displacement[cid] - cold, displacement[cid],
+                inputs.iloc[bounds[position] : bounds[position + 1]], meta[cid],
+                warm=position > 0 or not run.cold_start or head != run.run_id,
+                reference=reference,
+            )
+        )  # fmt: skip
+    return frames, stitches
+
+
 def _campaign_frame(
     axis: str,
     campaign_id: str,
     run: Run,
-    position: int,
     tables: _RunTables,
     error: np.ndarray,
     displacement: np.ndarray,
     inputs: pd.DataFrame,
     meta: Mapping,
-    settings: SeparationSettings,
+    *,
+    warm: bool,
+    reference: str,
 ) -> pd.DataFrame:
     rows = tables.rows[campaign_id]
     frame = pd.DataFrame({
@@ -378,8 +399,8 @@ def _campaign_frame(
         "split": meta["split"],
         "season": meta["season"],
         "synthetic": bool(meta["synthetic"]),
-        "warm_start": position > 0 or not run.cold_start,
-        "reference": _reference_text(run, position, settings.reference, settings.n),
+        "warm_start": warm,
+        "reference": reference,
         "displacement_um": displacement,
         "thermal_error_um": error,
     })  # fmt: skip
@@ -390,7 +411,9 @@ def _campaign_frame(
     return pd.concat([frame, inputs[columns].reset_index(drop=True)], axis=1)
 
 
-def _run_record(run: Run, tables: _RunTables, meta: Mapping, stitches: list[dict]) -> dict:
+def _run_record(
+    run: Run, tables: _RunTables, meta: Mapping, stitches: list[dict], notes: list[str]
+) -> dict:
     links = []
     for link in run.links:
         before = tables.rows[link.previous].reindex(columns=_sensors(meta[link.previous]))
@@ -407,5 +430,5 @@ def _run_record(run: Run, tables: _RunTables, meta: Mapping, stitches: list[dict
         "campaigns": list(run.campaigns),
         "cold_start": run.cold_start,
         "links": links,
-        "notes": list(run.notes),
+        "notes": [*run.notes, *notes],
     }

@@ -400,6 +400,8 @@ def main(argv: list[str] | None = None) -> int:
             experiment,
             public_uri(uri),
         )
+        names = [registered_name(prefix, axis) for axis in prepared.champions]
+        store.restore_champions(client, experiment_id, parent_id, names, "champion")
     else:
         parent_id = store.log_pipeline(
             client, experiment_id, prepared.parent, prepared.children, artifact_files(),

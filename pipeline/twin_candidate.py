@@ -148,12 +148,12 @@ def skip_reason(
             "no sensor has a structure role (campaign.yaml sensors: role), so the twin has "
             "no node to attach to"
         )
-    warm = [s.campaign_id for s in series if s.warm_start]
-    if warm:
+    continued = [s.campaign_id for s in series if s.run_id and s.run_id != s.campaign_id]
+    if continued:
         return (
-            f"campaigns {', '.join(warm)} start warm within a run: the twin starts each "
-            "campaign from its own first readings and cannot count its drift from the run's "
-            "reference"
+            f"campaigns {', '.join(continued)} continue a run and start warm: the twin starts "
+            "each campaign from its own first readings and cannot count its drift from the "
+            "run's reference"
         )
     return None
 

@@ -3,9 +3,12 @@ import pandas as pd
 import pytest
 from sklearn.linear_model import LinearRegression
 
+from pipeline.candidates import run_all
 from pipeline.champion import choose_champion
 from pipeline.comparison_report import score_table
+from pipeline.cross_season import Candidate
 from pipeline.features import InputSpec, SpeedResponses, model_inputs, speed_responses
+from pipeline.scoring import coverage
 from pipeline.select import method_entries, select_axis, selected_record, stability_table
 from pipeline.training_units import series_by_axis, training_units
 
@@ -56,13 +59,13 @@ def test_select_runs_every_method_on_every_unit_and_counts_stability():
 
 
 def _summary(best_model_rms=2.0):
+    rms = np.array([0.5, 9.8, best_model_rms, best_model_rms + 0.1, 10.0, 0.1])
     return pd.DataFrame({
         "axis": "Z",
         "model": ["arma", "arma", "mlr", "dl", "none", "twin"],
         "selection": ["none", "none", "all", "all", "none", "roles"],
         "mode": ["one_step", "free_run", "static", "static", "static", "static"],
-        "loco_Mn_rms_um": [0.5, 9.8, best_model_rms, best_model_rms + 0.1, 10.0, 0.1],
-        "loco_eta": [0.95, 0.1, 0.8, 0.75, 0.0, 0.99],
+        "loco_Mn_rms_um": rms, "loco_eta": 1 - rms / 10.0, "loco_coverage": 1.0,
         "Mn_rms_um": [0.5, 9.0, 2.0, 2.5, 10.0, 0.1],
         "pooled_Mn_val_rms_um": [0.4, 8.0, 1.9, 1.7, 9.0, 0.1],
     })  # fmt: skip
@@ -83,6 +86,25 @@ def test_without_a_model_beating_none_by_the_margin_the_champion_is_none():
     assert decision.best_score == 9.5
     assert "no model removes 10 %" in decision.reason
     assert choose_champion(_summary(best_model_rms=8.9), "Z", "loco", 0.1).compensate
+
+
+def test_a_model_that_skips_held_out_campaigns_cannot_be_champion():
+    """mlr could not predict a third of the samples none was scored on (an input missing)."""
+    summary = _summary()
+    summary.loc[summary["model"] == "mlr", "loco_coverage"] = 0.67
+    decision = choose_champion(summary, "Z", "loco", 0.1)
+    assert decision.label == "dl/all/static"
+    assert "mlr" not in set(decision.ranked["model"])
+    assert choose_champion(summary, "Z", "loco", 0.1, min_coverage=0.5).label == "mlr/all/static"
+
+
+def test_coverage_counts_the_held_out_samples_a_candidate_predicted():
+    pair = {"axis": "Z", "scheme": "loco", "role": "prediction"}
+    none = pd.DataFrame([{**pair, "train_unit": f"not_K{i}", "test_campaign": f"K{i}",
+                          "n_samples": 100} for i in (1, 2, 3)])  # fmt: skip
+    partial = none.iloc[:2].assign(n_samples=[100, 50])  # K3 not predicted, K2 half
+    assert coverage(partial, none) == pytest.approx(150 / 300)
+    assert coverage(none, none) == 1.0
 
 
 def test_without_a_held_out_scheme_the_champion_is_none_and_errors_are_clear():
@@ -127,3 +149,25 @@ def test_model_inputs_are_rises_from_each_runs_first_row_and_speed_responses():
     temperatures_only = InputSpec(("T1",), "temperature_rise", "mean_first_n", 2)
     rises = model_inputs(table.drop(columns=["rpm", "elapsed_s"]), temperatures_only)
     np.testing.assert_allclose(rises["T1"], [-0.5, 0.5, -0.25, 0.25])
+
+
+def test_units_whose_campaigns_share_no_sensor_select_nothing_and_fit_nothing():
+    table = _table()
+    table.loc[table["campaign_id"] == "K1", ["rise_T2", "rise_T10", "speed_lag_30min"]] = np.nan
+    table.loc[table["campaign_id"] == "K2", ["rise_T1", "speed_lag_30min"]] = np.nan
+    series = series_by_axis(table, "temperature_rise")["Z"]
+    units = training_units(series)
+    entries = method_entries({"all": {"inputs": "temperatures"}})
+    chosen = select_axis(series, units, entries)["all"]
+    assert (
+        chosen["all_training"].sensors == []
+        and "no input" in chosen["all_training"].details["empty"]
+    )
+    assert chosen["K1"].sensors == ["T1"]
+    selected = {"all": {u: {"inputs": sel.sensors} for u, sel in chosen.items()}}
+    results = run_all(
+        [Candidate("mlr", "all"), Candidate("none", "none")], units, series, selected, {}, 1
+    )
+    fitted = {(r.candidate.model, r.unit.name) for r in results}
+    assert ("mlr", "K1") in fitted and ("mlr", "all_training") not in fitted
+    assert ("none", "all_training") in fitted

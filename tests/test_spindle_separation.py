@@ -4,9 +4,9 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from pipeline.features import SpeedResponses, reference_value
+from pipeline.features import SpeedResponses, reference_value, resample, speed_responses
 from pipeline.runs import RunSettings
-from pipeline.spindle_separation import SeparationSettings, resample, spindle_thermal_error
+from pipeline.spindle_separation import SeparationSettings, spindle_thermal_error
 from schemas import SpindleThermalErrorModel
 
 START = pd.Timestamp("2025-03-03T08:00:00")
@@ -191,3 +191,49 @@ def test_unknown_reference_and_bad_run_keys_are_clear_errors():
         SeparationSettings.from_params({"cold_reference": "median"})
     with pytest.raises(KeyError, match="separate.runs: unknown key"):
         RunSettings.from_params({"max_gap": 10})
+
+
+def test_inputs_a_run_cannot_reference_at_its_cold_start_are_left_out_or_said():
+    """K02 continues K01 but has a new sensor T2, an X probe K01 lacked, and no speed."""
+    k02_start = START + pd.Timedelta(seconds=4 * 180)
+    k02 = _campaign("K02", start=k02_start, axes=("X", "Z"))
+    k02["sensors_json"] = json.dumps({"T1": {"role": "other"}, "T2": {"role": "other"}})
+    samples = _samples("K02", [23.0, 23.0, 23.0], rpm=np.nan, Z=[3, 3, 3], X=[5.0, 6.0, 7.0])
+    table, record = _separate(
+        [_campaign("K01"), k02],
+        [_samples("K01", [20, 21, 22, 23], Z=[0, 1, 2, 3]), samples.assign(T2=30.0)],
+        speed=SpeedResponses((30.0,), (1.0,)),
+    )  # fmt: skip
+    k02_rows = table.query("campaign_id == 'K02'")
+    assert k02_rows["rise_T2"].isna().all() and k02_rows["rise_T1"].notna().all()
+    assert table["speed_lag_30min"].isna().all()
+    x = table.query("axis == 'X'")
+    np.testing.assert_allclose(x["thermal_error_um"], [0.0, 1.0, 2.0])
+    assert x["reference"].str.contains("first reading of X in K02").all() and x["warm_start"].all()
+    notes = " ".join(record["runs"][0]["notes"])
+    assert "T2 not read in K01" in notes and "no spindle speed in K02" in notes
+
+
+def test_a_missing_speed_is_a_standing_spindle_and_a_long_break_stops_it():
+    t = np.array([0.0, 60.0, 120.0, 180.0, 10_000.0, 10_060.0])
+    speed = SpeedResponses((10.0,), (1.0,))
+    held = speed_responses(t, np.array([3000, 3000, np.nan, np.nan, 3000, 3000.0]), speed)
+    decay = np.exp(-60.0 / 600.0)
+    first = 3 * (1 - decay)  # 3000 rpm for 60 s, then 0 rpm where the speed is missing
+    np.testing.assert_allclose(
+        held.iloc[:4, 0], [0.0, first, first * (1 + decay), first * (1 + decay) * decay]
+    )
+    gap = speed_responses(t, np.full(6, 3000.0), speed).iloc[:, 0].to_numpy()
+    assert gap[4] < 1e-6 * gap[3]  # stopped across the 2.7-h break, not held at 3000 rpm
+    assert np.isnan(speed_responses(t, np.full(6, np.nan), speed).to_numpy()).all()
+
+
+def test_a_declared_follows_that_overlaps_its_predecessor_is_refused():
+    overlapping = _campaign("K02", start=START + pd.Timedelta(seconds=60), follows="K01")
+    table, record = _separate(
+        [_campaign("K01"), overlapping],
+        [_samples("K01", [20, 21, 22, 23], Z=[0, 1, 2, 3]), _samples("K02", [23, 23], Z=[3, 3])],
+    )  # fmt: skip
+    assert set(table["run_id"]) == {"K01", "K02"}
+    notes = " ".join(n for r in record["runs"] for n in r["notes"])
+    assert "starts before it ends" in notes

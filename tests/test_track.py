@@ -729,6 +729,19 @@ def test_changed_scores_params_or_data_log_a_new_parent(workdir, client, outputs
     )
 
 
+def test_returning_to_logged_inputs_points_the_alias_back_at_their_version(workdir, client):
+    track.main([])
+    original = (workdir / "params.yaml").read_text()
+    _change_params(workdir, None)
+    track.main([])
+    assert str(client.get_model_version_by_alias(NAMES["Z"], "champion").version) == "2"
+    (workdir / "params.yaml").write_text(original)
+    track.main([])
+    back = record(workdir)
+    assert back["reused"] is True and back["champions"]["Z"]["version"] == "1"
+    assert str(client.get_model_version_by_alias(NAMES["X"], "champion").version) == "1"
+
+
 def test_identity_is_stable_and_sees_renamed_files(tmp_path, outputs):
     write_evaluate_outputs(tmp_path, outputs)
     files = [tmp_path / "reports" / "cross_season_scores.csv"]

@@ -18,7 +18,7 @@ import pandas as pd
 import pytest
 
 from pipeline.champion import choose_champion, eligible
-from pipeline.comparison_report import axis_section
+from pipeline.comparison_report import AxisContext, AxisFigures, axis_section, twin_section
 from pipeline.evaluate import evaluate_axis
 from pipeline.ingest import ingest
 from pipeline.scoring import candidate_summary, metrics_tree
@@ -176,9 +176,8 @@ def test_twin_is_never_champion_even_when_it_scores_best(hidden, baseline_scores
     decision = choose_champion(best, "Z", "loso", 0.1)
     assert decision.label == "mlr/all/static"
     assert list(decision.ranked["model"]) == ["mlr", "none"]
-    card = {"inputs": ["T1"]}
-    text = axis_section("Z", best, decision, card, {}, {}, series, {}, "x.png", ("a", "b"), [],
-                        None, "the baseline")  # fmt: skip
+    context = AxisContext("Z", best, decision, {"inputs": ["T1"]}, {}, series, {})
+    text = axis_section(context, {}, AxisFigures("x.png", ("a", "b")), twin_section("baseline"))
     assert "`twin` (selection `roles`, mode `static`)" in text
     assert "never chosen as champion" in text
     assert "| twin | roles | static | " in text
@@ -192,8 +191,10 @@ def test_twin_is_skipped_where_it_cannot_apply_with_the_reason(hidden):
     untestable = {"status": "untestable", "reason": "no sensor has a structure role"}
     assert "no sensor has a structure role" in skip_reason("Z", untestable, series, roles)
     assert "structure role" in skip_reason("Z", None, series, frozenset({"other"}))
-    warm = [replace(series[1], warm_start=True), *series[2:]]
-    assert "H02 start warm" in skip_reason("Z", None, warm, roles)
+    continued = [replace(series[1], warm_start=True, run_id="H01"), *series[2:]]
+    assert "H02 continue a run" in skip_reason("Z", None, continued, roles)
+    declared_warm = [replace(series[1], warm_start=True), *series[2:]]  # its own reference
+    assert skip_reason("Z", None, declared_warm, roles) is None
 
 
 def test_augmented_twin_predicts_other_campaigns_better_than_the_baseline(hidden, baseline_scores):

@@ -2,14 +2,16 @@
 
 ``mlflow.pyfunc.load_model("models:/thermal-error-spindle-<axis>@champion").predict(table)``
 takes a table as the machine logs it -- one column per input sensor in degC, rows in time order,
-``rpm`` and ``elapsed_s`` when the model uses speed responses, optional ``campaign_id`` for
-several runs -- and returns the predicted thermal error (um) per row. The inputs are prepared by
-:func:`pipeline.features.model_inputs` from the card's ``input_spec``, the same code that
-prepared them in training: rises from each run's first row (or the mean of its first rows), the
-speed responses from rest at each run's start. The signature says which columns are required
-(``rpm`` and ``elapsed_s`` only when the model needs the speed log). The estimator is the
-candidate's fit on all training campaigns; models on the error's own history predict in free
-run; the champion ``none`` predicts zero (do not compensate).
+``rpm`` and ``elapsed_s`` when the model uses speed responses (``elapsed_s`` also lets a fast
+logger's rows be averaged into the training windows), optional ``campaign_id`` for several runs
+(each group is a run from its own first row) -- and returns the predicted thermal error (um) per
+row, NaN where an input is missing. The inputs are prepared by :mod:`pipeline.serving` from the
+card's ``input_spec``, the same code that prepared them in training: rises from each run's first
+row (or the mean of its first rows), the speed responses from rest at each run's start. The
+signature says which columns are required (``rpm`` and ``elapsed_s`` only when the model needs
+the speed log). The estimator is the candidate's fit on all training campaigns; models on the
+error's own history predict in free run; the champion ``none`` predicts zero (do not
+compensate).
 """
 
 from __future__ import annotations
@@ -27,7 +29,8 @@ from mlflow.tracking import MlflowClient
 from mlflow.types.schema import ColSpec, Schema
 
 from pipeline import paths
-from pipeline.features import InputSpec, model_inputs
+from pipeline.features import InputSpec
+from pipeline.serving import predict_table
 
 logger = logging.getLogger(__name__)
 
@@ -53,11 +56,10 @@ class ChampionModel(mlflow.pyfunc.PythonModel):
         self.card = json.loads(Path(context.artifacts["card"]).read_text(encoding="utf-8"))
 
     def predict(self, context, model_input: pd.DataFrame, params=None) -> pd.Series:
-        """Thermal error, um, one value per row of ``model_input``."""
-        X = model_inputs(pd.DataFrame(model_input), InputSpec.from_dict(self.card["input_spec"]))
-        return pd.Series(
-            self.estimator.predict(X), index=model_input.index, name="thermal_error_um"
-        )
+        """Thermal error, um, one value per row of ``model_input`` (NaN: an input is missing)."""
+        spec = InputSpec.from_dict(self.card["input_spec"])
+        predicted = predict_table(self.estimator, pd.DataFrame(model_input), spec)
+        return pd.Series(predicted, index=model_input.index, name="thermal_error_um")
 
 
 def signature(spec: InputSpec) -> ModelSignature:

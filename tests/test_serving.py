@@ -1,0 +1,61 @@
+"""The registered model prepares a machine's table exactly as the separate stage prepared the
+training campaigns: same windows, same references, same speed responses."""
+
+import json
+
+import numpy as np
+import pandas as pd
+from sklearn.linear_model import LinearRegression
+
+from pipeline.features import InputSpec, SpeedResponses
+from pipeline.serving import predict_table
+from pipeline.spindle_separation import SeparationSettings, spindle_thermal_error
+
+SPEED = SpeedResponses((30.0,), (1.0,))
+
+
+def _logger_table(n=360, interval_s=10.0):
+    """One hour of a fast logger: two sensors, the speed switched on after 10 min, a Z probe."""
+    t = np.arange(n) * interval_s
+    rpm = np.where(t >= 600.0, 4000.0, 0.0)
+    heat = np.clip(t - 600.0, 0.0, None) / 3600.0
+    return pd.DataFrame({
+        "campaign_id": "R1", "source_row": np.arange(1, n + 1), "elapsed_s": t, "rpm": rpm,
+        "T1": 20.0 + 3.0 * heat, "T2": 21.0 + 0.5 * heat, "disp_Z": -8.0 * heat,
+    })  # fmt: skip
+
+
+def test_a_fast_table_is_served_in_the_training_windows():
+    table = _logger_table()
+    campaigns = pd.DataFrame([{
+        "campaign_id": "R1", "machine": "m", "start": pd.Timestamp("2025-01-01T08:00"),
+        "split": "train", "season": "winter", "synthetic": True, "start_state": None,
+        "follows": None, "sensors_json": json.dumps({"T1": {}, "T2": {}}),
+        "displacement_json": json.dumps({"Z": {}}),
+    }])  # fmt: skip
+    settings = SeparationSettings(resample_s=60.0, speed=SPEED)
+    separated, _ = spindle_thermal_error(campaigns, table, settings)
+    inputs = ["T1", "speed_lag_30min"]
+    X = separated[["rise_T1", "speed_lag_30min"]].set_axis(inputs, axis=1)
+    model = LinearRegression().fit(X, separated["thermal_error_um"])
+    spec = InputSpec(tuple(inputs), "temperature_rise", "first_sample", 1, SPEED, 60.0)
+
+    served = predict_table(model, table.drop(columns=["disp_Z", "source_row"]), spec)
+
+    assert len(separated) == 60 and served.shape == (360,)
+    trained = model.predict(X)  # on the training windows: their mean instants and inputs
+    expected = np.interp(table["elapsed_s"], separated["elapsed_s"], trained)
+    np.testing.assert_allclose(served, expected, atol=1e-9)
+    unwindowed = InputSpec(spec.inputs, spec.features, spec.reference, 1, SPEED, None)
+    assert not np.allclose(predict_table(model, table, unwindowed), served)  # the window matters
+
+
+def test_rows_with_a_missing_input_get_no_prediction_the_others_do():
+    table = _logger_table(n=20, interval_s=60.0).drop(columns=["disp_Z", "source_row"])
+    table.loc[3, "T1"] = np.nan
+    spec = InputSpec(("T1",), "temperature_rise", "first_sample", 1, None, 60.0)
+    model = LinearRegression().fit(pd.DataFrame({"T1": [0.0, 1.0]}), [0.0, 2.0])
+    served = predict_table(model, table, spec)
+    assert np.isnan(served[3]) and np.isfinite(np.delete(served, 3)).all()
+    rows = [0, 19]
+    np.testing.assert_allclose(served[rows], 2.0 * (table["T1"].iloc[rows] - 20.0), atol=1e-9)
