@@ -31,9 +31,8 @@ from pipeline.candidates import candidate_list, run_all
 from pipeline.champion import NO_COMPENSATION, Decision, champion_card, choose_champion
 from pipeline.config import load_section
 from pipeline.cross_season import UnitResult
-from pipeline.features import InputSpec, SpeedResponses
+from pipeline.features import InputSpec, SpeedResponses, check_feature_kind
 from pipeline.scoring import candidate_summary, metrics_tree, score_matrix
-from pipeline.select import check_features
 from pipeline.training_units import (
     POOLED_UNIT,
     CampaignSeries,
@@ -405,20 +404,25 @@ def report_axis(
     return AxisReport(section, plot_rows, predictions)
 
 
+def all_scores(evaluations: list[AxisEvaluation]) -> pd.DataFrame:
+    """Return the long score table of every axis (its columns even when there is none)."""
+    return pd.concat([empty_scores(), *(e.scores for e in evaluations)], ignore_index=True)
+
+
 def write_tables(
     evaluations: list[AxisEvaluation],
+    scores: pd.DataFrame,
+    summary: pd.DataFrame,
     table: pd.DataFrame,
     features: str,
     separation: dict,
     skipped_axes: dict[str, str],
-) -> tuple[pd.DataFrame, pd.DataFrame, dict[str, dict]]:
-    """Scores, summary, metrics, fitted record and champions; return scores, summary, cards."""
+) -> dict[str, dict]:
+    """Write scores, summary, metrics, fitted record and champions; return the champion cards."""
     for path in (paths.SCORES_LONG, paths.CROSS_SEASON_METRICS, paths.PLOT_MODEL_SCORES,
                  paths.COMPARISON_FIGURES / "x", paths.CHAMPION / "x"):  # fmt: skip
         path.parent.mkdir(parents=True, exist_ok=True)
-    scores = pd.concat([empty_scores(), *(e.scores for e in evaluations)], ignore_index=True)
     scores.to_csv(paths.SCORES_LONG, index=False, float_format="%.6g")
-    summary = candidate_summary(scores)
     summary.to_csv(paths.CANDIDATE_SCORES, index=False, float_format="%.4f")
     cards = champions(evaluations, table, features, separation)
     tree = metrics_tree(scores)
@@ -433,11 +437,12 @@ def write_tables(
     metrics |= {axis: {"skipped": {"axis": why}} for axis, why in skipped_axes.items()}
     paths.CROSS_SEASON_METRICS.write_text(json.dumps(_round(metrics), indent=2, sort_keys=True))
     paths.FITTED_MODELS.write_text(json.dumps(fitted_record(evaluations), indent=2, sort_keys=True))
-    return scores, summary, cards
+    return cards
 
 
 def write_outputs(
     evaluations: list[AxisEvaluation],
+    summary: pd.DataFrame,
     table: pd.DataFrame,
     selected: dict,
     features: str,
@@ -449,10 +454,12 @@ def write_outputs(
 
     Axes of ``skipped_axes`` (axis -> why it has no model) are named in the report and the
     metrics; with no axis at all every output is still written, empty, and the report says why.
-    ``twin_text``: the report's paragraph on the twin candidate (:func:`twin_section`).
+    ``twin_text``: the report's paragraph on the twin candidate (:func:`twin_section`);
+    ``summary``: :func:`pipeline.scoring.candidate_summary` of :func:`all_scores`.
     """
     skipped_axes = dict(skipped_axes or {})
-    scores, summary, cards = write_tables(evaluations, table, features, separation, skipped_axes)
+    scores = all_scores(evaluations)
+    cards = write_tables(evaluations, scores, summary, table, features, separation, skipped_axes)
     synthetic = bool(table["synthetic"].any())
     origin = "SYNTHETIC data from the physical twin" if synthetic else "measured data"
     heatmaps = write_matrices(scores, origin)
@@ -554,7 +561,7 @@ def main(argv: list[str] | None = None) -> int:
             f"{paths.SELECTED} not found: run the select stage first (dvc repro select)"
         )
     document = json.loads(paths.SELECTED.read_text())
-    features, selected = check_features(str(document["features"])), document["axes"]
+    features, selected = check_feature_kind(str(document["features"])), document["axes"]
     separation = json.loads(paths.SPINDLE_RUNS.read_text())
     with_twin = split_twin(params["candidates"])[1]
     discrepancy = read_discrepancy() if with_twin else None
@@ -572,12 +579,12 @@ def main(argv: list[str] | None = None) -> int:
                 twin = read_twin_setup(table[table["axis"] == axis], series)
                 twin_source = twin.effects_source
         evaluations.append(evaluate_axis(axis, series, selected[axis], params, twin, skipped))
-    summary = candidate_summary(
-        pd.concat([empty_scores(), *(e.scores for e in evaluations)], ignore_index=True)
-    )
+    summary = candidate_summary(all_scores(evaluations))
     decide(evaluations, summary, params.get("champion"))
     twin_text = (
         "" if twin_source is None else comparison_report.twin_section(twin_source, held_back)
     )
-    write_outputs(evaluations, table, document, features, separation, twin_text, skipped_axes)
+    write_outputs(
+        evaluations, summary, table, document, features, separation, twin_text, skipped_axes
+    )
     return 0

@@ -29,7 +29,7 @@ import pandas as pd
 
 from pipeline import paths, plots
 from pipeline.config import load_section
-from pipeline.features import FEATURE_KINDS, is_speed_feature
+from pipeline.features import check_feature_kind, is_speed_feature
 from pipeline.selection import Selection, make_selector
 from pipeline.training_units import (
     CampaignSeries,
@@ -65,21 +65,6 @@ def method_entries(methods: Mapping[str, Mapping | None]) -> dict[str, tuple[str
             )
         entries[str(name)] = (method, inputs, settings)
     return entries
-
-
-def check_features(features: str) -> str:
-    """Return ``features`` if it is a known feature kind.
-
-    Raises
-    ------
-    ValueError
-        If ``features`` is neither ``temperature_rise`` nor ``absolute``.
-    """
-    if features not in FEATURE_KINDS:
-        raise ValueError(
-            f"params.yaml select.features is '{features}'; use one of {list(FEATURE_KINDS)}"
-        )
-    return features
 
 
 def select_unit(
@@ -230,7 +215,7 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="thermal select", description=__doc__.splitlines()[0])
     parser.parse_args(argv)
     params = load_section("select")
-    features = check_features(str(params.get("features", "temperature_rise")))
+    features = check_feature_kind(str(params.get("features", "temperature_rise")))
     entries = method_entries(params["methods"])
     table = pd.read_parquet(paths.SPINDLE_THERMAL_ERROR)
     selections, units, inputs, skipped = {}, {}, {}, {}

@@ -186,18 +186,21 @@ def _stitched_displacement(
 
 def find_runs(
     campaigns: pd.DataFrame, samples: dict[str, pd.DataFrame], settings: RunSettings
-) -> list[Run]:
-    """Find the runs of the campaigns; detected links whose temperatures jump are dropped."""
+) -> tuple[list[Run], dict[str, float]]:
+    """Find the runs of the campaigns; detected links whose temperatures jump are dropped.
+
+    Returns the runs and, per linked campaign, the temperature jump across its cut (degC).
+    """
     combined = pd.concat(samples.values(), ignore_index=True)
     spans = spans_from_tables(campaigns, combined)
     links, notes = candidate_links(spans, settings)
     sensors = {str(m["campaign_id"]): _sensors(m) for m in campaigns.to_dict("records")}
-    kept = []
+    kept, jumps = [], {}
     for link in links:
+        before = samples[link.previous].reindex(columns=sensors[link.previous])
+        after = samples[link.campaign].reindex(columns=sensors[link.campaign])
+        jump = temperature_jump(before, after)
         if link.how != DECLARED:
-            before = samples[link.previous].reindex(columns=sensors[link.previous])
-            after = samples[link.campaign].reindex(columns=sensors[link.campaign])
-            jump = temperature_jump(before, after)
             if not jump <= settings.max_temperature_jump_degC:
                 notes.append(
                     f"{link.campaign} starts {link.gap_s:.0f} s after {link.previous} ends but "
@@ -205,7 +208,8 @@ def find_runs(
                 )
                 continue
         kept.append(link)
-    return build_runs(spans, kept, notes)
+        jumps[link.campaign] = jump
+    return build_runs(spans, kept, notes), jumps
 
 
 def spindle_thermal_error(
@@ -245,11 +249,11 @@ def spindle_thermal_error(
         for cid, rows in samples.groupby("campaign_id", sort=True)
         if cid in meta
     }
-    runs = (
+    runs, jumps = (
         find_runs(campaigns[campaigns["campaign_id"].isin(per_campaign)], per_campaign,
                   settings.runs)
         if per_campaign and axes
-        else []
+        else ([], {})
     )  # fmt: skip
     frames, record = [], {"axes": axes, "runs": [], "campaigns": {}}
     for run in runs:
@@ -260,7 +264,7 @@ def spindle_thermal_error(
             axis_frames, stitched = _axis_frames(axis, run, tables, inputs, meta, settings)
             frames += axis_frames
             stitches += stitched
-        record["runs"].append(_run_record(run, tables, meta, stitches, notes))
+        record["runs"].append(_run_record(run, jumps, stitches, notes))
         for position, cid in enumerate(run.campaigns):
             record["campaigns"][cid] = {
                 "run_id": run.run_id,
@@ -412,13 +416,11 @@ def _campaign_frame(
 
 
 def _run_record(
-    run: Run, tables: _RunTables, meta: Mapping, stitches: list[dict], notes: list[str]
+    run: Run, jumps: Mapping[str, float], stitches: list[dict], notes: list[str]
 ) -> dict:
     links = []
     for link in run.links:
-        before = tables.rows[link.previous].reindex(columns=_sensors(meta[link.previous]))
-        after = tables.rows[link.campaign].reindex(columns=_sensors(meta[link.campaign]))
-        jump = temperature_jump(before, after)
+        jump = jumps[link.campaign]
         links.append({
             "previous": link.previous, "campaign": link.campaign, "how": link.how,
             "gap_s": round(link.gap_s, 1), "contiguous": link.contiguous,
