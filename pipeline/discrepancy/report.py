@@ -84,7 +84,7 @@ def untestable_markdown(doc: Mapping[str, Any]) -> str:
     return "\n".join([
         "# Where the twin and the measurements disagree",
         "",
-        f"**Untestable on these campaigns.** {doc['reason']}.",
+        f"**Untestable on these campaigns.** {doc['reason'][:1].upper()}{doc['reason'][1:]}.",
         "",
         f"Data: {len(doc['campaigns'])} spindle campaign(s) with a Z displacement, {source}; "
         f"sensor roles present: {', '.join(doc['roles_present']) or 'none'}.{quarantined}",
