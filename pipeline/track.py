@@ -67,7 +67,7 @@ from pipeline.paths import (
     VALIDATION_REPORT,
 )
 from pipeline.tracking import identity as ident
-from pipeline.tracking import records
+from pipeline.tracking import records, store
 from schemas.evaluated import CrossSeasonScoresModel
 
 logger = logging.getLogger(__name__)
@@ -372,22 +372,47 @@ def main(argv: list[str] | None = None) -> int:
     prepared = prepare(Path(args.params))
     n_metrics = records.count_metrics([prepared.parent, *prepared.children])
     ready = time.perf_counter()
-
-    from pipeline.tracking import store  # imports mlflow (about 2 s)
-
     uri = resolve_tracking_uri(settings)
+    try:
+        record = _log(prepared, settings, uri, experiment, batch_size)
+    except (store.MlflowException, OSError) as error:
+        raise SystemExit(unreachable_message(uri, error)) from error
+    finished = time.perf_counter()
+    logger.info(
+        "track took %.2f s (reading and hashing %.2f s, MLflow %.2f s)",
+        finished - started,
+        ready - started,
+        finished - ready,
+    )
+    record["metrics"] = n_metrics
+    TRACKING_RECORD.parent.mkdir(parents=True, exist_ok=True)
+    TRACKING_RECORD.write_text(json.dumps(record, indent=2) + "\n", encoding="utf-8")
+    return 0
+
+
+def unreachable_message(uri: str, error: BaseException) -> str:
+    """Return the message of a track stage that could not log: nothing lost, how to log later."""
+    return (
+        f"thermal track: the MLflow tracking store {public_uri(uri)} cannot be used "
+        f"({str(error).strip()[:300]}). Nothing is lost: the scores, reports and champion models "
+        "of this pipeline execution are DVC outputs (reports/, metrics/, data/models/champion/) "
+        "and stay as they are. When the store can be reached (start the server, or fix "
+        "MLFLOW_TRACKING_URI; unset it to log to the local store sqlite:///mlflow.db), run "
+        "'.venv/bin/thermal track' from the repository root, or '.venv/bin/dvc repro', which "
+        "reruns only this stage: the execution is logged once, and a partly logged attempt is "
+        "deleted, not duplicated."
+    )
+
+
+def _log(
+    prepared: Prepared, settings: Mapping[str, Any], uri: str, experiment: str, batch_size: int
+) -> dict[str, Any]:
+    """Log ``prepared`` to the store at ``uri`` unless it is there; return the run record."""
     client = store.make_client(absolute_store_uri(uri))
     artifact_dir = str(settings.get("local_artifact_dir") or DEFAULT_ARTIFACT_DIR)
-    try:
-        experiment_id = store.ensure_experiment(
-            client, experiment, local_artifact_location(uri, artifact_dir, experiment)
-        )
-    except store.MlflowException as error:
-        raise SystemExit(
-            f"thermal track: cannot use the MLflow tracking store {public_uri(uri)} "
-            f"({str(error)[:300]}); start the server or fix MLFLOW_TRACKING_URI, or unset it "
-            "to log to the local store sqlite:///mlflow.db"
-        ) from error
+    experiment_id = store.ensure_experiment(
+        client, experiment, local_artifact_location(uri, artifact_dir, experiment)
+    )
     prefix = str(settings.get("registered_model") or DEFAULT_REGISTERED_MODEL)
     existing = store.find_parent(client, experiment_id, prepared.identity.value)
     if existing is not None:
@@ -403,6 +428,8 @@ def main(argv: list[str] | None = None) -> int:
         names = [registered_name(prefix, axis) for axis in prepared.champions]
         store.restore_champions(client, experiment_id, parent_id, names, "champion")
     else:
+        for deleted in store.discard_incomplete(client, experiment_id, prepared.identity.value):
+            logger.info("deleted the incomplete earlier attempt %s (same run identity)", deleted)
         parent_id = store.log_pipeline(
             client, experiment_id, prepared.parent, prepared.children, artifact_files(),
             batch_size, champion_hook(absolute_store_uri(uri), prefix, prepared.champions),
@@ -411,7 +438,7 @@ def main(argv: list[str] | None = None) -> int:
             "logged parent run %s with %d child runs and %d metrics to experiment '%s' (%s)",
             parent_id,
             len(prepared.children),
-            n_metrics,
+            records.count_metrics([prepared.parent, *prepared.children]),
             experiment,
             public_uri(uri),
         )
@@ -419,14 +446,7 @@ def main(argv: list[str] | None = None) -> int:
     versions = {
         axis: store.champion_version(client, name, "champion") for axis, name in registered.items()
     }
-    finished = time.perf_counter()
-    logger.info(
-        "track took %.2f s (reading and hashing %.2f s, MLflow %.2f s)",
-        finished - started,
-        ready - started,
-        finished - ready,
-    )
-    record = {
+    return {
         "tracking_uri": public_uri(uri),
         "experiment": experiment,
         "experiment_id": experiment_id,
@@ -447,10 +467,6 @@ def main(argv: list[str] | None = None) -> int:
             }
             for axis, name in registered.items()
         },
-        "metrics": n_metrics,
         "git_commit": prepared.git_commit,
         "synthetic": prepared.synthetic,
     }
-    TRACKING_RECORD.parent.mkdir(parents=True, exist_ok=True)
-    TRACKING_RECORD.write_text(json.dumps(record, indent=2) + "\n", encoding="utf-8")
-    return 0

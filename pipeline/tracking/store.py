@@ -128,6 +128,51 @@ def find_parent(client: MlflowClient, experiment_id: str, identity: str) -> Run 
     return runs[0] if runs else None
 
 
+def discard_incomplete(client: MlflowClient, experiment_id: str, identity: str) -> list[str]:
+    """Delete the unfinished attempts at logging the execution tagged with ``identity``.
+
+    An attempt cut off by an unreachable server leaves a parent run that is ``FAILED`` (or still
+    ``RUNNING`` when the connection went before its end status could be set), some of its
+    children and perhaps a registered champion version. Before the execution is logged again,
+    they are deleted (runs are soft-deleted: ``mlflow gc`` purges them), so the store holds the
+    execution once.
+
+    Parameters
+    ----------
+    client : MlflowClient
+        Client of the store.
+    experiment_id : str
+        The experiment the attempts were logged to.
+    identity : str
+        The execution's run identity (tag ``run_identity`` of its parent).
+
+    Returns
+    -------
+    list of str
+        Ids of the parent runs deleted.
+    """
+    parents = client.search_runs(
+        [experiment_id],
+        filter_string=f"tags.{IDENTITY_TAG} = '{identity}' and attributes.status != 'FINISHED'",
+        max_results=1000,
+    )
+    deleted = []
+    for parent in parents:
+        parent_id = parent.info.run_id
+        children = client.search_runs(
+            [experiment_id], filter_string=f"tags.{PARENT_RUN_TAG} = '{parent_id}'",
+            max_results=5000,
+        )  # fmt: skip
+        child_ids = [run.info.run_id for run in children]
+        for child_id in child_ids:
+            for version in client.search_model_versions(f"run_id = '{child_id}'"):
+                client.delete_model_version(version.name, version.version)
+        for run_id in [*child_ids, parent_id]:
+            client.delete_run(run_id)
+        deleted.append(parent_id)
+    return deleted
+
+
 def log_record(client: MlflowClient, run_id: str, record: RunRecord, batch_size: int) -> int:
     """Log a record's params and metrics (tags are set at run creation) in batches.
 
