@@ -348,3 +348,22 @@ def test_plan_interval_is_a_parameter():
     assert plan.sample_counts() == [480] * 5 + [360]
     run = simulate_workshop(plan, seed=1)
     assert np.all(np.diff(run.campaigns[0].temperature["elapsed_s"]) == 60.0)
+
+
+def test_logger_table_holds_the_campaigns_readings_on_one_time_base(tmp_path, raw):
+    path = tmp_path / "logger.csv"
+    assert cli.main(["--preset", "workshop", "--logger-table", str(path), "--hours", "16"]) == 0
+    table = pd.read_csv(path, parse_dates=["timestamp"])
+    assert list(table.columns) == ["timestamp", "rpm", "ch1", "ch2", "ch3",
+                                   *[f"t{i}" for i in range(1, 17)]]  # fmt: skip
+    assert len(table) == 16 * 3600 // 20
+    assert (table["timestamp"].diff().dropna() == pd.Timedelta(seconds=20)).all()
+    second = yaml.safe_load((raw / "W02" / "campaign.yaml").read_text())
+    start = pd.Timestamp(second["start"])
+    rows = table[table["timestamp"] >= start].reset_index(drop=True)
+    temperature = pd.read_csv(raw / "W02" / "temperature.csv")
+    displacement = pd.read_csv(raw / "W02" / "displacement.csv")
+    n = len(rows)
+    np.testing.assert_allclose(rows["t7"], temperature["T7"][:n], atol=1e-4)
+    np.testing.assert_allclose(rows["ch3"], displacement["Z"][:n], atol=1e-4)
+    assert rows["timestamp"].iloc[0] == start

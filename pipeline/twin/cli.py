@@ -10,6 +10,9 @@ Examples
 ``thermal simulate --preset workshop --out DIR --seed 2046``
     one continuous two-day run of a machine cut into six back-to-back campaigns W01-W06
     (16 unnamed sensors, X/Y/Z probes, speed log; :mod:`pipeline.twin.workshop`);
+``thermal simulate --preset workshop --logger-table logger.csv [--hours 24]``
+    the same run as one data logger's wide table (:mod:`pipeline.twin.logger_export`), for
+    ``thermal import logger``;
 ``thermal simulate --list-effects``
     the switchable physical effects.
 """
@@ -21,6 +24,7 @@ import logging
 import sys
 import time
 from datetime import datetime
+from pathlib import Path
 
 from pipeline import paths
 from pipeline.twin.ambient import SEASON_OF_MONTH, season_of
@@ -33,6 +37,7 @@ from pipeline.twin.campaigns import (
 )
 from pipeline.twin.conditions import DEMO_SCATTER
 from pipeline.twin.effects import DEMO_EFFECTS, EFFECTS, check_effects
+from pipeline.twin.logger_export import logger_table, write_logger_table
 from pipeline.twin.workshop import WORKSHOP_EFFECTS, simulate_workshop, workshop_plan
 from pipeline.twin.writer import write_campaign
 
@@ -64,6 +69,15 @@ def _parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--only", default=None, help="demo: comma-separated campaign ids to write")
     p.add_argument("--list-effects", action="store_true", help="list the effects and exit")
+    workshop = p.add_argument_group("workshop run (--preset workshop)")
+    workshop.add_argument(
+        "--logger-table",
+        default=None,
+        help="write the run as one data logger's CSV table to this file instead of campaigns",
+    )
+    workshop.add_argument(
+        "--hours", type=float, default=None, help="--logger-table: only the first HOURS hours"
+    )
     single = p.add_argument_group("single spindle campaign (--preset single)")
     single.add_argument("--id", dest="campaign_id", default="K13")
     single.add_argument("--season", choices=SEASONS, default=None)
@@ -124,12 +138,17 @@ def _plans(args: argparse.Namespace) -> tuple[SpindlePlan | AxisPlan, ...]:
     return tuple(p for p in plans if p.campaign_id in wanted)
 
 
-def _write_workshop(seed: int | None, effects: frozenset[str], out: str) -> int:
-    """Simulate the workshop run and write its campaigns to ``out``; return 0."""
+def _write_workshop(args: argparse.Namespace, effects: frozenset[str]) -> int:
+    """Simulate the workshop run; write its campaigns (or its logger table); return 0."""
     t0 = time.perf_counter()
-    run = simulate_workshop(
-        workshop_plan(), seed=WORKSHOP_SEED if seed is None else seed, effects=effects
-    )
+    seed = WORKSHOP_SEED if args.seed is None else args.seed
+    run = simulate_workshop(workshop_plan(), seed=seed, effects=effects)
+    if args.logger_table is not None:
+        table = logger_table(run, args.hours)
+        write_logger_table(table, Path(args.logger_table))
+        logger.info("workshop run: %d logger rows written to %s", len(table), args.logger_table)
+        return 0
+    out = args.out
     for campaign in run.campaigns:
         write_campaign(campaign, out)
     logger.info(
@@ -158,7 +177,10 @@ def main(argv: list[str] | None = None) -> int:
         sys.stderr.write(f"thermal simulate: {err.args[0] if err.args else err}\n")
         return 2
     if args.preset == "workshop":
-        return _write_workshop(args.seed, effects, args.out)
+        return _write_workshop(args, effects)
+    if args.logger_table is not None or args.hours is not None:
+        sys.stderr.write("thermal simulate: --logger-table and --hours need --preset workshop\n")
+        return 2
     seed = DEFAULT_SEED if args.seed is None else args.seed
     t0 = time.perf_counter()
     for plan in plans:
