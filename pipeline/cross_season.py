@@ -7,7 +7,7 @@ all training campaigns) are defined in :mod:`pipeline.training_units`; scores in
 :mod:`pipeline.scoring`.
 
 Models flagged ``needs_error_feedback`` (they use the measured error's own history) are scored in
-two modes, as ``design.md`` requires: ``one_step`` (each prediction uses the measured error up
+two modes: ``one_step`` (each prediction uses the measured error up
 to the previous sample, as on a machine that measures its error online) and ``free_run`` (their
 own predictions fed back, as on a machine that does not). Other models are scored in mode
 ``static``.

@@ -64,7 +64,7 @@ def read_raw(
     Parameters
     ----------
     raw_dir : Path
-        One sub-folder per campaign (data-contract.md).
+        One sub-folder per campaign (docs/data-contract.md).
     max_alignment_gap_s : float
         As ``params.yaml`` ``ingest.max_alignment_gap_s``.
     validate_params : dict

@@ -1,4 +1,4 @@
-"""Closed vocabularies and column names of the raw campaign contract (``data-contract.md``).
+"""Closed vocabularies and column names of the raw campaign contract (``docs/data-contract.md``).
 
 Every model in :mod:`schemas` and every stage that builds or reads these tables uses these
 names, so a change to the contract is made here once.

@@ -1,4 +1,4 @@
-r"""Write a synthetic campaign in the raw campaign contract (data-contract.md, version 1).
+r"""Write a synthetic campaign in the raw campaign contract (docs/data-contract.md, version 1).
 
 Output is byte-for-byte reproducible: YAML and CSV are written by hand with fixed number
 formats (elapsed_s and minutes to 0.1, temperatures to 4 decimals, displacement and laser
