@@ -1,0 +1,1 @@
+"""Converters from instrument and logger exports to the raw campaign contract."""
