@@ -12,6 +12,7 @@ import sys
 
 COMMANDS = {
     "simulate": ("pipeline.twin.cli", "write synthetic campaigns from the physical twin"),
+    "import": ("pipeline.importers.cli", "a logger's table or laser exports -> campaign folders"),
     "ingest": ("pipeline.ingest", "raw campaign folders -> tidy parquet tables"),
     "validate": ("pipeline.validate", "Pandera checks; quarantine bad campaigns"),
     "separate": ("pipeline.separate", "geometric / thermal error separation"),

@@ -42,3 +42,19 @@ def test_summary_says_what_the_twin_comparison_named(tmp_path, capsys):
     assert main(["summary", "--root", str(tmp_path)]) == 0
     out = capsys.readouterr().out
     assert "named motor_heat; held-out Z 3.64 -> 3.65 um, validation Z 5.37 -> 4.81 um" in out
+
+
+def test_import_lists_its_sources_and_refuses_an_unknown_one(capsys):
+    assert main(["import", "--help"]) == 0
+    out = capsys.readouterr().out
+    assert "logger" in out and "rtl" in out
+    assert main(["import", "csv2000"]) == 2
+    assert "unknown source 'csv2000'" in capsys.readouterr().err
+
+
+def test_import_hands_its_arguments_to_the_importer(tmp_path, capsys):
+    missing = tmp_path / "nothing.rtl"
+    assert main(["import", "rtl", str(missing), "--out", str(tmp_path / "A01"),
+                 "--warmup-min", "0"]) == 2  # fmt: skip
+    assert "nothing.rtl" in capsys.readouterr().err
+    assert not (tmp_path / "A01" / "laser.csv").exists()
