@@ -1,0 +1,1 @@
+"""Converters from measuring instruments' exports to raw campaign folders (data-contract.md)."""
