@@ -324,7 +324,7 @@ def runs_of(out: Path):
     tables, result = ingest_and_validate(out)
     assert result.problems == ()
     spans = spans_from_tables(tables["campaigns"], tables["samples"])
-    links, notes = candidate_links(spans, RunSettings(detect=False))
+    links, notes = candidate_links(spans, RunSettings())  # detection on, as in params.yaml
     return build_runs(spans, links, notes), tables["campaigns"].set_index("campaign_id")
 
 
@@ -385,6 +385,7 @@ def test_a_long_enough_stop_starts_a_new_cold_run(tmp_path):
         ({"time__unit": "hours"}, "time.unit", "s, min, timestamp"),
         ({"table__delimiter": "|"}, "table.delimiter", "one of"),
         ({"campaign__colour": "red"}, "campaign.colour", "use only machine"),
+        ({"probe": {"ch1": "Z"}}, "probe", "at the top level"),
         ({"temperatures__t3__role": "ambient"}, "temperatures.t4.role", "at most one"),
         ({"temperatures__t3__sensor": "T1"}, "temperatures.t3.sensor", "own sensor"),
         ({"ignore_columns": ["ch3", "t5", "t1"]}, "ignore_columns", "remove t1"),
@@ -468,6 +469,18 @@ def test_preamble_and_blank_lines_keep_row_numbers(tmp_path):
     record = read_logger_table(table, load_mapping(mapping))
     assert len(record.elapsed_s) == len(frame)
     assert record.data_rows[3:5].tolist() == [4, 7]
+
+
+def test_short_rows_are_missing_readings(tmp_path):
+    frame = logger_frame()
+    lines = frame.to_csv(index=False).splitlines()
+    lines[4] = lines[4].rsplit(",", 2)[0]  # data row 4 lacks t4 and t5
+    table = tmp_path / "short.csv"
+    table.write_text("\n".join(lines) + "\n")
+    record = read_logger_table(table, load_mapping(write_mapping(tmp_path)))
+    assert np.isnan(record.temperatures["T4"].iloc[3])
+    assert record.temperatures["T4"].isna().sum() == 1
+    assert record.temperatures["T3"].iloc[3] == frame["t3"].iloc[3]
 
 
 def test_units_row_under_the_header_is_skipped(tmp_path):

@@ -175,7 +175,6 @@ def build_campaigns(
                 p.axis: _present({"probe": p.probe, "location": p.location}) for p in mapping.probes
             },
         }
-
         campaigns.append(
             SpindleDriftCampaign(
                 campaign_id=f"{prefix}{number:0{width}d}",

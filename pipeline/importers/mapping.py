@@ -46,6 +46,7 @@ DECIMALS = (".", ",")
 ID_PREFIX_RE = re.compile(r"^[A-Za-z0-9_-]+$")
 SENSOR_NAME_RE = re.compile(r"^[A-Za-z][A-Za-z0-9_]*$")
 
+TOP_LEVEL = "the top level"
 TOP_KEYS = ("table", "time", "speed", "probes", "temperatures", "ignore_columns", "campaign", "cut")
 TABLE_KEYS = (
     "delimiter",
@@ -260,8 +261,8 @@ class _Checker:
         unknown = [str(k) for k in value if str(k) not in allowed]
         if unknown:
             raise self.fail(
-                f"{key}.{unknown[0]}",
-                f"unknown key(s) {unknown} under {key}",
+                f"{key}.{unknown[0]}" if key != TOP_LEVEL else unknown[0],
+                f"unknown key(s) {unknown} {'at' if key == TOP_LEVEL else 'under'} {key}",
                 f"use only {', '.join(allowed)} (check the spelling)",
             )
         return {str(k): v for k, v in value.items()}
@@ -331,7 +332,7 @@ def load_mapping(path: Path) -> LoggerMapping:
             f"mapping file {path} cannot be read as YAML{where}: {error}; fix the syntax there "
             '(quote values such as "," or ";")'
         ) from None
-    top = check.section(content if content is not None else {}, "(top level)", TOP_KEYS)
+    top = check.section(content if content is not None else {}, TOP_LEVEL, TOP_KEYS)
     for required in ("time", "speed", "probes", "temperatures", "campaign"):
         if top.get(required) is None:
             raise check.fail(
