@@ -60,17 +60,23 @@ def summary_lines(root: Path) -> list[str]:
     if discrepancy.is_file():
         doc = json.loads(discrepancy.read_text())
         val = doc.get("validation") or {}
-        lines.append(
-            f"  twin vs data     {paths.DISCREPANCY}/discrepancy.md: named "
-            f"{', '.join(doc['named_effects']) or 'nothing'}; held-out Z "
-            f"{_um(doc['rmse_um_before'])} -> {_um(doc['rmse_um_after'])} um"
-            + (
-                f", validation Z {_um(val.get('rmse_um_before'))} -> "
-                f"{_um(val.get('rmse_um_after'))} um"
-                if val
-                else ""
+        if doc.get("status") == "untestable":
+            lines.append(
+                f"  twin vs data     {paths.DISCREPANCY}/discrepancy.md: untestable "
+                f"({doc.get('reason', 'no reason given')})"
             )
-        )
+        else:
+            lines.append(
+                f"  twin vs data     {paths.DISCREPANCY}/discrepancy.md: named "
+                f"{', '.join(doc['named_effects']) or 'nothing'}; held-out Z "
+                f"{_um(doc['rmse_um_before'])} -> {_um(doc['rmse_um_after'])} um"
+                + (
+                    f", validation Z {_um(val.get('rmse_um_before'))} -> "
+                    f"{_um(val.get('rmse_um_after'))} um"
+                    if val
+                    else ""
+                )
+            )
     lines += [
         f"  comparison       {paths.MODEL_COMPARISON} (every model, scores, heat-maps, plots)",
         f"  selection        {paths.SELECTION}/ (sensitive points, evidence, stability)",

@@ -58,3 +58,11 @@ def test_import_hands_its_arguments_to_the_importer(tmp_path, capsys):
                  "--warmup-min", "0"]) == 2  # fmt: skip
     assert "nothing.rtl" in capsys.readouterr().err
     assert not (tmp_path / "A01" / "laser.csv").exists()
+
+
+def test_summary_says_why_the_twin_comparison_was_untestable(tmp_path, capsys):
+    doc = {"status": "untestable", "reason": "no sensor has a structure role"}
+    (tmp_path / "reports" / "discrepancy").mkdir(parents=True)
+    (tmp_path / "reports" / "discrepancy" / "discrepancy.json").write_text(json.dumps(doc))
+    assert main(["summary", "--root", str(tmp_path)]) == 0
+    assert "untestable (no sensor has a structure role)" in capsys.readouterr().out
