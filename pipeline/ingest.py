@@ -15,6 +15,7 @@ import pandas as pd
 
 from pipeline import paths
 from pipeline.config import load_section
+from pipeline.errors import MissingInputError
 from pipeline.raw_reader import Problem, RawCampaign, problems_frame, read_campaign
 
 LOGGER = logging.getLogger(__name__)
@@ -23,7 +24,7 @@ LOGGER = logging.getLogger(__name__)
 def campaign_folders(raw_dir: Path) -> list[Path]:
     """Campaign folders under ``raw_dir``, sorted by name (hidden entries ignored)."""
     if not raw_dir.is_dir():
-        raise FileNotFoundError(
+        raise MissingInputError(
             f"raw campaign folder {raw_dir} does not exist; put one folder per campaign there "
             "(see data-contract.md) or generate the demo set with "
             "'thermal simulate --preset demo --out data/raw'"
