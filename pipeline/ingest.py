@@ -17,6 +17,7 @@ from pipeline import paths
 from pipeline.config import load_section
 from pipeline.errors import MissingInputError
 from pipeline.raw_reader import Problem, RawCampaign, problems_frame, read_campaign
+from schemas import CampaignsModel
 
 LOGGER = logging.getLogger(__name__)
 
@@ -52,9 +53,12 @@ def ingest(raw_dir: Path, max_alignment_gap_s: float) -> dict[str, pd.DataFrame]
 
 
 def tabulate(campaigns: list[RawCampaign]) -> dict[str, pd.DataFrame]:
-    """Concatenate per-campaign reads into the ingested tables."""
+    """Concatenate per-campaign reads into the ingested tables (all columns even when empty)."""
     problems: list[Problem] = [p for c in campaigns for p in c.problems]
-    metadata = pd.DataFrame([c.metadata for c in campaigns if c.metadata is not None])
+    metadata = pd.DataFrame(
+        [c.metadata for c in campaigns if c.metadata is not None],
+        columns=list(CampaignsModel.to_schema().columns),
+    )
     samples = [c.samples for c in campaigns if c.samples is not None and len(c.samples)]
     laser = [c.laser for c in campaigns if c.laser is not None]
     return {

@@ -59,11 +59,15 @@ def read_text(path: Path, report: Report) -> str | None:
         report(path.name, None, None, "binary_file", found=found)
         return None
     try:
-        return data.decode("utf-8-sig")
+        text = data.decode("utf-8-sig")
     except UnicodeDecodeError as error:
         line = data[: error.start].count(b"\n") + 1
         report(path.name, None, None, "not_utf8", byte=f"0x{data[error.start]:02x}", line=line)
         return None
+    if not text.strip():
+        report(path.name, None, None, "empty_file", size=f"{len(data)} bytes, no text")
+        return None
+    return text
 
 
 def binary_kind(data: bytes) -> str | None:
@@ -104,9 +108,7 @@ def read_csv_cells(path: Path, report: Report) -> pd.DataFrame | None:
     try:
         rows = [[cell.strip() for cell in row] for row in reader if not _blank(row)]
     except csv.Error as error:
-        report(path.name, None, None, "unreadable_csv",
-               f"{path.name} cannot be split into cells near line {reader.line_num}: {error}",
-               "save it as comma-separated UTF-8 with one header row")  # fmt: skip
+        report(path.name, None, None, "unreadable_csv", line=reader.line_num, error=error)
         return None
     header, body = rows[0], rows[1:]
     if any(";" in name for name in header):

@@ -21,6 +21,7 @@ import pandas as pd
 import yaml
 
 from pipeline.raw_files import Report, read_text
+from schemas.vocabulary import SAMPLE_BASE_COLUMNS
 
 CONTRACT_FILES = {
     "spindle_drift": ("temperature.csv", "displacement.csv"),
@@ -60,8 +61,9 @@ def read_metadata(path: Path, report: Report) -> dict[str, Any] | None:
     except yaml.YAMLError as error:
         mark = getattr(error, "context_mark", None) or getattr(error, "problem_mark", None)
         row = None if mark is None else mark.line + 1
-        report(path.name, row, None, "unreadable_yaml", f"campaign.yaml cannot be parsed: {error}",
-               "fix the YAML syntax at the line given")  # fmt: skip
+        parts = (getattr(error, "context", None), getattr(error, "problem", None))
+        detail = "; ".join(p for p in parts if p) or " ".join(str(error).split())
+        report(path.name, row, None, "unreadable_yaml", error=detail)
         return None
     if not isinstance(content, dict):
         report(path.name, None, None, "unreadable_yaml", "campaign.yaml is not a mapping",
@@ -95,14 +97,10 @@ def campaign_row(folder: Path, meta: dict[str, Any], report: Report) -> dict[str
     _check_campaign_id(campaign_id, meta.get("campaign_id"), report)
     kind = "" if meta.get("kind") is None else str(meta["kind"])
     if kind and kind not in CONTRACT_FILES:
-        report("campaign.yaml", None, "kind", "unknown_kind",
-               f"kind '{kind}' is not one of {sorted(CONTRACT_FILES)}",
-               "set kind: spindle_drift or kind: axis_positioning")  # fmt: skip
+        report("campaign.yaml", None, "kind", "unknown_kind", value=repr(kind))
     start = parse_start(meta.get("start"))
     if meta.get("start") is not None and pd.isna(start):
-        report("campaign.yaml", None, "start", "bad_start",
-               f"start '{meta.get('start')}' is not an ISO 8601 date-time",
-               "write start: YYYY-MM-DDTHH:MM:SS (local time of the first sample)")  # fmt: skip
+        report("campaign.yaml", None, "start", "bad_start", value=repr(meta.get("start")))
     season = meta.get("season")
     season_derived = season is None
     if season_derived:
@@ -123,7 +121,7 @@ def campaign_row(folder: Path, meta: dict[str, Any], report: Report) -> dict[str
         "axis_name": None if axis.get("name") is None else str(axis["name"]),
         "stroke_mm": _stroke(axis, report),
         "sensors_json": to_json(sensors),
-        "displacement_json": to_json(_typed(meta, "displacement", dict, MAPPING, report) or {}),
+        "displacement_json": to_json(_displacement(meta, report)),
         "spindle_program_json": to_json(
             _typed(meta, "spindle_program", list, PROGRAM, report) or []
         ),
@@ -170,9 +168,7 @@ def _check_campaign_id(campaign_id: str, declared: Any, report: Report) -> None:
     if not ID_RE.match(str(declared)):
         report("campaign.yaml", None, "campaign_id", "campaign_id_unsafe", value=repr(declared))
     elif str(declared) != campaign_id:
-        report("campaign.yaml", None, "campaign_id", "campaign_id_mismatch",
-               f"campaign_id '{declared}' differs from the folder name '{campaign_id}'",
-               f"set campaign_id: {campaign_id} or rename the folder")  # fmt: skip
+        report("campaign.yaml", None, "campaign_id", "campaign_id_mismatch", value=repr(declared))
 
 
 def _typed(meta: dict[str, Any], key: str, kind: type, expected: str, report: Report) -> Any:
@@ -198,18 +194,30 @@ def _sensors(meta: dict[str, Any], report: Report) -> dict[str, Any]:
     if sensors is None:
         return {}
     if not sensors:
-        report("campaign.yaml", None, "sensors", "no_sensors",
-               "campaign.yaml declares no temperature sensors",
-               "list every temperature.csv column under sensors: with its role")  # fmt: skip
-    out = {}
-    for name, spec in sensors.items():
-        if spec is not None and not isinstance(spec, dict):
-            report("campaign.yaml", None, f"sensors.{name}", "wrong_type",
-                   expected="a mapping such as {role: bed, type: DS18B20}",
-                   found=_describe(spec))  # fmt: skip
-            spec = None
-        out[str(name)] = spec or {}
+        report("campaign.yaml", None, "sensors", "no_sensors")
+    out = _entries(sensors, "sensors", "a mapping such as {role: bed, type: DS18B20}", report)
+    for name in [n for n in out if n in SAMPLE_BASE_COLUMNS or n.startswith("disp_")]:
+        report("campaign.yaml", None, f"sensors.{name}", "reserved_column", name=name)
+        del out[name]
     return out
+
+
+def _entries(mapping: dict, key: str, expected: str, report: Report) -> dict[str, dict]:
+    """Return ``{name: entry}`` with text names; an entry that is not a mapping is reported."""
+    out = {}
+    for name, entry in mapping.items():
+        if entry is not None and not isinstance(entry, dict):
+            report("campaign.yaml", None, f"{key}.{name}", "wrong_type", expected=expected,
+                   found=_describe(entry))  # fmt: skip
+            entry = None
+        out[str(name)] = entry or {}
+    return out
+
+
+def _displacement(meta: dict[str, Any], report: Report) -> dict[str, Any]:
+    """Return the displacement axes ``{axis: {probe, ...}}`` (names as text)."""
+    axes = _typed(meta, "displacement", dict, MAPPING, report) or {}
+    return _entries(axes, "displacement", "a mapping such as {probe: eddy_current}", report)
 
 
 def _stroke(axis: dict[str, Any], report: Report) -> float:

@@ -23,12 +23,12 @@ import pandas as pd
 from pipeline.raw_files import MAX_REPORTED_ROWS, Report, read_csv_cells
 from pipeline.raw_metadata import CONTRACT_FILES, campaign_row, read_metadata
 from pipeline.validation.texts import word
-from schemas.vocabulary import is_displacement_name
+from schemas.vocabulary import SAMPLE_BASE_COLUMNS, is_displacement_name
 
 LOGGER = logging.getLogger(__name__)
 
 LASER_COLUMNS = ("elapsed_min", "run", "direction", "target_mm", "deviation_um")
-RESERVED_COLUMNS = frozenset({"campaign_id", "source_row", "elapsed_s", "rpm"})
+RESERVED_COLUMNS = frozenset(SAMPLE_BASE_COLUMNS)
 
 
 @dataclass(frozen=True)
@@ -109,9 +109,7 @@ def read_campaign(folder: Path, max_alignment_gap_s: float) -> RawCampaign:
     kind = result.metadata["kind"]
     for name in CONTRACT_FILES.get(kind, ("temperature.csv",)):
         if not (folder / name).is_file():
-            report(name, None, None, "missing_file",
-                   f"{name} is missing; a {kind} campaign needs it",
-                   f"add {folder / name} in the raw contract format")  # fmt: skip
+            report(name, None, None, "missing_file", kind=kind)
 
     temperature = _read_numeric_csv(folder / "temperature.csv", report, _reserved_temperature)
     if temperature is None:
@@ -189,25 +187,20 @@ def _read_numeric_csv(path: Path, report: Report, reserved: Callable[[str], bool
     if text is None:
         return None
     if "elapsed_s" not in text.columns:
-        report(path.name, None, "elapsed_s", "missing_column",
-               f"{path.name} has no elapsed_s column (header: {list(text.columns)})",
-               "make elapsed_s (seconds since start) the first column")  # fmt: skip
+        report(path.name, None, "elapsed_s", "missing_column", header=",".join(text.columns),
+               expected="elapsed_s (seconds since start:) as the first column")  # fmt: skip
         return None
     frame = pd.DataFrame({"source_row": np.arange(1, len(text) + 1, dtype=np.int64)})
     for column in text.columns:
         if column != "elapsed_s" and reserved(column):
-            report(path.name, None, column, "reserved_column",
-                   f"{path.name} column name '{column}' is reserved by the pipeline",
-                   f"rename the column in {path.name} (and in campaign.yaml)")  # fmt: skip
+            report(path.name, None, column, "reserved_column", name=column)
             continue
         frame[column] = _numbers(text[column], path.name, column, report)
     others = [c for c in frame.columns if c not in ("source_row", "elapsed_s")]
     return frame.loc[:, ["source_row", "elapsed_s", *others]]
 
 
-def _numbers(cells: pd.Series, file: str, column: str, report: Report,
-             action: str = "write a number, or leave the cell empty for a missing reading"
-             ) -> np.ndarray:  # fmt: skip
+def _numbers(cells: pd.Series, file: str, column: str, report: Report) -> np.ndarray:
     """Return the numbers of a column of text cells (float64; empty and bad cells NaN).
 
     A cell that is not a number is reported as ``not_a_number``, an infinite one (``inf``,
@@ -216,8 +209,7 @@ def _numbers(cells: pd.Series, file: str, column: str, report: Report,
     empty = (cells == "").to_numpy()
     values = pd.to_numeric(cells.to_numpy(dtype=object), errors="coerce").astype(np.float64)
     for index in np.flatnonzero(np.isnan(values) & ~empty)[:MAX_REPORTED_ROWS]:
-        report(file, int(index) + 1, column, "not_a_number",
-               f"'{cells.iloc[index]}' is not a number", action)  # fmt: skip
+        report(file, int(index) + 1, column, "not_a_number", value=repr(cells.iloc[index]))
     infinite = np.isinf(values)
     for index in np.flatnonzero(infinite)[:MAX_REPORTED_ROWS]:
         report(file, int(index) + 1, column, "not_finite", value=repr(cells.iloc[index]))
@@ -229,9 +221,8 @@ def _speed(folder: Path, meta: dict[str, Any], elapsed_s: pd.Series, report) -> 
     """Spindle speed (rpm) at each instant: the measured log if present, else the program."""
     log = _read_numeric_csv(folder / "spindle.csv", report, _reserved_other)
     if log is not None and "rpm" not in log.columns:
-        report("spindle.csv", None, "rpm", "missing_column",
-               f"spindle.csv has no rpm column (header: {list(log.columns)[1:]})",
-               "write the header elapsed_s,rpm")  # fmt: skip
+        report("spindle.csv", None, "rpm", "missing_column", header=",".join(log.columns[1:]),
+               expected="the header elapsed_s,rpm")  # fmt: skip
     elif log is not None:
         order = np.argsort(log["elapsed_s"].to_numpy(), kind="stable")
         times = log["elapsed_s"].to_numpy()[order]
@@ -245,10 +236,11 @@ def _speed(folder: Path, meta: dict[str, Any], elapsed_s: pd.Series, report) -> 
             begin = float(segment["from_min"])
             end = float(segment.get("to_min", np.inf))
             rpm = float(segment["rpm"])
+            if not (np.isfinite(begin) and np.isfinite(rpm)):
+                raise ValueError("not finite")
         except (AttributeError, KeyError, TypeError, ValueError):
-            report("campaign.yaml", number, "spindle_program", "bad_spindle_program",
-                   f"spindle_program entry {number} ({segment}) lacks a numeric from_min or rpm",
-                   "write entries as {from_min: 0, to_min: 240, rpm: 4000}")  # fmt: skip
+            report("campaign.yaml", None, "spindle_program", "bad_spindle_program",
+                   number=number, entry=segment)  # fmt: skip
             continue
         speed[(minutes >= begin) & (minutes < end)] = rpm
     return speed
@@ -270,14 +262,7 @@ def _align_displacement(samples: pd.DataFrame, displacement: pd.DataFrame, max_g
     times = displacement["elapsed_s"].to_numpy()
     if np.any(np.diff(times) <= 0):
         row = int(displacement["source_row"].iloc[int(np.flatnonzero(np.diff(times) <= 0)[0]) + 1])
-        report(
-            "displacement.csv",
-            row,
-            "elapsed_s",
-            "time_not_increasing",
-            "elapsed_s is not strictly increasing",
-            "sort the rows by time, remove duplicates",
-        )
+        report("displacement.csv", row, "elapsed_s", "time_not_increasing")
     order = np.argsort(times, kind="stable")
     times, rows = times[order], displacement["source_row"].to_numpy()[order]
     target = samples["elapsed_s"].to_numpy()
@@ -286,15 +271,7 @@ def _align_displacement(samples: pd.DataFrame, displacement: pd.DataFrame, max_g
     aligned = samples.copy()
     for axis in [c for c in displacement.columns if c not in ("elapsed_s", "source_row")]:
         if not is_displacement_name(axis):
-            report(
-                "displacement.csv",
-                None,
-                axis,
-                "unknown_axis",
-                f"displacement column '{axis}' is not an axis name (X, Y, Z, or letters and "
-                "digits starting with a letter, e.g. Z2)",
-                "name displacement columns X, Y, Z (or e.g. Z2) as declared under displacement:",
-            )
+            report("displacement.csv", None, axis, "unknown_axis")
             continue
         values = displacement[axis].to_numpy()[order]
         valid = ~np.isnan(values)
@@ -331,17 +308,16 @@ def _read_laser(path: Path, campaign_id: str, report) -> pd.DataFrame | None:
         return None
     missing = [c for c in LASER_COLUMNS if c not in text.columns]
     if missing:
+        expected = "the header " + ",".join(LASER_COLUMNS)
         report(path.name, None, ",".join(missing), "missing_column",
-               f"laser.csv lacks columns {missing} (header: {list(text.columns)})",
-               f"write the header {','.join(LASER_COLUMNS)}")  # fmt: skip
+               header=",".join(text.columns), expected=expected)  # fmt: skip
         return None
     frame = pd.DataFrame({
         "campaign_id": campaign_id,
         "source_row": np.arange(1, len(text) + 1, dtype=np.int64),
     })  # fmt: skip
-    action = "every laser.csv cell must hold a number (direction: + or -)"
     for column in ("elapsed_min", "target_mm", "deviation_um"):
-        frame[column] = _numbers(text[column], path.name, column, report, action)
+        frame[column] = _numbers(text[column], path.name, column, report)
     frame["run"] = _run_numbers(text["run"], path.name, report)
     frame["direction"] = text["direction"].where(text["direction"] != "")
     return frame.loc[:, ["campaign_id", "source_row", *LASER_COLUMNS]]

@@ -234,6 +234,14 @@ def axis_as_text(raw: Path) -> None:
     edit_yaml(axis(raw) / "campaign.yaml", lambda meta: meta.__setitem__("axis", "Y"))
 
 
+def sensor_named_rpm(raw: Path) -> None:
+    yaml_of(raw, lambda meta: meta["sensors"].__setitem__("rpm", {"role": "other"}))
+
+
+def spindle_log(content: bytes) -> Callable[[Path], None]:
+    return lambda raw: (spindle(raw) / "spindle.csv").write_bytes(content)
+
+
 # --------------------------------------------------------------------------- the corpus
 
 
@@ -268,12 +276,12 @@ CASES = [
         T,
         None,
         "T2",
-    ),  # fmt: skip
+    ),
     Case("11_unknown_column", extra_column, "unknown_temperature_column", T, None, "T9"),
     Case("12_semicolons", semicolons, "semicolon_separated", T, None, None, subprocess=True),
     Case(
         "13_empty_file", lambda raw: temperature(raw).write_bytes(b""), "empty_file", T, None, None
-    ),  # fmt: skip
+    ),
     Case("14_header_only", header_only(T), "no_data_rows", T, None, None),
     Case("14_header_only_displacement", header_only(D), "no_data_rows", D, None, None),
     Case("15_malformed_yaml", malformed_yaml, "unreadable_yaml", Y, 2, None, subprocess=True),
@@ -287,7 +295,7 @@ CASES = [
         Y,
         None,
         "campaign_id",
-    ),  # fmt: skip
+    ),
     Case(
         "18_campaign_id_other",
         set_key("campaign_id", "B02"),
@@ -295,17 +303,17 @@ CASES = [
         Y,
         None,
         "campaign_id",
-    ),  # fmt: skip
+    ),
     Case("19_unknown_role", unknown_role, "sensor_role_known", Y, None, "sensors.T2.role"),
     Case("20_empty_row", empty_row, "missing_value", T, 20, "elapsed_s"),
     Case("20_empty_time", cell(T, 20, "elapsed_s", ""), "missing_value", T, 20, "elapsed_s"),
     Case(
         "21_inf_temperature", cell(T, 12, "T2", "inf"), "not_finite", T, 12, "T2", subprocess=True
-    ),  # fmt: skip
+    ),
     Case("21_inf_displacement", cell(D, 12, "Z", "-inf"), "not_finite", D, 12, "Z"),
     Case(
         "21_inf_laser", cell(L, 3, "deviation_um", "inf", axis), "not_finite", L, 3, "deviation_um"
-    ),  # fmt: skip
+    ),
     Case("22_huge_temperature", cell(T, 12, "T2", "1e308"), "temperature_range", T, 12, "T2"),
     Case("22_huge_displacement", cell(D, 12, "Z", "1e308"), "displacement_range", D, 12, "Z"),
     Case(
@@ -315,7 +323,7 @@ CASES = [
         L,
         3,
         "deviation_um",
-    ),  # fmt: skip
+    ),
     Case("23_text_in_number", cell(T, 12, "T2", "ERR"), "not_a_number", T, 12, "T2"),
     Case("24_one_row", one_row, "too_few_samples", T, None, None),
     Case("25_no_campaign_yaml", no_yaml, "missing_file", Y, None, None),
@@ -324,11 +332,9 @@ CASES = [
     Case("27_laser_direction_empty", empty_direction, "missing_value", L, 7, "direction"),
     Case(
         "27_laser_pass_one_direction", one_direction_pass, "laser_bidirectional", L, 11, "direction"
-    ),  # fmt: skip
+    ),
     Case("28_laser_run_empty", cell(L, 3, "run", "", axis), "laser_run_number", L, 3, "run"),
-    Case(
-        "28_laser_run_fraction", cell(L, 3, "run", "2.5", axis), "laser_run_number", L, 3, "run"
-    ),  # fmt: skip
+    Case("28_laser_run_fraction", cell(L, 3, "run", "2.5", axis), "laser_run_number", L, 3, "run"),
     Case(
         "28_laser_run_of_other_pass",
         cell(L, 3, "run", "5", axis),
@@ -336,7 +342,7 @@ CASES = [
         L,
         3,
         "elapsed_min",
-    ),  # fmt: skip
+    ),
     # shapes that used to raise inside ingest
     Case("yaml_is_a_list", yaml_list, "unreadable_yaml", Y, None, None),
     Case("sensors_as_list", set_key("sensors", ["T1", "T2"]), "wrong_type", Y, None, "sensors"),
@@ -347,15 +353,45 @@ CASES = [
         Y,
         None,
         "spindle_program",
-    ),  # fmt: skip
+    ),
     Case("axis_as_text", axis_as_text, "wrong_type", Y, None, "axis"),
     Case("mixed_key_types", mixed_axis_keys, "displacement_axis_known", Y, None, "displacement"),
-    Case(
-        "reserved_rpm_column", reserved_rpm, "reserved_column", T, None, "rpm", subprocess=True
-    ),  # fmt: skip
+    Case("reserved_rpm_column", reserved_rpm, "reserved_column", T, None, "rpm", subprocess=True),
     Case("row_with_extra_cell", extra_cell, "field_count", T, 10, None),
     Case("column_twice", duplicate_column, "duplicate_column", T, None, "T2"),
     Case("latin1_text", latin1, "not_utf8", T, None, None),
+    Case(
+        "bom_and_nothing_else",
+        lambda raw: temperature(raw).write_bytes(b"\xef\xbb\xbf"),
+        "empty_file",
+        T,
+        None,
+        None,
+    ),
+    Case("sensor_named_rpm", sensor_named_rpm, "reserved_column", Y, None, "sensors.rpm"),
+    Case(
+        "spindle_log_binary", spindle_log(b"\x00\x01\x02"), "binary_file", "spindle.csv", None, None
+    ),
+    Case(
+        "spindle_log_without_rpm",
+        spindle_log(b"elapsed_s,speed\n0,4000\n"),
+        "missing_column",
+        "spindle.csv",
+        None,
+        "rpm",
+    ),
+    Case(
+        "spindle_program_nan_rpm",
+        set_key("spindle_program", [{"from_min": 0, "rpm": np.nan}]),
+        "bad_spindle_program",
+        Y,
+        None,
+        "spindle_program",
+    ),
+    Case("laser_run_inf", cell(L, 2, "run", "inf", axis), "laser_run_number", L, 2, "run"),
+    Case(
+        "displacement_time_empty", cell(D, 5, "elapsed_s", ""), "missing_value", D, 5, "elapsed_s"
+    ),
 ]
 
 
@@ -382,13 +418,19 @@ def raw_hashes(root: Path) -> dict[str, str]:
     }
 
 
+def thermal(root: Path, command: str) -> subprocess.CompletedProcess:
+    """Run ``thermal <command>`` in ``root`` with the virtual environment's bin on PATH."""
+    env = {**os.environ, "PATH": f"{BIN}{os.pathsep}{os.environ.get('PATH', '')}"}
+    return subprocess.run(
+        ["thermal", command], cwd=root, env=env, capture_output=True, text=True, timeout=300
+    )
+
+
 def run_stages(root: Path, monkeypatch, as_subprocess: bool) -> dict:
     """Run ingest then validate in ``root``; return reports/validation.json."""
     if as_subprocess:
-        env = {**os.environ, "PATH": f"{BIN}{os.pathsep}{os.environ.get('PATH', '')}"}
         for command in ("ingest", "validate"):
-            done = subprocess.run(["thermal", command], cwd=root, env=env, capture_output=True,
-                                  text=True, timeout=300)  # fmt: skip
+            done = thermal(root, command)
             assert "Traceback" not in done.stderr, done.stderr
             assert done.returncode == 0, done.stderr
     else:
@@ -487,23 +529,25 @@ def test_yaml_dates_and_non_text_values_are_read(workdir: Path, monkeypatch):
     assert report["problems"] == []
 
 
-def test_every_plausibility_and_ingest_check_has_a_text():
-    expected = {c.check for c in CASES} | set(PLAUSIBILITY_CHECKS)
-    legacy_ingest = {
-        "missing_file",
-        "unreadable_yaml",
-        "campaign_id_mismatch",
-        "not_a_number",
-        "reserved_column",
-    }  # fmt: skip (ingest words these itself)
-    assert expected - legacy_ingest - set(PROBLEM_TEXTS) == set()
+def test_every_plausibility_check_has_a_text():
+    # ingest's checks are covered by each case: their texts are never the fallback
+    assert set(PLAUSIBILITY_CHECKS) - set(PROBLEM_TEXTS) == set()
 
 
 def test_a_missing_raw_folder_is_a_message_not_a_traceback(tmp_path: Path):
     shutil.copy(REPO / "params.yaml", tmp_path / "params.yaml")
-    env = {**os.environ, "PATH": f"{BIN}{os.pathsep}{os.environ.get('PATH', '')}"}
-    done = subprocess.run(["thermal", "ingest"], cwd=tmp_path, env=env, capture_output=True,
-                          text=True, timeout=300)  # fmt: skip
+    done = thermal(tmp_path, "ingest")
     assert done.returncode == 1
     assert "Traceback" not in done.stderr
     assert "data/raw does not exist" in done.stderr and "thermal simulate" in done.stderr
+
+
+def test_a_folder_of_bad_campaigns_only_fails_validate_with_a_message(tmp_path: Path):
+    shutil.copy(REPO / "params.yaml", tmp_path / "params.yaml")
+    random_bytes(tmp_path / paths.RAW)
+    runs = [thermal(tmp_path, command) for command in ("ingest", "validate")]
+    assert [r.returncode for r in runs] == [0, 1]
+    assert all("Traceback" not in r.stderr for r in runs)
+    assert "no valid campaign" in runs[1].stderr and "B01" in runs[1].stderr
+    report = json.loads((tmp_path / paths.VALIDATION_REPORT).read_text())
+    assert report["summary"] == {"campaigns": 1, "valid": [], "quarantined": [BAD]}

@@ -344,6 +344,80 @@ PROBLEM_TEXTS: dict[str, ProblemText] = {
         collapse=True,
     ),
     # ---- ingest: reading the raw files (pipeline.raw_files, pipeline.raw_reader)
+    "missing_file": ProblemText(
+        "{campaign}/{file} is missing; a {kind} campaign needs it",
+        "add {campaign}/{file} in the raw contract format (" + CONTRACT + "), or correct kind: "
+        f"in {{campaign}}/campaign.yaml, {RERUN}",
+        row_level=False,
+    ),
+    "unreadable_yaml": ProblemText(
+        "{where} cannot be parsed as YAML: {error}",
+        "fix the YAML syntax of {campaign}/campaign.yaml at the line given (indentation, "
+        f"unclosed brackets or quotes), {RERUN}",
+    ),
+    "unreadable_csv": ProblemText(
+        "{campaign}/{file} cannot be split into cells near line {line}: {error}",
+        f"save {{campaign}}/{{file}} again as {CSV_EXPORT}, {RERUN}",
+        row_level=False,
+    ),
+    "missing_column": ProblemText(
+        "{campaign}/{file} has no column {column} (header: {header})",
+        f"write {{expected}} in {{campaign}}/{{file}}, {RERUN}",
+        row_level=False,
+    ),
+    "reserved_column": ProblemText(
+        "the name {name} in {campaign}/{file} is reserved by the pipeline "
+        "(campaign_id, source_row, elapsed_s, rpm and disp_* name its own columns)",
+        "rename the sensor or column {name} in campaign.yaml and the CSV file of "
+        f"{{campaign}}, {RERUN}",
+        row_level=False,
+    ),
+    "not_a_number": ProblemText(
+        "{column} holds {value} at {where}, which is not a number",
+        "write a number with '.' as the decimal point, or leave the cell empty for a missing "
+        f"reading, in {{campaign}}/{{file}} {{rows}}, {RERUN}",
+    ),
+    "time_not_increasing": ProblemText(
+        "elapsed_s does not increase at {where}",
+        f"sort the rows of {{campaign}}/{{file}} by time and remove duplicated instants, {RERUN}",
+    ),
+    "unknown_axis": ProblemText(
+        "displacement column {column} of {campaign}/{file} is not an axis name (X, Y, Z, or "
+        "letters and digits starting with a letter, e.g. Z2)",
+        "name the displacement columns of {campaign}/{file} as declared under displacement: in "
+        f"campaign.yaml (X, Y, Z or e.g. Z2), {RERUN}",
+        row_level=False,
+    ),
+    "campaign_id_mismatch": ProblemText(
+        "campaign_id {value} in {campaign}/campaign.yaml differs from the folder name {campaign}",
+        "set campaign_id: {campaign} in {campaign}/campaign.yaml, or rename the folder to the "
+        f"id, {RERUN}",
+        row_level=False,
+    ),
+    "unknown_kind": ProblemText(
+        "kind {value} in {campaign}/campaign.yaml is not spindle_drift or axis_positioning",
+        f"set kind: spindle_drift or kind: axis_positioning in {{campaign}}/campaign.yaml, {RERUN}",
+        row_level=False,
+    ),
+    "bad_start": ProblemText(
+        "start {value} in {campaign}/campaign.yaml is not an ISO 8601 date-time",
+        "write start: YYYY-MM-DDTHH:MM:SS (local time of the first sample) in "
+        f"{{campaign}}/campaign.yaml, {RERUN}",
+        row_level=False,
+    ),
+    "no_sensors": ProblemText(
+        "{campaign}/campaign.yaml declares no temperature sensor under sensors:",
+        "list every temperature.csv column under sensors: with its role in "
+        f"{{campaign}}/campaign.yaml, {RERUN}",
+        row_level=False,
+    ),
+    "bad_spindle_program": ProblemText(
+        "spindle_program entry {number} in {campaign}/campaign.yaml ({entry}) lacks a finite "
+        "numeric from_min or rpm",
+        "write the entries of spindle_program: as {{from_min: 0, to_min: 240, rpm: 4000}} in "
+        f"{{campaign}}/campaign.yaml, {RERUN}",
+        row_level=False,
+    ),
     "empty_file": ProblemText(
         "{campaign}/{file} is empty ({size})",
         "copy {file} of the campaign again from the logger or the instrument ("
@@ -367,8 +441,8 @@ PROBLEM_TEXTS: dict[str, ProblemText] = {
         "{campaign}/{file} is separated by ';' (header {header}), with decimal commas if any: "
         "a spreadsheet export with a European list separator; the contract is comma-separated "
         "with decimal points",
-        f"export {{campaign}}/{{file}} again as {CSV_EXPORT}, with ',' between the cells and '.' "
-        f"as the decimal point (do not edit the numbers by hand), {RERUN}",
+        f"export {{campaign}}/{{file}} again as {CSV_EXPORT} rather than editing the numbers by "
+        f"hand, {RERUN}",
         row_level=False,
     ),
     "no_data_rows": ProblemText(
