@@ -5,7 +5,9 @@ The contract (``data-contract.md``) is a public interface: ``campaign.yaml`` plu
 ``spindle.csv`` and ``laser.csv`` (axis positioning). Reading never fails on bad content: every
 problem found becomes a :class:`Problem` naming the file, row and column, and the rest of the
 campaign is still read, so that the validation stage can report all problems of a campaign at once.
-Raw files are only ever opened for reading.
+Raw files are only ever opened for reading. Files are opened and split into cells by
+:mod:`pipeline.raw_files`, ``campaign.yaml`` is read by :mod:`pipeline.raw_metadata`; the texts of
+the problems are those of :mod:`pipeline.validation.texts`.
 """
 
 from __future__ import annotations
