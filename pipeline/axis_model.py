@@ -45,6 +45,7 @@ import pandas as pd
 from numpy.polynomial import Polynomial
 from statsmodels.regression.linear_model import OLS
 
+from pipeline.errors import InputDataError, ParamsError
 from pipeline.selection.best_subset import CRITERIA as SELECTION_RULES
 from pipeline.selection.best_subset import best_subset
 from pipeline.selection.result import Selection
@@ -179,7 +180,7 @@ def pass_features(slopes: pd.DataFrame, sensors: Sequence[str], temperature: str
         (names the campaign, sensor and passes, and what to do).
     """
     if temperature not in TEMPERATURE_MODES:
-        raise ValueError(
+        raise ParamsError(
             f"unknown temperature mode '{temperature}'; use one of {list(TEMPERATURE_MODES)} "
             "in params.yaml model_axis.temperature"
         )
@@ -213,7 +214,7 @@ def candidate_sensors(slopes: pd.DataFrame, exclude: Sequence[str] = ()) -> list
         s for s in sensor_columns(slopes) if s not in set(exclude) and slopes[s].notna().all()
     ]
     if not sensors:
-        raise ValueError(
+        raise InputDataError(
             f"no temperature sensor is read at every pass of the training axis campaign(s) "
             f"{sorted(pd.unique(slopes['campaign_id']))} (excluded: {list(exclude)}); check "
             "their temperature.csv or params.yaml model_axis.exclude_sensors"
@@ -247,7 +248,7 @@ def fit_slope_model(
     features = pass_features(slopes, sensors, temperature)
     k = pass_slopes(slopes)
     if len(k) <= len(sensors) + 1:
-        raise ValueError(
+        raise InputDataError(
             f"{len(k)} training passes cannot fit a slope model with {len(sensors)} sensors and "
             "an intercept; select fewer sensors or measure more passes"
         )
@@ -448,7 +449,7 @@ def _require_readings(slopes: pd.DataFrame, sensors: Sequence[str]) -> None:
             if values.isna().any():
                 minutes = [f"{m:g}" for m in rows.loc[values.isna(), "elapsed_min"]]
                 split = rows["split"].iloc[0] if "split" in rows.columns else "split unknown"
-                raise ValueError(
+                raise InputDataError(
                     f"axis campaign {campaign_id} ({split}) has no reading of sensor {sensor} "
                     f"at pass(es) {minutes} min, but the slope model uses {sensor}; add "
                     f"'{sensor}' to params.yaml model_axis.exclude_sensors to select the "

@@ -2,6 +2,9 @@
 
 ``thermal <command> [options]`` (or ``python -m pipeline <command>``) imports the command's
 module and calls its ``main(argv)``; ``thermal <command> --help`` lists that command's options.
+A :class:`pipeline.errors.UserError` (bad input data, params.yaml, a stage not run yet) is printed
+as ``thermal <command>: error: <message>`` with exit code 1, without a traceback; any other
+exception is an internal error and keeps its traceback.
 """
 
 from __future__ import annotations
@@ -9,6 +12,8 @@ from __future__ import annotations
 import importlib
 import logging
 import sys
+
+from pipeline.errors import UserError
 
 COMMANDS = {
     "simulate": ("pipeline.twin.cli", "write synthetic campaigns from the physical twin"),
@@ -54,4 +59,8 @@ def main(argv: list[str] | None = None) -> int:
         level=logging.INFO, format="%(levelname)s %(name)s: %(message)s", stream=sys.stderr
     )
     module = importlib.import_module(COMMANDS[name][0])
-    return int(module.main(rest) or 0)
+    try:
+        return int(module.main(rest) or 0)
+    except UserError as error:
+        sys.stderr.write(f"thermal {name}: error: {error}\n")
+        return 1

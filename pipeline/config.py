@@ -11,6 +11,8 @@ from typing import Any
 
 import yaml
 
+from pipeline.errors import ParamsError
+
 DEFAULT_PARAMS = Path("params.yaml")
 
 
@@ -31,14 +33,23 @@ def load_section(section: str, params_path: Path | str = DEFAULT_PARAMS) -> dict
 
     Raises
     ------
-    KeyError
-        If the section is missing, with the file name and the sections it does have.
+    ParamsError
+        (a ``KeyError``) If the file is missing or not a YAML mapping, or the section is
+        missing, with the file name and what to do.
     """
     path = Path(params_path)
-    with path.open(encoding="utf-8") as handle:
-        params = yaml.safe_load(handle) or {}
+    if not path.is_file():
+        raise ParamsError(
+            f"{path} not found; run the command in the project folder (where params.yaml is)"
+        )
+    try:
+        params = yaml.safe_load(path.read_text(encoding="utf-8-sig")) or {}
+    except (yaml.YAMLError, UnicodeDecodeError) as error:
+        raise ParamsError(f"{path} cannot be read as YAML: {error}; fix its syntax") from None
+    if not isinstance(params, dict):
+        raise ParamsError(f"{path} is not a mapping of sections (ingest:, validate:, ...)")
     if section not in params:
-        raise KeyError(
+        raise ParamsError(
             f"{path}: no section '{section}' (sections present: {sorted(params)}); "
             f"add a '{section}:' block to {path}"
         )

@@ -31,6 +31,7 @@ from pipeline.candidates import candidate_list, run_all
 from pipeline.champion import NO_COMPENSATION, Decision, champion_card, choose_champion
 from pipeline.config import load_section
 from pipeline.cross_season import UnitResult
+from pipeline.errors import MissingInputError
 from pipeline.features import InputSpec, SpeedResponses, check_feature_kind
 from pipeline.scoring import candidate_summary, metrics_tree, score_matrix
 from pipeline.training_units import (
@@ -557,7 +558,7 @@ def main(argv: list[str] | None = None) -> int:
     params = load_section("evaluate")
     table = pd.read_parquet(paths.SPINDLE_THERMAL_ERROR)
     if not paths.SELECTED.is_file():
-        raise FileNotFoundError(
+        raise MissingInputError(
             f"{paths.SELECTED} not found: run the select stage first (dvc repro select)"
         )
     document = json.loads(paths.SELECTED.read_text())

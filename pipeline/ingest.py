@@ -15,7 +15,9 @@ import pandas as pd
 
 from pipeline import paths
 from pipeline.config import load_section
+from pipeline.errors import MissingInputError
 from pipeline.raw_reader import Problem, RawCampaign, problems_frame, read_campaign
+from schemas import CampaignsModel
 
 LOGGER = logging.getLogger(__name__)
 
@@ -23,7 +25,7 @@ LOGGER = logging.getLogger(__name__)
 def campaign_folders(raw_dir: Path) -> list[Path]:
     """Campaign folders under ``raw_dir``, sorted by name (hidden entries ignored)."""
     if not raw_dir.is_dir():
-        raise FileNotFoundError(
+        raise MissingInputError(
             f"raw campaign folder {raw_dir} does not exist; put one folder per campaign there "
             "(see data-contract.md) or generate the demo set with "
             "'thermal simulate --preset demo --out data/raw'"
@@ -51,9 +53,12 @@ def ingest(raw_dir: Path, max_alignment_gap_s: float) -> dict[str, pd.DataFrame]
 
 
 def tabulate(campaigns: list[RawCampaign]) -> dict[str, pd.DataFrame]:
-    """Concatenate per-campaign reads into the ingested tables."""
+    """Concatenate per-campaign reads into the ingested tables (all columns even when empty)."""
     problems: list[Problem] = [p for c in campaigns for p in c.problems]
-    metadata = pd.DataFrame([c.metadata for c in campaigns if c.metadata is not None])
+    metadata = pd.DataFrame(
+        [c.metadata for c in campaigns if c.metadata is not None],
+        columns=list(CampaignsModel.to_schema().columns),
+    )
     samples = [c.samples for c in campaigns if c.samples is not None and len(c.samples)]
     laser = [c.laser for c in campaigns if c.laser is not None]
     return {

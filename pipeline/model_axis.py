@@ -38,6 +38,7 @@ from pipeline.axis_model import (  # noqa: E402
     select_sensors,
 )
 from pipeline.config import load_section  # noqa: E402
+from pipeline.errors import MissingInputError  # noqa: E402
 from pipeline.selection.result import Selection  # noqa: E402
 
 LOGGER = logging.getLogger(__name__)
@@ -254,7 +255,7 @@ def _draw_campaign(top: plt.Axes, bottom: plt.Axes, rows: pd.DataFrame, band: fl
 
 def _read(path: Path) -> pd.DataFrame:
     if not path.exists():
-        raise FileNotFoundError(f"{path} not found; run the separate_axis stage first (dvc repro)")
+        raise MissingInputError(f"{path} not found; run the separate_axis stage first (dvc repro)")
     return pd.read_parquet(path)
 
 

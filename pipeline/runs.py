@@ -35,6 +35,8 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
+from pipeline.errors import ParamsError
+
 DECLARED, DETECTED = "declared", "detected"
 CONTIGUOUS_INTERVALS = 2.5
 """A cut is contiguous when B's first sample is at most this many sampling intervals after A's
@@ -73,7 +75,7 @@ class RunSettings:
         section = dict(section or {})
         unknown = sorted(set(section) - set(cls.__dataclass_fields__))
         if unknown:
-            raise KeyError(
+            raise ParamsError(
                 f"params.yaml separate.runs: unknown key(s) {unknown}; known: "
                 f"{sorted(cls.__dataclass_fields__)}"
             )

@@ -29,6 +29,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
+from pipeline.errors import ParamsError
 from pipeline.features import (
     COLD_REFERENCES,
     SpeedResponses,
@@ -83,7 +84,7 @@ class SeparationSettings:
         """Build from the ``separate`` section of params.yaml."""
         reference = str(section.get("cold_reference", "first_sample"))
         if reference not in COLD_REFERENCES:
-            raise ValueError(
+            raise ParamsError(
                 f"params.yaml separate.cold_reference is '{reference}'; use one of "
                 f"{list(COLD_REFERENCES)}"
             )

@@ -44,6 +44,7 @@ import pandera.pandas as pa
 import yaml
 
 from pipeline.config import DEFAULT_PARAMS, load_section
+from pipeline.errors import InputDataError, MissingInputError, ParamsError
 from pipeline.paths import (
     AXIS_MODEL_METRICS,
     AXIS_MODEL_PLOT,
@@ -159,14 +160,14 @@ def read_json(path: Path) -> Any:
         If the file is not valid JSON, with the line and column.
     """
     if not path.is_file():
-        raise FileNotFoundError(
+        raise MissingInputError(
             f"{path} not found: the track stage logs the evaluate outputs; run `dvc repro "
             "evaluate` (or `thermal evaluate`) first"
         )
     try:
         return json.loads(path.read_text(encoding="utf-8"))
     except json.JSONDecodeError as error:
-        raise ValueError(
+        raise InputDataError(
             f"{path}: invalid JSON at line {error.lineno}, column {error.colno} ({error.msg}); "
             "rerun the evaluate stage"
         ) from None
@@ -205,7 +206,7 @@ def read_scores(path: Path) -> list[dict[str, Any]]:
         If the table breaks its schema, naming the data rows, columns and checks.
     """
     if not path.is_file():
-        raise FileNotFoundError(
+        raise MissingInputError(
             f"{path} not found: the track stage logs the evaluate outputs; run `dvc repro "
             "evaluate` (or `thermal evaluate`) first"
         )
@@ -225,7 +226,7 @@ def read_scores(path: Path) -> list[dict[str, Any]]:
     try:
         table = CrossSeasonScoresModel.validate(table, lazy=True)
     except pa.errors.SchemaErrors as errors:
-        raise ValueError(
+        raise InputDataError(
             f"{_schema_problems(path, errors)}; rerun the evaluate stage (dvc repro evaluate)"
         ) from None
     return table.to_dict("records")
@@ -365,7 +366,7 @@ def main(argv: list[str] | None = None) -> int:
     experiment = str(settings.get("experiment") or "thermal-error")
     batch_size = int(settings.get("batch_size", 1000))
     if not 1 <= batch_size <= 1000:
-        raise ValueError(
+        raise ParamsError(
             f"{args.params}: track.batch_size = {batch_size}; MLflow accepts 1 to 1000 metrics "
             "per log_batch call, set a value in that range"
         )

@@ -24,6 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
+from pipeline.errors import InputDataError
 from pipeline.features import input_column, input_names
 
 TARGET = "thermal_error_um"
@@ -151,7 +152,7 @@ def training_units(series: list[CampaignSeries]) -> list[TrainingUnit]:
     """
     training = [s for s in series if s.split == "train"]
     if not training:
-        raise ValueError(
+        raise InputDataError(
             "no training campaign among the valid campaigns "
             f"({[s.campaign_id for s in series]}); mark at least one campaign split: train"
         )

@@ -50,6 +50,7 @@ from pipeline.discrepancy.calibrate import Calibration, calibrate, predict
 from pipeline.discrepancy.data import DISPLACEMENT_COLUMN, MeasuredCampaign
 from pipeline.discrepancy.model import ROLE_NODES, TwinModel, build_model
 from pipeline.discrepancy.report import STATUS_UNTESTABLE
+from pipeline.errors import InputDataError, ParamsError
 from pipeline.features import reference_value
 from pipeline.training_units import CampaignSeries, TrainingUnit
 
@@ -182,7 +183,7 @@ def named_effects(document: Mapping | None) -> tuple[frozenset[str], str]:
         return frozenset(), "baseline twin: no discrepancy report (run dvc repro discrepancy)"
     effects = document.get("named_effects")
     if not isinstance(effects, list):
-        raise ValueError(
+        raise InputDataError(
             "reports/discrepancy/discrepancy.json has no 'named_effects' list; rerun the "
             "discrepancy stage (dvc repro discrepancy)"
         )
@@ -361,7 +362,7 @@ def split_twin(pairs: Mapping[str, str]) -> tuple[dict[str, str], bool]:
     if TWIN_MODEL not in pairs:
         return registry, False
     if pairs[TWIN_MODEL] != TWIN_SELECTION:
-        raise KeyError(
+        raise ParamsError(
             f"params.yaml evaluate.candidates: model '{TWIN_MODEL}' reads the sensors by their "
             f"contract role; write '{TWIN_MODEL}: {TWIN_SELECTION}' (got '{pairs[TWIN_MODEL]}')"
         )

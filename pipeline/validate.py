@@ -28,12 +28,15 @@ import pandas as pd
 
 from pipeline import paths
 from pipeline.config import load_section
+from pipeline.errors import MissingInputError
 from pipeline.validation.campaign_checks import validate_campaign_table
 from pipeline.validation.findings import Finding
 from pipeline.validation.ingest_problems import problems_from_ingest
 from pipeline.validation.laser_checks import validate_laser
 from pipeline.validation.limits import limits_from_params
+from pipeline.validation.plausibility import validate_plausibility
 from pipeline.validation.problems import (
+    CAMPAIGN_FILE,
     LASER_FILE,
     TEMPERATURE_FILE,
     NoValidCampaignError,
@@ -79,17 +82,25 @@ def validate_tables(
     -------
     ValidationResult
         All problems: ingest's, campaign.yaml's, samples' (every campaign) and laser's
-        (axis_positioning campaigns). :data:`FOLLOW_ON_CHECKS` are left out when ingest
-        already reported a file-level problem (no row) with that file, e.g. a missing file.
+        (axis_positioning campaigns) and the campaign-level plausibility checks (sample count,
+        units). :data:`FOLLOW_ON_CHECKS` are left out when ingest already reported a file-level
+        problem (no row) with that file, e.g. a missing file, and a campaign.yaml problem on a
+        key ingest already reported (e.g. ``missing_key`` kind, then not ``kind_known``).
         A campaign with data but no campaigns row and no ingest problem gets
         ``campaign_metadata_missing``.
     """
     found = problems_from_ingest(problems)
     unreadable = {(p.campaign, p.file) for p in found if p.row is None}
-    found += validate_campaign_table(campaigns, limits)
+    yaml_keys = {(p.campaign, p.column) for p in found if p.file == CAMPAIGN_FILE and p.column}
+    found += [
+        p
+        for p in validate_campaign_table(campaigns, limits)
+        if (p.campaign, p.column) not in yaml_keys
+    ]
     for campaign in campaigns.to_dict("records"):
         campaign_id = str(campaign["campaign_id"])
         own = validate_samples(campaign, samples, limits)
+        own += validate_plausibility(campaign, samples, limits)
         if campaign.get("kind") == AXIS_KIND:
             own += validate_laser(campaign_id, laser, limits)
         found += [
@@ -112,7 +123,7 @@ def validate_tables(
 
 def _read(path: Path) -> pd.DataFrame:
     if not path.exists():
-        raise FileNotFoundError(f"{path} not found; run the ingest stage first (dvc repro)")
+        raise MissingInputError(f"{path} not found; run the ingest stage first (dvc repro)")
     return pd.read_parquet(path)
 
 

@@ -82,6 +82,21 @@ class ValidationLimits:
         Measuring range of the displacement probes.
     laser_target_tolerance_mm : float, mm
         Targets of different laser runs of a campaign agree within this.
+    laser_deviation_range_um : tuple of (float, float), um
+        Plausible range of a laser-measured positioning deviation.
+    min_samples : int
+        Fewest temperature samples a campaign needs to be modelled.
+    air_temperature_max_degC : float, degC
+        Warmest plausible air around a machine tool: the campaign's air reference (the ambient
+        sensor's median reading, else the median of its coolest sensor) above this means the
+        temperatures are not in degC (degF).
+    displacement_min_span_um : float, um
+        A displacement axis moving less than this peak to peak...
+    unit_check_min_rise_degC : float, degC
+        ...while a temperature sensor rises by at least this much is not in um (mm).
+    min_program_coverage : float
+        Samples spanning less than this share of the finite part of the ``spindle_program``
+        (minutes) mean ``elapsed_s`` is not in seconds (minutes).
     """
 
     temperature_range_degC: tuple[float, float]  # noqa: N815 (params.yaml key)
@@ -94,6 +109,12 @@ class ValidationLimits:
     spike_threshold_degC: float  # noqa: N815 (params.yaml key)
     displacement_range_um: tuple[float, float]
     laser_target_tolerance_mm: float
+    laser_deviation_range_um: tuple[float, float]
+    min_samples: int
+    air_temperature_max_degC: float  # noqa: N815 (params.yaml key)
+    displacement_min_span_um: float
+    unit_check_min_rise_degC: float  # noqa: N815 (params.yaml key)
+    min_program_coverage: float
 
     @property
     def ds18b20_codes(self) -> tuple[float, float]:
@@ -532,15 +553,21 @@ def campaign_samples_schema(
 def laser_schema(limits: ValidationLimits) -> pa.DataFrameSchema:
     """Return :class:`LaserModel` plus the target-set checks (tolerance from ``limits``).
 
+    ``laser_deviation_range``: every deviation lies in ``laser_deviation_range_um``;
     ``laser_target_set``: every target of every run matches a target of the campaign's
     reference run (the cold run) within ``laser_target_tolerance_mm``;
     ``laser_target_missing``: every run measures every target of the reference run.
     """
     tolerance = limits.laser_target_tolerance_mm
+    low, high = limits.laser_deviation_range_um
+    schema = LaserModel.to_schema().update_column(
+        "deviation_um",
+        checks=[pa.Check(lambda s: s.between(low, high), name="laser_deviation_range")],
+    )
     extra = [
         pa.Check(lambda df: checks.targets_in_reference(df, tolerance), name="laser_target_set"),
         pa.Check(
             lambda df: checks.runs_cover_reference(df, tolerance), name="laser_target_missing"
         ),
     ]
-    return _with(LaserModel.to_schema(), strict=True, extra_checks=extra)
+    return _with(schema, strict=True, extra_checks=extra)

@@ -66,3 +66,22 @@ def test_summary_says_why_the_twin_comparison_was_untestable(tmp_path, capsys):
     (tmp_path / "reports" / "discrepancy" / "discrepancy.json").write_text(json.dumps(doc))
     assert main(["summary", "--root", str(tmp_path)]) == 0
     assert "untestable (no sensor has a structure role)" in capsys.readouterr().out
+
+
+def test_a_user_error_is_a_message_and_exit_code_1_not_a_traceback(tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)  # no params.yaml, no data/ingested
+    assert main(["validate"]) == 1
+    err = capsys.readouterr().err
+    assert err.startswith("thermal validate: error: params.yaml not found")
+    (tmp_path / "params.yaml").write_text("validate: [not, a, mapping\n")
+    assert main(["validate"]) == 1
+    assert "params.yaml cannot be read as YAML" in capsys.readouterr().err
+
+
+def test_an_internal_error_keeps_its_traceback(monkeypatch):
+    def broken(argv):
+        raise RuntimeError("bug")
+
+    monkeypatch.setattr(importlib.import_module("pipeline.summary"), "main", broken)
+    with pytest.raises(RuntimeError, match="bug"):
+        main(["summary"])

@@ -57,6 +57,12 @@ VALIDATE = {
     "spike_threshold_degC": 3.0,
     "displacement_range_um": [-500.0, 500.0],
     "laser_target_tolerance_mm": 0.01,
+    "laser_deviation_range_um": [-1000.0, 1000.0],
+    "min_samples": 10,
+    "air_temperature_max_degC": 45.0,
+    "displacement_min_span_um": 0.5,
+    "unit_check_min_rise_degC": 2.0,
+    "min_program_coverage": 0.25,
 }
 
 

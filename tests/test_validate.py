@@ -40,6 +40,12 @@ LIMITS = schemas.ValidationLimits(
     spike_threshold_degC=3.0,
     displacement_range_um=(-500.0, 500.0),
     laser_target_tolerance_mm=0.01,
+    laser_deviation_range_um=(-1000.0, 1000.0),
+    min_samples=10,
+    air_temperature_max_degC=45.0,
+    displacement_min_span_um=0.5,
+    unit_check_min_rise_degC=2.0,
+    min_program_coverage=0.25,
 )
 
 N = 12  # samples per campaign, 60 s apart
@@ -359,7 +365,7 @@ def test_declared_displacement_axis_without_data():
 def test_other_probe_names_are_accepted_and_bad_ones_reported():
     displacement = {"Z": {"probe": "eddy_current"}, "Z2": {"probe": "eddy_current"}}
     tables = set_campaign(make_tables(), "K01", "displacement_json", json.dumps(displacement))
-    tables = set_cells(tables, "samples", "K01", range(1, N + 1), "disp_Z2", 2.0)
+    tables = set_cells(tables, "samples", "K01", range(1, N + 1), "disp_Z2", 1.5 * np.arange(N))
     rows = tables["samples"]["disp_Z_source_row"]
     tables["samples"]["disp_Z2_source_row"] = rows.where(tables["samples"]["disp_Z2"].notna())
     assert run(tables).problems == ()

@@ -5,6 +5,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import Any
 
+from pipeline.errors import ParamsError
 from schemas import ValidationLimits
 
 
@@ -29,7 +30,7 @@ def limits_from_params(section: Mapping[str, Any]) -> ValidationLimits:
     missing = [n for n in names if n not in section]
     unknown = sorted(set(section) - set(names))
     if missing or unknown:
-        raise ValueError(
+        raise ParamsError(
             f"params.yaml validate: missing keys {missing}, unknown keys {unknown}; "
             f"the section needs exactly {names}"
         )
@@ -42,12 +43,12 @@ def limits_from_params(section: Mapping[str, Any]) -> ValidationLimits:
                 if not low < high:
                     raise ValueError("low must be below high")
                 values[name] = (low, high)
-            elif name == "stuck_min_samples":
+            elif name in ("stuck_min_samples", "min_samples"):
                 values[name] = int(raw)
             else:
                 values[name] = float(raw)
         except (TypeError, ValueError) as err:
-            raise ValueError(
+            raise ParamsError(
                 f"params.yaml validate.{name} = {raw!r} is not valid ({err}); use "
                 + ("[low, high]" if "_range_" in name else "a number")
             ) from err

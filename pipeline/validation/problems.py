@@ -22,7 +22,8 @@ class Problem:
     """One entry of ``reports/validation.json``.
 
     ``row`` is the 1-based data row of ``file`` (the first of a group of consecutive rows; the
-    message names them all), None for campaign-level problems; ``line`` is ``row + 1``.
+    message names them all), None for campaign-level problems; ``line`` is ``row + 1`` (a CSV's
+    header is line 1). In ``campaign.yaml`` the row is the line.
     """
 
     campaign: str
@@ -36,8 +37,10 @@ class Problem:
 
     @property
     def line(self) -> int | None:
-        """File line of ``row`` (the header is line 1)."""
-        return None if self.row is None else self.row + 1
+        """File line of ``row`` (a CSV's header is line 1; a YAML row is its line)."""
+        if self.row is None:
+            return None
+        return self.row if self.file.endswith(".yaml") else self.row + 1
 
     def to_dict(self) -> dict[str, Any]:
         """Return the report entry (JSON-ready)."""

@@ -16,15 +16,8 @@ import pandas as pd
 
 from pipeline.validation.findings import Finding
 from pipeline.validation.problems import Problem
-from pipeline.validation.texts import text_for
+from pipeline.validation.texts import TemplateFields, text_for
 from schemas import ValidationLimits
-
-
-class _Fields(dict):
-    """Template fields; an unknown field renders as '?' instead of failing."""
-
-    def __missing__(self, key: str) -> str:
-        return "?"
 
 
 def _plain(value: Any) -> Any:
@@ -80,6 +73,12 @@ def _limit_fields(limits: ValidationLimits) -> dict[str, Any]:
         "displacement_low": limits.displacement_range_um[0],
         "displacement_high": limits.displacement_range_um[1],
         "laser_target_tolerance": limits.laser_target_tolerance_mm,
+        "laser_deviation_low": limits.laser_deviation_range_um[0],
+        "laser_deviation_high": limits.laser_deviation_range_um[1],
+        "min_samples": limits.min_samples,
+        "air_temperature_max": limits.air_temperature_max_degC,
+        "displacement_min_span": limits.displacement_min_span_um,
+        "min_program_coverage_pct": round(100 * limits.min_program_coverage, 6),
     }
 
 
@@ -114,7 +113,7 @@ def render(group: list[Finding], limits: ValidationLimits) -> Problem:
         where = f"{location} {rows_text} ({_span_text('line', rows[0] + 1, rows[-1] + 1)})"
     else:
         where = location
-    fields = _Fields(
+    fields = TemplateFields(
         {
             **_limit_fields(limits),
             **{k: _field_text(v) for k, v in first.fields.items()},

@@ -7,11 +7,26 @@ strings over the fields of a finding group (see :func:`pipeline.validation.rende
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
+from typing import Any
 
 from schemas.vocabulary import SENSOR_ROLES
 
 RERUN = "then rerun dvc repro"
+CONTRACT = "docs/data-contract.md"
+CSV_EXPORT = (
+    "comma-separated UTF-8 text with '.' as the decimal point and one header row (Excel: "
+    "Save As > CSV UTF-8 (Comma delimited); LibreOffice: Save As > Text CSV, character set "
+    "UTF-8, field delimiter ',')"
+)
+
+
+class TemplateFields(dict):
+    """Template fields; an unknown field renders as '?' instead of failing."""
+
+    def __missing__(self, key: str) -> str:
+        return "?"
 
 
 @dataclass(frozen=True)
@@ -119,6 +134,43 @@ PROBLEM_TEXTS: dict[str, ProblemText] = {
         f"add the temperature log to data/raw/{{campaign}}/temperature.csv, {RERUN}",
         row_level=False,
     ),
+    "too_few_samples": ProblemText(
+        "{campaign}/temperature.csv has {value} sample(s); at least {min_samples} are needed to "
+        "separate and model a thermal error",
+        "add the rest of the temperature log to {campaign}/temperature.csv, or remove the "
+        f"campaign folder (a campaign of a few samples cannot be modelled), {RERUN}",
+        row_level=False,
+    ),
+    "temperature_unit": ProblemText(
+        "{column} ({basis}) of {campaign}/temperature.csv reads {value} degC (median), above "
+        "{air_temperature_max} degC, the warmest plausible air around a machine tool: the "
+        "temperatures look like degF (a workshop at 20-38 degC reads 68-100 degF)",
+        "export the temperatures of {campaign}/temperature.csv in degC ((degF - 32) / 1.8); if "
+        "the air really was that warm, raise validate.air_temperature_max_degC in params.yaml; "
+        f"{RERUN}",
+        row_level=False,
+    ),
+    "displacement_unit": ProblemText(
+        "displacement {axis} of {campaign}/displacement.csv spans only {value} um peak to peak "
+        "while the temperatures rise by {rise} K: a thermal drift of at least "
+        "{displacement_min_span} um is expected, so the values look like mm, not um (or the "
+        "probe did not read)",
+        "export displacement {axis} of {campaign}/displacement.csv in micrometres (mm x 1000), "
+        "or check probe {axis}; if the machine really stays that still, lower "
+        f"validate.displacement_min_span_um in params.yaml; {RERUN}",
+        column="{axis}",
+        row_level=False,
+    ),
+    "time_unit": ProblemText(
+        "{campaign}/temperature.csv spans {value} min of elapsed_s (median interval "
+        "{median_interval} s) but spindle_program: in {campaign}/campaign.yaml runs "
+        "{program_min} min: the samples cover less than {min_program_coverage_pct} % of the "
+        "program, so elapsed_s looks like minutes, not seconds",
+        "write elapsed_s in seconds since start: (minutes x 60) in every CSV of {campaign}, or "
+        "correct spindle_program: to the speeds that ran; if the log really stops early, lower "
+        f"validate.min_program_coverage in params.yaml; {RERUN}",
+        row_level=False,
+    ),
     # ---- laser.csv
     "no_laser": ProblemText(
         "{campaign} is an axis_positioning campaign but {campaign}/laser.csv has no data rows",
@@ -170,6 +222,12 @@ PROBLEM_TEXTS: dict[str, ProblemText] = {
         "target(s) {value} mm of the reference (cold) run",
         "add the missing targets to run {run} in {campaign}/{file}, or remove the incomplete "
         f"run, {RERUN}",
+    ),
+    "laser_deviation_range": ProblemText(
+        "deviation_um reads {value} um at {where}, outside the plausible range "
+        "{laser_deviation_low} to {laser_deviation_high} um of a positioning error",
+        "check the unit (um) and the export of {campaign}/{file} {rows}; correct the deviations "
+        f"or raise validate.laser_deviation_range_um in params.yaml, {RERUN}",
     ),
     # ---- campaign.yaml
     "metadata_missing": ProblemText(
@@ -285,6 +343,155 @@ PROBLEM_TEXTS: dict[str, ProblemText] = {
         row_level=False,
         collapse=True,
     ),
+    # ---- ingest: reading the raw files (pipeline.raw_files, pipeline.raw_reader)
+    "missing_file": ProblemText(
+        "{campaign}/{file} is missing; a {kind} campaign needs it",
+        "add {campaign}/{file} in the raw contract format (" + CONTRACT + "), or correct kind: "
+        f"in {{campaign}}/campaign.yaml, {RERUN}",
+        row_level=False,
+    ),
+    "unreadable_yaml": ProblemText(
+        "{where} cannot be parsed as YAML: {error}",
+        "fix the YAML syntax of {campaign}/campaign.yaml at the line given (indentation, "
+        f"unclosed brackets or quotes), {RERUN}",
+    ),
+    "unreadable_csv": ProblemText(
+        "{campaign}/{file} cannot be split into cells near line {line}: {error}",
+        f"save {{campaign}}/{{file}} again as {CSV_EXPORT}, {RERUN}",
+        row_level=False,
+    ),
+    "missing_column": ProblemText(
+        "{campaign}/{file} has no column {column} (header: {header})",
+        f"write {{expected}} in {{campaign}}/{{file}}, {RERUN}",
+        row_level=False,
+    ),
+    "reserved_column": ProblemText(
+        "the name {name} in {campaign}/{file} is reserved by the pipeline "
+        "(campaign_id, source_row, elapsed_s, rpm and disp_* name its own columns)",
+        "rename the sensor or column {name} in campaign.yaml and the CSV file of "
+        f"{{campaign}}, {RERUN}",
+        row_level=False,
+    ),
+    "not_a_number": ProblemText(
+        "{column} holds {value} at {where}, which is not a number",
+        "write a number with '.' as the decimal point, or leave the cell empty for a missing "
+        f"reading, in {{campaign}}/{{file}} {{rows}}, {RERUN}",
+    ),
+    "time_not_increasing": ProblemText(
+        "elapsed_s does not increase at {where}",
+        f"sort the rows of {{campaign}}/{{file}} by time and remove duplicated instants, {RERUN}",
+    ),
+    "unknown_axis": ProblemText(
+        "displacement column {column} of {campaign}/{file} is not an axis name (X, Y, Z, or "
+        "letters and digits starting with a letter, e.g. Z2)",
+        "name the displacement columns of {campaign}/{file} as declared under displacement: in "
+        f"campaign.yaml (X, Y, Z or e.g. Z2), {RERUN}",
+        row_level=False,
+    ),
+    "campaign_id_mismatch": ProblemText(
+        "campaign_id {value} in {campaign}/campaign.yaml differs from the folder name {campaign}",
+        "set campaign_id: {campaign} in {campaign}/campaign.yaml, or rename the folder to the "
+        f"id, {RERUN}",
+        row_level=False,
+    ),
+    "unknown_kind": ProblemText(
+        "kind {value} in {campaign}/campaign.yaml is not spindle_drift or axis_positioning",
+        f"set kind: spindle_drift or kind: axis_positioning in {{campaign}}/campaign.yaml, {RERUN}",
+        row_level=False,
+    ),
+    "bad_start": ProblemText(
+        "start {value} in {campaign}/campaign.yaml is not an ISO 8601 date-time",
+        "write start: YYYY-MM-DDTHH:MM:SS (local time of the first sample) in "
+        f"{{campaign}}/campaign.yaml, {RERUN}",
+        row_level=False,
+    ),
+    "no_sensors": ProblemText(
+        "{campaign}/campaign.yaml declares no temperature sensor under sensors:",
+        "list every temperature.csv column under sensors: with its role in "
+        f"{{campaign}}/campaign.yaml, {RERUN}",
+        row_level=False,
+    ),
+    "bad_spindle_program": ProblemText(
+        "spindle_program entry {number} in {campaign}/campaign.yaml ({entry}) lacks a finite "
+        "numeric from_min or rpm",
+        "write the entries of spindle_program: as {{from_min: 0, to_min: 240, rpm: 4000}} in "
+        f"{{campaign}}/campaign.yaml, {RERUN}",
+        row_level=False,
+    ),
+    "empty_file": ProblemText(
+        "{campaign}/{file} is empty ({size})",
+        "copy {file} of the campaign again from the logger or the instrument ("
+        + CONTRACT
+        + f"), or remove the folder data/raw/{{campaign}}, {RERUN}",
+        row_level=False,
+    ),
+    "binary_file": ProblemText(
+        "{campaign}/{file} is not a text file: it holds binary data ({found})",
+        "replace {campaign}/{file} with the text file the contract asks for (" + CONTRACT + "; "
+        f"a CSV is {CSV_EXPORT}), {RERUN}",
+        row_level=False,
+    ),
+    "not_utf8": ProblemText(
+        "{campaign}/{file} is not UTF-8 text: byte {byte} on line {line} cannot be decoded "
+        "(probably saved as Latin-1 / Windows-1252)",
+        f"save {{campaign}}/{{file}} again as UTF-8 (a CSV as {CSV_EXPORT}), {RERUN}",
+        row_level=False,
+    ),
+    "semicolon_separated": ProblemText(
+        "{campaign}/{file} is separated by ';' (header {header}), with decimal commas if any: "
+        "a spreadsheet export with a European list separator; the contract is comma-separated "
+        "with decimal points",
+        f"export {{campaign}}/{{file}} again as {CSV_EXPORT} rather than editing the numbers by "
+        f"hand, {RERUN}",
+        row_level=False,
+    ),
+    "no_data_rows": ProblemText(
+        "{campaign}/{file} has a header but no data rows",
+        "add the readings below the header of {campaign}/{file} (the export may have stopped "
+        f"early), or remove the folder data/raw/{{campaign}}, {RERUN}",
+        row_level=False,
+    ),
+    "field_count": ProblemText(
+        "{where} has {n_fields} cells but the header has {n_header}",
+        "give every row of {campaign}/{file} one cell per header column (an empty cell is a "
+        f"missing reading; a decimal comma splits a number in two cells), {RERUN}",
+    ),
+    "duplicate_column": ProblemText(
+        "{campaign}/{file} has the column {column} more than once",
+        "keep one column {column} in {campaign}/{file}: rename the other (and declare it in "
+        f"campaign.yaml) or delete it, {RERUN}",
+        row_level=False,
+    ),
+    "not_finite": ProblemText(
+        "{column} holds {value} at {where}: not a finite number (an overflow or a logger error "
+        "code)",
+        "replace the cell with the measured value, or leave it empty for a missing reading, in "
+        f"{{campaign}}/{{file}}, {RERUN}",
+    ),
+    "laser_run_number": ProblemText(
+        "run {value} at {where} is not a run number (a whole number)",
+        "number the runs of {campaign}/{file} with whole numbers, one per run (a bidirectional "
+        f"pass is two runs, one per direction), {RERUN}",
+    ),
+    "missing_key": ProblemText(
+        "{column}: is missing in {campaign}/campaign.yaml; every campaign needs it",
+        "add {column}: to {campaign}/campaign.yaml ({hint}; see " + CONTRACT + f"), {RERUN}",
+        row_level=False,
+    ),
+    "wrong_type": ProblemText(
+        "{column}: in {campaign}/campaign.yaml is {found}; it must be {expected}",
+        "write {column}: in {campaign}/campaign.yaml as "
+        + "{expected} (see "
+        + CONTRACT
+        + f"), {RERUN}",
+        row_level=False,
+    ),
+    "campaign_id_unsafe": ProblemText(
+        "campaign_id {value} in {campaign}/campaign.yaml is not a plain id: only letters, digits, "
+        "'-' and '_' are allowed (a path such as '../x' is never followed)",
+        f"set campaign_id: {{campaign}} (the folder name) in {{campaign}}/campaign.yaml, {RERUN}",
+        row_level=False,
+    ),
 }
 
 FALLBACK_TEXT = ProblemText(
@@ -298,3 +505,24 @@ FALLBACK_TEXT = ProblemText(
 def text_for(check: str) -> ProblemText:
     """Return the text of check id ``check`` (:data:`FALLBACK_TEXT` when it has none)."""
     return PROBLEM_TEXTS.get(check, FALLBACK_TEXT)
+
+
+def word(check: str, fields: Mapping[str, Any]) -> tuple[str, str]:
+    """Return the message and the action of ``check`` filled in with ``fields``.
+
+    Parameters
+    ----------
+    check : str
+        Check id (a key of :data:`PROBLEM_TEXTS`).
+    fields : mapping
+        Template fields (``campaign``, ``file``, ``column``, ``where``, ...); a field the
+        template names but ``fields`` lacks renders as '?'.
+
+    Returns
+    -------
+    tuple of (str, str)
+        ``(message, action)``.
+    """
+    text = text_for(check)
+    filled = TemplateFields(fields)
+    return text.message.format_map(filled), text.action.format_map(filled)
