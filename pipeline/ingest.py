@@ -27,7 +27,7 @@ def campaign_folders(raw_dir: Path) -> list[Path]:
     if not raw_dir.is_dir():
         raise MissingInputError(
             f"raw campaign folder {raw_dir} does not exist; put one folder per campaign there "
-            "(see data-contract.md) or generate the demo set with "
+            "(see docs/data-contract.md) or generate the demo set with "
             "'thermal simulate --preset demo --out data/raw'"
         )
     return sorted(p for p in raw_dir.iterdir() if p.is_dir() and not p.name.startswith("."))

@@ -21,12 +21,9 @@ import pandas as pd
 import yaml
 
 from pipeline.raw_files import Report, read_text
+from schemas.contract import CONTRACT_FILES
 from schemas.vocabulary import SAMPLE_BASE_COLUMNS
 
-CONTRACT_FILES = {
-    "spindle_drift": ("temperature.csv", "displacement.csv"),
-    "axis_positioning": ("temperature.csv", "laser.csv"),
-}
 SEASON_BY_MONTH = {
     12: "winter", 1: "winter", 2: "winter",
     3: "spring", 4: "spring", 5: "spring",
@@ -51,7 +48,7 @@ def read_metadata(path: Path, report: Report) -> dict[str, Any] | None:
     """Return the mapping of ``campaign.yaml``, or None after reporting why there is none."""
     if not path.is_file():
         report(path.name, None, None, "missing_file", "campaign.yaml is missing",
-               f"add {path} (see data-contract.md) or remove the folder")  # fmt: skip
+               f"add {path} (see docs/data-contract.md) or remove the folder")  # fmt: skip
         return None
     text = read_text(path, report)
     if text is None:
@@ -66,8 +63,10 @@ def read_metadata(path: Path, report: Report) -> dict[str, Any] | None:
         report(path.name, row, None, "unreadable_yaml", error=detail)
         return None
     if not isinstance(content, dict):
-        report(path.name, None, None, "unreadable_yaml", "campaign.yaml is not a mapping",
-               "write the keys of data-contract.md (campaign_id, kind, sensors, ...)")  # fmt: skip
+        report(
+            path.name, None, None, "unreadable_yaml", "campaign.yaml is not a mapping",
+            "write the keys of docs/data-contract.md (campaign_id, kind, sensors, ...)",
+        )  # fmt: skip
         return None
     return content
 

@@ -1,6 +1,6 @@
 """Read one campaign folder of the raw contract (version 1) into tidy frames.
 
-The contract (``data-contract.md``) is a public interface: ``campaign.yaml`` plus
+The contract (``docs/data-contract.md``) is a public interface: ``campaign.yaml`` plus
 ``temperature.csv`` (every campaign), ``displacement.csv`` (spindle drift), optional
 ``spindle.csv`` and ``laser.csv`` (axis positioning). Reading never fails on bad content: every
 problem found becomes a :class:`Problem` naming the file, row and column, and the rest of the
@@ -23,13 +23,13 @@ import numpy as np
 import pandas as pd
 
 from pipeline.raw_files import MAX_REPORTED_ROWS, Report, read_csv_cells
-from pipeline.raw_metadata import CONTRACT_FILES, campaign_row, read_metadata
+from pipeline.raw_metadata import campaign_row, read_metadata
 from pipeline.validation.texts import word
+from schemas.contract import CONTRACT_FILES, LASER_COLUMNS
 from schemas.vocabulary import SAMPLE_BASE_COLUMNS, is_displacement_name
 
 LOGGER = logging.getLogger(__name__)
 
-LASER_COLUMNS = ("elapsed_min", "run", "direction", "target_mm", "deviation_um")
 RESERVED_COLUMNS = frozenset(SAMPLE_BASE_COLUMNS)
 
 

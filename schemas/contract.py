@@ -164,6 +164,9 @@ FILES: tuple[ContractFile, ...] = (
 )  # fmt: skip
 """The files of a campaign folder, in the order the document lists them."""
 
+FILE_NAMES = tuple(f.name for f in FILES)
+"""Every file name of a campaign folder (what a writer replaces when it rewrites a folder)."""
+
 CONTRACT_FILES = {
     kind: tuple(f.name for f in FILES if f.required in (ALWAYS, kind) and f.name.endswith(".csv"))
     for kind in KINDS

@@ -16,27 +16,20 @@ import pytest
 import yaml
 
 import schemas
+from pipeline.config import load_section
 from pipeline.importers import rtl_import
 from pipeline.importers.renishaw import RtlFormatError, read_rtl
-from pipeline.raw_reader import LASER_COLUMNS, read_campaign
+from pipeline.raw_reader import read_campaign
 from pipeline.validation.laser_checks import validate_laser
+from pipeline.validation.limits import limits_from_params
+from schemas.contract import LASER_COLUMNS
 
 TARGETS = (0.0, 55.0, 110.0, 165.0, 220.0, 275.0)  # mm; six targets wrap onto two lines
 WARMUP = (0.0, 30.0, 75.0)  # min
 DATES = ("2015-01-12 08:30:00", "2015-01-12 09:00:00", "2015-01-12 09:45:00")
 DIRECTIONS = ("+", "-", "+", "-")
-LIMITS = schemas.ValidationLimits(
-    temperature_range_degC=(-20.0, 80.0),
-    ds18b20_power_on_degC=85.0,
-    ds18b20_disconnected_degC=-127.0,
-    interval_tolerance=0.2,
-    stuck_min_samples=5,
-    stuck_min_minutes=0.0,
-    stuck_min_other_change_degC=0.5,
-    spike_threshold_degC=3.0,
-    displacement_range_um=(-500.0, 500.0),
-    laser_target_tolerance_mm=0.01,
-)
+ROOT = Path(__file__).resolve().parents[1]
+LIMITS = limits_from_params(load_section("validate", ROOT / "params.yaml"))
 
 
 def deviation(file_index: int, run: int, target: float, direction: str) -> float:

@@ -23,7 +23,7 @@ SKELETON_OPTIONS = {
 
 SENSORS_COMMENT = """\
 # sensors: one entry per column of temperature.csv (degC), which you must add yourself with
-# elapsed_s counted from `start`; roles from data-contract.md, e.g.
+# elapsed_s counted from `start`; roles from docs/data-contract.md, e.g.
 #   T1: {role: ball_screw, type: DS18B20}
 #   T2: {role: ambient, type: DS18B20}
 sensors: {}
@@ -87,5 +87,5 @@ def keys_to_add(campaign_id: str, missing: list[str]) -> str:
         f"no campaign.yaml was written because {options} {'was' if len(missing) == 1 else 'were'}"
         f" not given: rerun with them, or write campaign.yaml yourself with campaign_id: "
         f"{campaign_id}, kind: {AXIS_KIND}, machine, start (ISO 8601 local time of the cold run), "
-        "axis: {name, stroke_mm} and sensors (see data-contract.md)"
+        "axis: {name, stroke_mm} and sensors (see docs/data-contract.md)"
     )

@@ -1,4 +1,4 @@
-r"""Write a spindle thermal-drift campaign folder in the raw contract (data-contract.md).
+r"""Write a spindle thermal-drift campaign folder in the raw contract (docs/data-contract.md).
 
 ``campaign.yaml`` is written with :func:`yaml.safe_dump` (so that any name or text is quoted
 where YAML needs it), the CSV files comma separated, UTF-8, ``\n`` line endings, numbers with
@@ -15,15 +15,10 @@ from typing import Any
 import pandas as pd
 import yaml
 
+from schemas.contract import FILE_NAMES
+
 logger = logging.getLogger(__name__)
 
-CONTRACT_FILES = (
-    "campaign.yaml",
-    "temperature.csv",
-    "displacement.csv",
-    "spindle.csv",
-    "laser.csv",
-)
 """Files of a campaign folder; stale ones are removed when a folder is overwritten."""
 
 FLOAT_FORMAT = "%.10g"
@@ -84,7 +79,7 @@ def write_campaign(campaign: SpindleDriftCampaign, out_dir: Path, overwrite: boo
     if folder.exists() and not overwrite:
         raise FileExistsError(f"{folder} already exists")
     folder.mkdir(parents=True, exist_ok=True)
-    for name in CONTRACT_FILES:
+    for name in FILE_NAMES:
         (folder / name).unlink(missing_ok=True)
     with (folder / "campaign.yaml").open("w", encoding="utf-8", newline="\n") as handle:
         handle.write(campaign_yaml(campaign))

@@ -57,7 +57,7 @@ def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog=PROG,
         description="Convert a data logger's wide table (CSV or XLSX) into raw campaign folders "
-        "(data-contract.md), cut by a stated rule; see docs/import-logger.md.",
+        "(docs/data-contract.md), cut by a stated rule; see docs/import-logger.md.",
     )
     parser.add_argument("table", type=Path, help="the logger table (.csv, .txt, .xlsx)")
     parser.add_argument("--mapping", type=Path, required=True, help="mapping file (YAML)")

@@ -28,7 +28,7 @@ import yaml
 
 from pipeline.importers.axis_campaign_yaml import SKELETON_OPTIONS, keys_to_add, skeleton_text
 from pipeline.importers.renishaw import RtlFile, RtlFormatError, read_rtl
-from pipeline.raw_reader import LASER_COLUMNS
+from schemas.contract import LASER_COLUMNS
 from schemas.vocabulary import AXIS_KIND, is_displacement_name
 
 CAMPAIGN_ID_RE = re.compile(r"^[A-Za-z0-9_-]+$")
@@ -111,7 +111,7 @@ def import_rtl(
         f"wrote {out / 'laser.csv'}: {len(laser)} rows, {laser['run'].nunique()} runs from "
         f"{len(rtls)} files at elapsed_min {times}. {note}. temperature.csv is not written by "
         f"this importer: add {out / 'temperature.csv'} yourself (elapsed_s since start, one "
-        "column per sensor in degC, as in data-contract.md) before running dvc repro."
+        "column per sensor in degC, as in docs/data-contract.md) before running dvc repro."
     )
 
 

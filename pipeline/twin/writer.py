@@ -18,16 +18,10 @@ from pipeline.twin.instruments import PlacedSensor
 from pipeline.twin.params import SensorSpec
 from pipeline.twin.program import Program
 from pipeline.twin.workshop import WorkshopCampaign
+from schemas.contract import FILE_NAMES
 
 logger = logging.getLogger(__name__)
 
-CONTRACT_FILES = (
-    "campaign.yaml",
-    "temperature.csv",
-    "displacement.csv",
-    "spindle.csv",
-    "laser.csv",
-)
 """Files of a campaign folder; stale ones are removed before a campaign is rewritten."""
 
 FORMATS = {
@@ -181,7 +175,7 @@ def write_campaign(
     """
     folder = Path(out_dir) / campaign.info.campaign_id
     folder.mkdir(parents=True, exist_ok=True)
-    for name in CONTRACT_FILES:
+    for name in FILE_NAMES:
         (folder / name).unlink(missing_ok=True)
     _write(folder / "campaign.yaml", campaign_yaml(campaign))
     _write(folder / "temperature.csv", temperature_csv(campaign.temperature))

@@ -25,7 +25,7 @@ def require_valid(result: ValidationResult, report_path: Path | str) -> None:
     if not result.campaigns:
         raise NoValidCampaignError(
             "validate: no campaign found in data/ingested; add campaign folders under "
-            f"data/raw/ (see data-contract.md) and rerun dvc repro (report: {report_path})"
+            f"data/raw/ (see docs/data-contract.md) and rerun dvc repro (report: {report_path})"
         )
     if not result.valid:
         raise NoValidCampaignError(

@@ -232,7 +232,7 @@ PROBLEM_TEXTS: dict[str, ProblemText] = {
     # ---- campaign.yaml
     "metadata_missing": ProblemText(
         "{yaml_key}: is missing or empty in {campaign}/campaign.yaml",
-        f"add {{yaml_key}}: to {{campaign}}/campaign.yaml (see data-contract.md), {RERUN}",
+        "add {yaml_key}: to {campaign}/campaign.yaml (see " + CONTRACT + f"), {RERUN}",
         column="{yaml_key}",
     ),
     "kind_known": ProblemText(
