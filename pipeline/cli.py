@@ -40,28 +40,47 @@ COMMANDS = {
 }
 
 
-def _usage() -> str:
-    lines = ["usage: thermal <command> [options]", "", "commands:"]
-    lines += [f"  {name:<19} {text}" for name, (_, text) in COMMANDS.items()]
-    return "\n".join(lines)
+def dispatch(prog: str, commands: dict[str, tuple[str, str]], args: list[str], noun: str) -> int:
+    """Run ``args[0]``'s module ``main(args[1:])``; print the usage for none, -h or an unknown one.
+
+    Parameters
+    ----------
+    prog : str
+        The command line so far, e.g. ``thermal`` or ``thermal import``.
+    commands : dict
+        Name -> (module, one-line description).
+    args : list of str
+        The arguments after ``prog``.
+    noun : str
+        What a name is called in messages (``command``, ``source``).
+
+    Returns
+    -------
+    int
+        The module's exit code; 0 for help, 2 for a missing or unknown name.
+    """
+    lines = [f"usage: {prog} <{noun}> [options]", "", f"{noun}s:"]
+    lines += [f"  {name:<19} {text}" for name, (_, text) in commands.items()]
+    usage = "\n".join(lines)
+    if not args or args[0] in {"-h", "--help"}:
+        sys.stdout.write(usage + "\n")
+        return 0 if args else 2
+    if args[0] not in commands:
+        sys.stderr.write(f"{prog}: unknown {noun} '{args[0]}'\n\n{usage}\n")
+        return 2
+    module = importlib.import_module(commands[args[0]][0])
+    return int(module.main(args[1:]) or 0)
 
 
 def main(argv: list[str] | None = None) -> int:
     """Dispatch ``argv[0]`` to its command module; return the process exit code."""
     args = list(sys.argv[1:] if argv is None else argv)
-    if not args or args[0] in {"-h", "--help"}:
-        sys.stdout.write(_usage() + "\n")
-        return 0 if args else 2
-    name, rest = args[0], args[1:]
-    if name not in COMMANDS:
-        sys.stderr.write(f"thermal: unknown command '{name}'\n\n{_usage()}\n")
-        return 2
-    logging.basicConfig(
-        level=logging.INFO, format="%(levelname)s %(name)s: %(message)s", stream=sys.stderr
-    )
-    module = importlib.import_module(COMMANDS[name][0])
+    if args and args[0] in COMMANDS:
+        logging.basicConfig(
+            level=logging.INFO, format="%(levelname)s %(name)s: %(message)s", stream=sys.stderr
+        )
     try:
-        return int(module.main(rest) or 0)
+        return dispatch("thermal", COMMANDS, args, "command")
     except UserError as error:
-        sys.stderr.write(f"thermal {name}: error: {error}\n")
+        sys.stderr.write(f"thermal {args[0]}: error: {error}\n")
         return 1

@@ -9,8 +9,9 @@ axis campaign's ``laser.csv`` from Renishaw laser exports (:mod:`pipeline.import
 
 from __future__ import annotations
 
-import importlib
 import sys
+
+from pipeline.cli import dispatch
 
 SOURCES = {
     "logger": ("pipeline.importers.logger_import", "a data logger's wide table (CSV or XLSX)"),
@@ -18,20 +19,7 @@ SOURCES = {
 }
 
 
-def _usage() -> str:
-    lines = ["usage: thermal import <source> [options]", "", "sources:"]
-    lines += [f"  {name:<8} {text}" for name, (_, text) in SOURCES.items()]
-    return "\n".join(lines)
-
-
 def main(argv: list[str] | None = None) -> int:
     """Dispatch ``argv[0]`` to its importer; return the process exit code."""
-    args = list(sys.argv[1:] if argv is None else argv)
-    if not args or args[0] in {"-h", "--help"}:
-        sys.stdout.write(_usage() + "\n")
-        return 0 if args else 2
-    if args[0] not in SOURCES:
-        sys.stderr.write(f"thermal import: unknown source '{args[0]}'\n\n{_usage()}\n")
-        return 2
-    module = importlib.import_module(SOURCES[args[0]][0])
-    return int(module.main(args[1:]) or 0)
+    return dispatch("thermal import", SOURCES, list(sys.argv[1:] if argv is None else argv),
+                    "source")  # fmt: skip
