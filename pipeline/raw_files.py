@@ -110,6 +110,9 @@ def read_csv_cells(path: Path, report: Report) -> pd.DataFrame | None:
     except csv.Error as error:
         report(path.name, None, None, "unreadable_csv", line=reader.line_num, error=error)
         return None
+    if not rows:
+        report(path.name, None, None, "empty_file", size=f"{len(text)} characters, no cells")
+        return None
     header, body = rows[0], rows[1:]
     if any(";" in name for name in header):
         report(path.name, None, None, "semicolon_separated", header=repr(";".join(header)[:80]))

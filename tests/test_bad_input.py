@@ -551,3 +551,32 @@ def test_a_folder_of_bad_campaigns_only_fails_validate_with_a_message(tmp_path: 
     assert "no valid campaign" in runs[1].stderr and "B01" in runs[1].stderr
     report = json.loads((tmp_path / paths.VALIDATION_REPORT).read_text())
     assert report["summary"] == {"campaigns": 1, "valid": [], "quarantined": [BAD]}
+
+
+def test_a_quiet_probe_beside_a_drifting_one_is_not_taken_for_millimetres(workdir, monkeypatch):
+    """An X probe on a symmetric spindle barely moves while Z drifts: that is normal data."""
+    folder = spindle(workdir / paths.RAW)
+    path = folder / "displacement.csv"
+    header, rows = read_table(path)
+    quiet = np.random.default_rng(5).normal(0.0, 0.03, len(rows))
+    rows = [[*cells, f"{x:.3f}"] for cells, x in zip(rows, quiet, strict=True)]
+    write_table(path, [*header, "X"], rows)
+    edit_yaml(folder / "campaign.yaml", lambda meta: meta["displacement"].__setitem__("X", {}))
+    report = run_stages(workdir, monkeypatch, as_subprocess=False)
+    assert report["problems"] == [] and report["summary"]["quarantined"] == []
+
+
+def test_an_axis_campaign_with_a_temperature_row_per_pass_is_not_too_short(workdir, monkeypatch):
+    """docs/import-rtl.md leaves temperature.csv to the user: one row per laser pass is enough."""
+    raw = workdir / paths.RAW
+    write_axis_campaign(raw, "A02", n=3, interval_s=7200.0, passes_min=(0.0, 120.0, 240.0))
+    report = run_stages(workdir, monkeypatch, as_subprocess=False)
+    assert "A02" in report["summary"]["valid"], report["problems"]
+
+
+def test_a_csv_of_blank_cells_only_is_an_empty_file(workdir, monkeypatch):
+    temperature(workdir / paths.RAW).write_text('""\n" "\n')
+    report = run_stages(workdir, monkeypatch, as_subprocess=False)
+    checks = {(p["campaign"], p["check"], p["file"]) for p in report["problems"]}
+    assert (BAD, "empty_file", "temperature.csv") in checks
+    assert report["summary"]["quarantined"] == [BAD]

@@ -4,19 +4,22 @@ A campaign logged in the wrong unit passes every per-reading check (68-100 degF 
 physical range of degC, 0.001-0.05 mm inside the probe range in um), so each unit is checked on
 the whole campaign instead. Checks (ids, limits of ``params.yaml`` ``validate:``):
 
-- ``too_few_samples``: fewer than ``min_samples`` temperature rows (nothing to model); the
-  unit checks are then skipped.
+- ``too_few_samples``: a spindle_drift campaign with fewer than ``min_samples`` temperature rows
+  (nothing to model); the unit checks are then skipped. An axis_positioning campaign may have a
+  temperature row per laser pass only: its structure is checked by the laser checks.
 - ``temperature_unit`` (degF for degC): the campaign's air reference -- the median reading of
   its ambient sensor, or without one the median of its coolest sensor -- is above
   ``air_temperature_max_degC`` (45). A warm machine does not trip it: its spindle and motor may
   run at 40-60 degC, but the air (and the coolest part of the structure) stays below 45 degC
   even in a summer workshop, whereas a 20 degC workshop reads 68 degF. A workshop colder than
   7 degC (45 degF) logged in degF is not detected.
-- ``displacement_unit`` (mm for um): a declared displacement axis spans less than
-  ``displacement_min_span_um`` (0.5 um) peak to peak while a temperature sensor rose (max - min)
+- ``displacement_unit`` (mm for um): every declared displacement axis spans less than
+  ``displacement_min_span_um`` (0.2 um) peak to peak while a temperature sensor rose (max - min)
   by ``unit_check_min_rise_degC`` (2 K) or more. A heating machine drifts by micrometres to tens
-  of micrometres (and an eddy-current probe's noise alone spans more than 0.5 um); the same
-  drift in mm spans 0.001-0.05. A dead probe reading a constant fails it as well.
+  of micrometres along its main axis (and an eddy-current probe's noise alone spans more than
+  0.2 um); the same drift in mm spans 0.001-0.2. One quiet probe beside a moving one (an X probe
+  on a symmetric spindle) is normal and passes; a campaign whose every probe reads a constant
+  fails it as well.
 - ``time_unit`` (minutes for seconds): for a campaign without ``spindle.csv``, the samples span
   (last - first ``elapsed_s``) less than ``min_program_coverage`` (25 %) of the finite part of
   its ``spindle_program`` (the largest ``to_min``, or the ``from_min`` of the open-ended last
@@ -39,7 +42,12 @@ from pipeline.validation.problems import DISPLACEMENT_FILE, TEMPERATURE_FILE, Pr
 from pipeline.validation.rendering import problems_from_findings
 from pipeline.validation.tables import campaign_samples
 from schemas import ValidationLimits, parse_json
-from schemas.vocabulary import AMBIENT_ROLE, displacement_column, uses_ds18b20_codes
+from schemas.vocabulary import (
+    AMBIENT_ROLE,
+    SPINDLE_KIND,
+    displacement_column,
+    uses_ds18b20_codes,
+)
 
 CHECKS = ("too_few_samples", "temperature_unit", "displacement_unit", "time_unit")
 """The check ids of this module."""
@@ -68,7 +76,7 @@ def validate_plausibility(
     frame = campaign_samples(samples, campaign_id)
     if frame.empty:
         return []
-    if len(frame) < limits.min_samples:
+    if campaign.get("kind") == SPINDLE_KIND and len(frame) < limits.min_samples:
         found = [Finding(campaign_id, TEMPERATURE_FILE, "too_few_samples", value=len(frame))]
         return problems_from_findings(found, limits)
     sensors = parse_json(campaign.get("sensors_json"))
@@ -126,19 +134,18 @@ def _displacement_unit(
     axes = parse_json(campaign.get("displacement_json"))
     if not isinstance(axes, dict) or not rise >= limits.unit_check_min_rise_degC:
         return []
-    found = []
+    spans = {}
     for axis in map(str, axes):
         column = displacement_column(axis)
-        if column not in frame.columns or frame[column].notna().sum() < 2:
-            continue
-        span = float(frame[column].max() - frame[column].min())
-        if span < limits.displacement_min_span_um:
-            fields = {"axis": axis, "rise": round(rise, 2)}
-            found.append(
-                Finding(campaign_id, DISPLACEMENT_FILE, "displacement_unit", axis, None,
-                        round(span, 6), fields)
-            )  # fmt: skip
-    return found
+        if column in frame.columns and frame[column].notna().sum() >= 2:
+            spans[axis] = float(frame[column].max() - frame[column].min())
+    if not spans or max(spans.values()) >= limits.displacement_min_span_um:
+        return []
+    return [
+        Finding(campaign_id, DISPLACEMENT_FILE, "displacement_unit", axis, None, round(span, 6),
+                {"axis": axis, "rise": round(rise, 2)})
+        for axis, span in spans.items()
+    ]  # fmt: skip
 
 
 def _program_minutes(program_json: object) -> float:
