@@ -18,7 +18,7 @@ import yaml
 
 from pipeline.config import load_section
 from pipeline.importers import logger_import
-from pipeline.importers.cutting import CutRule, segments
+from pipeline.importers.cutting import MIN_SAMPLES, CutRule, segments
 from pipeline.importers.logger_table import TableError, read_logger_table
 from pipeline.importers.mapping import MappingError, load_mapping
 from pipeline.ingest import ingest
@@ -272,7 +272,8 @@ def test_input_table_is_byte_identical_after_import(tmp_path):
         ((), expected_cuts_s("speed_cycles")),
         (("--min-stop-min", "2"), expected_cuts_s("speed_cycles", 2.0)),
         (("--cut", "stops"), expected_cuts_s("stops")),
-        (("--cut", "fixed", "--window-h", "1"), [3600.0, 7200.0, 10800.0, 14400.0]),
+        # the record lasts 243 min: the last 3 min (9 samples) are too few for a campaign
+        (("--cut", "fixed", "--window-h", "1"), [3600.0, 7200.0, 10800.0]),
     ],
 )
 def test_cut_points_are_where_the_rule_says(tmp_path, flags, expected):
@@ -293,7 +294,7 @@ def test_cut_rule_from_mapping_and_flags_win(tmp_path):
     table = write_comma_csv(tmp_path)
     mapping = write_mapping(tmp_path, cut={"rule": "fixed", "window_h": 2})
     run_import(table, mapping, tmp_path / "a")
-    assert first_samples_s(tmp_path / "a") == pytest.approx([0.0, 7200.0, 14400.0])
+    assert first_samples_s(tmp_path / "a") == pytest.approx([0.0, 7200.0])  # 3 min left: kept
     run_import(table, mapping, tmp_path / "b", "--cut", "speed_cycles")
     assert first_samples_s(tmp_path / "b") == pytest.approx([0.0, *expected_cuts_s("speed_cycles")])
 
@@ -303,9 +304,9 @@ def test_leading_stop_stays_in_the_first_speed_cycle():
     rpm = np.array([0.0] * 12 + [3000.0] * 6 + [0.0] * 12)
     parts = segments(elapsed, rpm, CutRule("speed_cycles", min_stop_min=10.0))
     assert [(p.first, p.stop) for p in parts] == [(0, 30)]
-    rpm = np.concatenate([rpm, [3000.0] * 5])
-    parts = segments(np.arange(35) * 60.0, rpm, CutRule("speed_cycles", min_stop_min=10.0))
-    assert [(p.first, p.stop) for p in parts] == [(0, 30), (30, 35)]
+    rpm = np.concatenate([rpm, [3000.0] * 12])
+    parts = segments(np.arange(42) * 60.0, rpm, CutRule("speed_cycles", min_stop_min=10.0))
+    assert [(p.first, p.stop) for p in parts] == [(0, 30), (30, 42)]
     assert parts[1].stopped_before_s == pytest.approx(12 * 60.0)
 
 
@@ -587,3 +588,19 @@ def test_xlsx_date_cells_and_a_missing_sheet(tmp_path):
     )
     with pytest.raises(TableError, match="Sheet9"):
         read_logger_table(table, load_mapping(mapping))
+
+
+def test_a_cut_never_leaves_fewer_samples_than_validate_needs():
+    elapsed = np.arange(100) * 60.0
+    rpm = np.where((np.arange(100) // 8) % 2 == 0, 3000.0, 0.0)  # 8 min running, 8 stopped
+    parts = segments(elapsed, rpm, CutRule("fixed", window_h=0.1))  # 6-min windows
+    assert all(p.stop - p.first >= MIN_SAMPLES for p in parts)
+    assert parts[-1].stop == 100 and [p.first for p in parts][0] == 0
+
+
+def test_cold_after_stop_with_the_stops_rule_is_refused(tmp_path, capsys):
+    code = run_import(write_comma_csv(tmp_path), write_mapping(tmp_path), tmp_path / "o",
+                      "--cut", "stops", "--cold-after-stop-h", "1")  # fmt: skip
+    assert code == 2
+    assert "cannot be used with the stops rule" in capsys.readouterr().err
+    assert not (tmp_path / "o").exists()

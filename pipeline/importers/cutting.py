@@ -36,8 +36,9 @@ logger = logging.getLogger(__name__)
 RULES = ("speed_cycles", "stops", "fixed")
 """Known cut rules."""
 
-MIN_SAMPLES = 2
-"""Fewest samples a cut may leave in a campaign."""
+MIN_SAMPLES = 10
+"""Fewest samples a cut may leave in a campaign: the validate stage's default
+``validate.min_samples`` (a shorter spindle campaign is quarantined as too short to model)."""
 
 
 @dataclass(frozen=True)

@@ -101,6 +101,12 @@ def cut_rule(mapping: LoggerMapping, args: argparse.Namespace) -> CutRule:
             f"the fixed cut rule needs a window length: write cut: window_h: N (hours) "
             f"in {mapping.path} or pass --window-h N"
         )
+    if rule.rule == "stops" and rule.cold_after_stop_h is not None:
+        raise OptionError(
+            "cold_after_stop_h cannot be used with the stops rule: its campaigns begin with the "
+            "stop, so none starts after one; use the speed_cycles rule (campaigns begin when the "
+            f"spindle starts again) or remove cold_after_stop_h from {mapping.path} and the flags"
+        )
     return rule
 
 
