@@ -376,7 +376,7 @@ def main(argv: list[str] | None = None) -> int:
     uri = resolve_tracking_uri(settings)
     try:
         record = _log(prepared, settings, uri, experiment, batch_size)
-    except (store.MlflowException, OSError) as error:
+    except store.UNREACHABLE as error:
         raise SystemExit(unreachable_message(uri, error)) from error
     finished = time.perf_counter()
     logger.info(
@@ -399,9 +399,9 @@ def unreachable_message(uri: str, error: BaseException) -> str:
         "of this pipeline execution are DVC outputs (reports/, metrics/, data/models/champion/) "
         "and stay as they are. When the store can be reached (start the server, or fix "
         "MLFLOW_TRACKING_URI; unset it to log to the local store sqlite:///mlflow.db), run "
-        "'.venv/bin/thermal track' from the repository root, or '.venv/bin/dvc repro', which "
-        "reruns only this stage: the execution is logged once, and a partly logged attempt is "
-        "deleted, not duplicated."
+        "'bin/thermal track' from the repository root, or 'dvc repro' (.venv/bin/dvc), which "
+        "reruns only this stage: the execution is logged once, and a partly logged attempt of "
+        "it is deleted, not duplicated."
     )
 
 
@@ -415,6 +415,8 @@ def _log(
         client, experiment, local_artifact_location(uri, artifact_dir, experiment)
     )
     prefix = str(settings.get("registered_model") or DEFAULT_REGISTERED_MODEL)
+    for deleted in store.discard_incomplete(client, experiment_id, prepared.identity.value):
+        logger.info("deleted the incomplete earlier attempt %s (same run identity)", deleted)
     existing = store.find_parent(client, experiment_id, prepared.identity.value)
     if existing is not None:
         parent_id = existing.info.run_id
@@ -429,8 +431,6 @@ def _log(
         names = [registered_name(prefix, axis) for axis in prepared.champions]
         store.restore_champions(client, experiment_id, parent_id, names, "champion")
     else:
-        for deleted in store.discard_incomplete(client, experiment_id, prepared.identity.value):
-            logger.info("deleted the incomplete earlier attempt %s (same run identity)", deleted)
         parent_id = store.log_pipeline(
             client, experiment_id, prepared.parent, prepared.children, artifact_files(),
             batch_size, champion_hook(absolute_store_uri(uri), prefix, prepared.champions),

@@ -1001,3 +1001,29 @@ def test_registering_the_champion_does_not_fetch_every_metric(workdir, monkeypat
     track.main([])
     assert record(workdir)["champions"]["Z"]["version"] == "1"
     assert fetched == []
+
+
+def test_incomplete_attempts_of_the_same_execution_are_deleted_live_and_others_kept(workdir):
+    client = MlflowClient(tracking_uri=f"sqlite:///{workdir / 'mlflow.db'}")
+    experiment_id = store.ensure_experiment(client, EXPERIMENT, None)
+
+    def parent(identity: str, status: str | None) -> str:
+        run = client.create_run(experiment_id, tags={records.IDENTITY_TAG: identity})
+        if status is not None:
+            client.set_terminated(run.info.run_id, status)
+        return run.info.run_id
+
+    failed, finished = parent("same", "FAILED"), parent("same", "FINISHED")
+    running, other = parent("same", None), parent("other", "FAILED")
+    child = client.create_run(experiment_id, tags={records.PARENT_RUN_TAG: failed}).info.run_id
+    client.create_registered_model("m")
+    version = client.create_model_version("m", f"runs:/{child}/model", run_id=child)
+
+    assert store.discard_incomplete(client, experiment_id, "same") == [failed]
+    stage = {r: client.get_run(r).info.lifecycle_stage for r in (failed, child, finished,
+                                                                   running, other)}  # fmt: skip
+    assert stage == {failed: "deleted", child: "deleted", finished: "active",
+                     running: "active", other: "active"}  # fmt: skip
+    assert version.version not in {v.version for v in client.search_model_versions("name = 'm'")}
+    # a RUNNING parent counts as abandoned once it is older than stale_after_s
+    assert store.discard_incomplete(client, experiment_id, "same", stale_after_s=0.0) == [running]

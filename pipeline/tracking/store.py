@@ -14,10 +14,12 @@ import time
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from pathlib import Path
 
+import requests
 from mlflow.entities import Metric, Param, Run, RunStatus, RunTag
 from mlflow.exceptions import MlflowException
 from mlflow.tracking import MlflowClient
 
+from pipeline.errors import InputDataError
 from pipeline.tracking.records import IDENTITY_TAG, PARENT_RUN_TAG, RunRecord
 
 logger = logging.getLogger(__name__)
@@ -75,6 +77,9 @@ def batches(
 # instead. A user's own settings of these variables win.
 __all__ = ["MlflowException"]  # re-exported: callers catch it without importing mlflow
 
+UNREACHABLE = (MlflowException, requests.exceptions.RequestException)
+"""What a store that cannot be reached (or refuses a request) raises."""
+
 HTTP_DEFAULTS = {"MLFLOW_HTTP_REQUEST_MAX_RETRIES": "2", "MLFLOW_HTTP_REQUEST_TIMEOUT": "20"}
 
 
@@ -100,7 +105,7 @@ def ensure_experiment(client: MlflowClient, name: str, artifact_location: str | 
 
     Raises
     ------
-    RuntimeError
+    InputDataError
         If the experiment exists but is deleted: MLflow keeps the name reserved.
     """
     experiment = client.get_experiment_by_name(name)
@@ -109,7 +114,7 @@ def ensure_experiment(client: MlflowClient, name: str, artifact_location: str | 
         logger.info("created MLflow experiment '%s' (id %s)", name, experiment_id)
         return experiment_id
     if experiment.lifecycle_stage != "active":
-        raise RuntimeError(
+        raise InputDataError(
             f"MLflow experiment '{name}' (id {experiment.experiment_id}) is deleted; restore it "
             f"(mlflow experiments restore --experiment-id {experiment.experiment_id}), delete it "
             "for good (mlflow gc), or set another params.yaml track.experiment"
@@ -128,14 +133,18 @@ def find_parent(client: MlflowClient, experiment_id: str, identity: str) -> Run 
     return runs[0] if runs else None
 
 
-def discard_incomplete(client: MlflowClient, experiment_id: str, identity: str) -> list[str]:
+def discard_incomplete(
+    client: MlflowClient, experiment_id: str, identity: str, stale_after_s: float = 1800.0
+) -> list[str]:
     """Delete the unfinished attempts at logging the execution tagged with ``identity``.
 
     An attempt cut off by an unreachable server leaves a parent run that is ``FAILED`` (or still
     ``RUNNING`` when the connection went before its end status could be set), some of its
-    children and perhaps a registered champion version. Before the execution is logged again,
-    they are deleted (runs are soft-deleted: ``mlflow gc`` purges them), so the store holds the
-    execution once.
+    children and perhaps a registered champion version. They are deleted (runs are
+    soft-deleted: ``mlflow gc`` purges them), so the store holds the execution once. A
+    ``RUNNING`` parent is deleted only once it started more than ``stale_after_s`` ago: a
+    younger one may be another ``thermal track`` of the same execution logging right now (a
+    scheduled retrain and a developer on one team server).
 
     Parameters
     ----------
@@ -145,6 +154,8 @@ def discard_incomplete(client: MlflowClient, experiment_id: str, identity: str) 
         The experiment the attempts were logged to.
     identity : str
         The execution's run identity (tag ``run_identity`` of its parent).
+    stale_after_s : float, s
+        Age from which a ``RUNNING`` parent counts as abandoned.
 
     Returns
     -------
@@ -157,7 +168,11 @@ def discard_incomplete(client: MlflowClient, experiment_id: str, identity: str) 
         max_results=1000,
     )
     deleted = []
+    now_ms = time.time() * 1000.0
     for parent in parents:
+        running = parent.info.status == RunStatus.to_string(RunStatus.RUNNING)
+        if running and now_ms - parent.info.start_time < stale_after_s * 1000.0:
+            continue
         parent_id = parent.info.run_id
         children = client.search_runs(
             [experiment_id], filter_string=f"tags.{PARENT_RUN_TAG} = '{parent_id}'",
