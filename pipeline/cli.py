@@ -60,7 +60,8 @@ def dispatch(prog: str, commands: dict[str, tuple[str, str]], args: list[str], n
         The module's exit code; 0 for help, 2 for a missing or unknown name.
     """
     lines = [f"usage: {prog} <{noun}> [options]", "", f"{noun}s:"]
-    lines += [f"  {name:<19} {text}" for name, (_, text) in commands.items()]
+    width = max(len(name) for name in commands)
+    lines += [f"  {name:<{width}}  {text}" for name, (_, text) in commands.items()]
     usage = "\n".join(lines)
     if not args or args[0] in {"-h", "--help"}:
         sys.stdout.write(usage + "\n")

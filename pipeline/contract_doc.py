@@ -18,11 +18,13 @@ import sys
 from collections.abc import Callable
 from pathlib import Path
 
+from pipeline.errors import InputDataError, MissingInputError
 from pipeline.validation.texts import PROBLEM_TEXTS
 from schemas.contract import ALWAYS, CAMPAIGN_KEYS, FILES, OPTIONAL, VERSION
 from schemas.vocabulary import AMBIENT_ROLE, SENSOR_ROLES
 
-DOCUMENT = Path("docs/data-contract.md")
+DOCUMENT = Path(__file__).resolve().parents[1] / "docs" / "data-contract.md"
+"""The document, in the repository this package is installed from (an editable install)."""
 BLOCK_RE = re.compile(
     r"(<!-- generated: (?P<name>[a-z-]+) -->\n)(?P<body>.*?)(<!-- end generated: (?P=name) -->)",
     re.DOTALL,
@@ -88,19 +90,19 @@ BLOCKS: dict[str, Callable[[], str]] = {
 }
 
 
-def render(document: str) -> str:
+def render(document: str, name: str = "the document") -> str:
     """Return ``document`` with every generated block rewritten.
 
     Raises
     ------
-    ValueError
-        When a block of :data:`BLOCKS` has no markers in the document.
+    InputDataError
+        When a block of :data:`BLOCKS` has no markers in the document (``name`` says which).
     """
     found = {match["name"] for match in BLOCK_RE.finditer(document)}
     missing = sorted(set(BLOCKS) - found)
     if missing:
-        raise ValueError(
-            f"{DOCUMENT}: no generated block {missing}; add '<!-- generated: NAME -->' and "
+        raise InputDataError(
+            f"{name}: no generated block {missing}; add '<!-- generated: NAME -->' and "
             "'<!-- end generated: NAME -->' lines where each belongs"
         )
     return BLOCK_RE.sub(lambda m: m.group(1) + BLOCKS[m["name"]]() + m.group(4), document)
@@ -116,8 +118,13 @@ def main(argv: list[str] | None = None) -> int:
         "--check", action="store_true", help="fail if the document differs from the code"
     )
     args = parser.parse_args(argv)
+    if not args.path.is_file():
+        raise MissingInputError(
+            f"{args.path} not found: run thermal contract-doc in a clone of the repository, or "
+            "give the document with --path"
+        )
     current = args.path.read_text(encoding="utf-8")
-    wanted = render(current)
+    wanted = render(current, str(args.path))
     if args.check:
         if wanted != current:
             sys.stderr.write(

@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import datetime as dt
 import json
-import re
 from pathlib import Path
 from typing import Any
 
@@ -22,7 +21,7 @@ import yaml
 
 from pipeline.raw_files import Report, read_text
 from schemas.contract import CONTRACT_FILES
-from schemas.vocabulary import SAMPLE_BASE_COLUMNS
+from schemas.vocabulary import CAMPAIGN_ID_RE, SAMPLE_BASE_COLUMNS
 
 SEASON_BY_MONTH = {
     12: "winter", 1: "winter", 2: "winter",
@@ -41,7 +40,6 @@ REQUIRED_KEYS = {
 
 MAPPING = "a mapping of names to entries (name: {key: value, ...})"
 PROGRAM = "a list of entries {from_min: 0, to_min: 240, rpm: 4000}"
-ID_RE = re.compile(r"^[A-Za-z0-9_-]+$")
 
 
 def read_metadata(path: Path, report: Report) -> dict[str, Any] | None:
@@ -164,7 +162,7 @@ def _plain(value: Any) -> Any:
 def _check_campaign_id(campaign_id: str, declared: Any, report: Report) -> None:
     if declared is None:
         return
-    if not ID_RE.match(str(declared)):
+    if not CAMPAIGN_ID_RE.match(str(declared)):
         report("campaign.yaml", None, "campaign_id", "campaign_id_unsafe", value=repr(declared))
     elif str(declared) != campaign_id:
         report("campaign.yaml", None, "campaign_id", "campaign_id_mismatch", value=repr(declared))

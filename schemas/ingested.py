@@ -23,6 +23,7 @@ from schemas import checks
 from schemas.vocabulary import (
     AMBIENT_ROLE,
     AXIS_KIND,
+    CAMPAIGN_ID_RE,
     DIRECTIONS,
     DISPLACEMENT_COLUMN_RE,
     DISPLACEMENT_ROW_COLUMN_RE,
@@ -53,7 +54,7 @@ DATAFRAME_CHECK_COLUMNS = {
 }
 """Row-wise dataframe-level checks and the column each one is about (for problem reports)."""
 
-_ID_PATTERN = r"^[A-Za-z0-9_-]+$"
+_ID_PATTERN = CAMPAIGN_ID_RE.pattern
 
 
 @dataclass(frozen=True)

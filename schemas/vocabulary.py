@@ -50,6 +50,9 @@ the table / workpiece). Other probes (a second Z probe, a tilt pair...) may be d
 name of letters and digits starting with a letter (:func:`is_displacement_name`), e.g. ``Z2``;
 their sign is the user's."""
 
+CAMPAIGN_ID_RE = re.compile(r"^[A-Za-z0-9_-]+$")
+"""A campaign id (= its folder name): letters, digits, '-' and '_' only, so never a path."""
+
 DISPLACEMENT_NAME_RE = re.compile(r"^[A-Za-z][A-Za-z0-9]{0,15}$")
 
 DS18B20_TYPE = "DS18B20"

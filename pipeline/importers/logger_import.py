@@ -25,10 +25,12 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from pipeline.importers.arguments import non_negative, positive
 from pipeline.importers.contract_writer import SpindleDriftCampaign, write_campaign
 from pipeline.importers.cutting import RULES, CutRule, segments
 from pipeline.importers.logger_table import LoggerRecord, TableError, read_logger_table
-from pipeline.importers.mapping import ID_PREFIX_RE, LoggerMapping, MappingError, load_mapping
+from pipeline.importers.mapping import LoggerMapping, MappingError, load_mapping
+from schemas.vocabulary import CAMPAIGN_ID_RE
 
 logger = logging.getLogger(__name__)
 
@@ -37,20 +39,6 @@ PROG = "thermal import logger"
 
 class OptionError(ValueError):
     """A command-line option (or its combination with the mapping) that cannot be used."""
-
-
-def _positive(text: str) -> float:
-    value = float(text)
-    if not value > 0:
-        raise argparse.ArgumentTypeError(f"{text} is not a positive number")
-    return value
-
-
-def _non_negative(text: str) -> float:
-    value = float(text)
-    if not value >= 0:
-        raise argparse.ArgumentTypeError(f"{text} is not a number >= 0")
-    return value
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -65,13 +53,13 @@ def _parser() -> argparse.ArgumentParser:
     parser.add_argument("--cut", choices=RULES, help="cut rule (default: mapping cut.rule)")
     parser.add_argument(
         "--min-stop-min",
-        type=_non_negative,
+        type=non_negative,
         help="shortest stop that counts, min (speed_cycles, stops)",
     )
-    parser.add_argument("--window-h", type=_positive, help="window length of the fixed rule, h")
+    parser.add_argument("--window-h", type=positive, help="window length of the fixed rule, h")
     parser.add_argument(
         "--cold-after-stop-h",
-        type=_positive,
+        type=positive,
         help="a campaign after a stop this long (h) starts cold, a new run",
     )
     parser.add_argument("--id-prefix", help="campaign id prefix (default: mapping id_prefix)")
@@ -118,7 +106,7 @@ def id_prefix(mapping: LoggerMapping, flag: str | None) -> str:
             f"no campaign id prefix: write campaign: id_prefix: (e.g. L) in "
             f"{mapping.path} or pass --id-prefix L"
         )
-    if not ID_PREFIX_RE.match(prefix):
+    if not CAMPAIGN_ID_RE.match(prefix):
         raise OptionError(
             f"--id-prefix '{prefix}' has characters a campaign id cannot have; use "
             "letters, digits, '-' and '_' only"

@@ -26,6 +26,7 @@ from pipeline.importers.cutting import RULES, CutRule
 from pipeline.raw_reader import RESERVED_COLUMNS
 from schemas.vocabulary import (
     AMBIENT_ROLE,
+    CAMPAIGN_ID_RE,
     SEASONS,
     SENSOR_ROLES,
     SPLITS,
@@ -43,7 +44,6 @@ TEMPERATURE_UNITS = ("degC", "degF")
 
 DELIMITERS = (",", ";", "\t")
 DECIMALS = (".", ",")
-ID_PREFIX_RE = re.compile(r"^[A-Za-z0-9_-]+$")
 SENSOR_NAME_RE = re.compile(r"^[A-Za-z][A-Za-z0-9_]*$")
 
 TOP_LEVEL = "the top level"
@@ -563,7 +563,7 @@ def _ignore(check: _Checker, value: Any) -> tuple[str, ...]:
 def _campaign(check: _Checker, value: Any) -> CampaignSpec:
     section = check.section(value, "campaign", CAMPAIGN_KEYS)
     prefix = check.text(section.get("id_prefix"), "campaign.id_prefix", "e.g. L")
-    if prefix is not None and not ID_PREFIX_RE.match(prefix):
+    if prefix is not None and not CAMPAIGN_ID_RE.match(prefix):
         raise check.fail(
             "campaign.id_prefix",
             f"'{prefix}' has characters a campaign id cannot have",

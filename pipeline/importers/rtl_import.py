@@ -15,9 +15,7 @@ stderr for any user or data error.
 from __future__ import annotations
 
 import argparse
-import math
 import os
-import re
 import sys
 from collections.abc import Sequence
 from datetime import datetime
@@ -26,12 +24,12 @@ from pathlib import Path
 import pandas as pd
 import yaml
 
+from pipeline.importers.arguments import non_negative, positive
 from pipeline.importers.axis_campaign_yaml import SKELETON_OPTIONS, keys_to_add, skeleton_text
 from pipeline.importers.renishaw import RtlFile, RtlFormatError, read_rtl
 from schemas.contract import LASER_COLUMNS
-from schemas.vocabulary import AXIS_KIND, is_displacement_name
+from schemas.vocabulary import AXIS_KIND, CAMPAIGN_ID_RE, is_displacement_name
 
-CAMPAIGN_ID_RE = re.compile(r"^[A-Za-z0-9_-]+$")
 PROG = "thermal import rtl"
 
 
@@ -157,7 +155,7 @@ def _parser() -> argparse.ArgumentParser:
     times.add_argument(
         "--warmup-min",
         nargs="+",
-        type=_minutes,
+        type=non_negative,
         metavar="M",
         help="warm-up time (min since start) of each file, in file order; one must be 0",
     )
@@ -171,7 +169,7 @@ def _parser() -> argparse.ArgumentParser:
     skeleton = parser.add_argument_group("campaign.yaml skeleton (only if the folder has none)")
     skeleton.add_argument("--machine", help="machine name (free text)")
     skeleton.add_argument("--axis", type=_axis, help="axis measured, e.g. Y")
-    skeleton.add_argument("--stroke-mm", type=_positive, metavar="MM", help="axis travel (mm)")
+    skeleton.add_argument("--stroke-mm", type=positive, metavar="MM", help="axis travel (mm)")
     skeleton.add_argument(
         "--start",
         type=_iso_datetime,
@@ -179,30 +177,6 @@ def _parser() -> argparse.ArgumentParser:
         "of the cold file)",
     )
     return parser
-
-
-def _minutes(text: str) -> float:
-    value = _finite(text)
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"warm-up time {text} min is negative")
-    return value
-
-
-def _positive(text: str) -> float:
-    value = _finite(text)
-    if value <= 0:
-        raise argparse.ArgumentTypeError(f"{text} is not a positive length in mm")
-    return value
-
-
-def _finite(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"'{text}' is not a number") from None
-    if not math.isfinite(value):
-        raise argparse.ArgumentTypeError(f"'{text}' is not a finite number")
-    return value
 
 
 def _axis(text: str) -> str:
