@@ -4,7 +4,9 @@ The fast tests read every command the README shows (code blocks and inline code)
 that what it calls exists: the executable in the virtual environment, the ``thermal``
 sub-command, the ``make`` target, and that no command relies on a ``PATH`` the user must set.
 The slow test runs the README's own-data walkthrough block line by line with ``bash``, in a
-fresh copy of the repository, with ``PATH`` holding only the system's directories.
+fresh copy of the repository, with ``PATH`` holding only the system's directories. Its ``.venv``
+is a link to the environment running the tests, so its ``make install`` finds the environment
+up to date: the installation itself is what ``.ci/run`` (``make test`` on a fresh clone) tests.
 """
 
 from __future__ import annotations

@@ -12,7 +12,9 @@ the whole campaign instead. Checks (ids, limits of ``params.yaml`` ``validate:``
   ``air_temperature_max_degC`` (45). A warm machine does not trip it: its spindle and motor may
   run at 40-60 degC, but the air (and the coolest part of the structure) stays below 45 degC
   even in a summer workshop, whereas a 20 degC workshop reads 68 degF. A workshop colder than
-  7 degC (45 degF) logged in degF is not detected.
+  7 degC (45 degF) logged in degF is not detected. Without an ambient sensor, a campaign whose
+  every sensor stays above 45 degC (a warm stretch logged by spindle sensors only) is taken for
+  degF: give the air sensor the role ambient.
 - ``displacement_unit`` (mm for um): every declared displacement axis spans less than
   ``displacement_min_span_um`` (0.2 um) peak to peak while a temperature sensor rose (max - min)
   by ``unit_check_min_rise_degC`` (2 K) or more. A heating machine drifts by micrometres to tens
