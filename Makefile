@@ -22,11 +22,12 @@ run: install
 	$(BIN)/dvc repro
 	$(BIN)/thermal summary
 
+# Two workers (pytest-xdist), each test on whichever is free: the 2-core CI machine's time.
 test: install
-	PATH="$(CURDIR)/$(BIN):$$PATH" $(BIN)/python -m pytest
+	PATH="$(CURDIR)/$(BIN):$$PATH" $(BIN)/python -m pytest -n 2 --dist worksteal
 
 test-fast: install
-	PATH="$(CURDIR)/$(BIN):$$PATH" $(BIN)/python -m pytest -m "not slow"
+	PATH="$(CURDIR)/$(BIN):$$PATH" $(BIN)/python -m pytest -n 2 --dist worksteal -m "not slow"
 
 bench: install
 	PATH="$(CURDIR)/$(BIN):$$PATH" $(BIN)/thermal bench
