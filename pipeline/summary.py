@@ -87,10 +87,12 @@ def summary_lines(root: Path) -> list[str]:
         "  plots            .venv/bin/dvc plots show  (writes dvc_plots/index.html)",
     ]
     record = root / paths.TRACKING_RECORD
-    uri = LOCAL_STORE
+    uri, runs_page = LOCAL_STORE, ""
     if record.is_file():
         tracking = json.loads(record.read_text())
         uri = tracking.get("tracking_uri", uri)
+        if tracking.get("experiment_id") is not None:
+            runs_page = runs_page_path(str(tracking["experiment_id"]))
         lines.append(
             f"  MLflow           experiment '{tracking.get('experiment')}', parent run "
             f"{tracking.get('parent_run_id')} at {uri}"
@@ -101,12 +103,21 @@ def summary_lines(root: Path) -> list[str]:
     if uri.startswith("sqlite:"):
         lines += [
             "",
-            "Open the MLflow UI (then browse http://127.0.0.1:5000):",
+            f"Open the MLflow UI (then browse http://127.0.0.1:5000{runs_page}):",
             f"  .venv/bin/mlflow ui --backend-store-uri {uri} --port 5000",
         ]
     else:
-        lines += ["", f"Open the MLflow UI of your tracking server: {uri}"]
+        lines += ["", f"Open the MLflow UI of your tracking server: {uri.rstrip('/')}{runs_page}"]
     return lines
+
+
+def runs_page_path(experiment_id: str) -> str:
+    """Return the UI path of an experiment's run list.
+
+    MLflow 3 opens an experiment on its GenAI overview (traces) unless the page is asked for the
+    model-training view: ``?workflowType=machine_learning`` lands on the runs.
+    """
+    return f"/#/experiments/{experiment_id}?workflowType=machine_learning"
 
 
 def main(argv: list[str] | None = None) -> int:

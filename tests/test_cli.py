@@ -85,3 +85,13 @@ def test_an_internal_error_keeps_its_traceback(monkeypatch):
     monkeypatch.setattr(importlib.import_module("pipeline.summary"), "main", broken)
     with pytest.raises(RuntimeError, match="bug"):
         main(["summary"])
+
+
+def test_summary_links_the_run_list_not_the_genai_overview(tmp_path, capsys):
+    record = {"tracking_uri": "sqlite:///mlflow.db", "experiment": "thermal-error",
+              "experiment_id": "7", "parent_run_id": "abc", "champions": {}}  # fmt: skip
+    (tmp_path / "reports").mkdir()
+    (tmp_path / "reports" / "mlflow_run.json").write_text(json.dumps(record))
+    assert main(["summary", "--root", str(tmp_path)]) == 0
+    out = capsys.readouterr().out
+    assert "http://127.0.0.1:5000/#/experiments/7?workflowType=machine_learning" in out
