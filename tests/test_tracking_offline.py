@@ -67,7 +67,8 @@ def _parents(client: MlflowClient, identity: str, view: str = "ACTIVE_ONLY") -> 
 def test_stopped_server_keeps_the_outputs_and_a_later_track_logs_them_once(tmp_path):
     work = _small_repository(tmp_path)
     with running_mlflow_server(tmp_path) as stopped_uri:
-        pass  # the server ran (its store exists) and is stopped now
+        assert MlflowClient(tracking_uri=stopped_uri).search_experiments()  # up, store made
+    # ... and stopped now: the pipeline below runs against an unreachable server
 
     failed = _run([str(BIN / "dvc"), "repro"], work, stopped_uri)
 
