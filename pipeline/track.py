@@ -375,7 +375,7 @@ def main(argv: list[str] | None = None) -> int:
     ready = time.perf_counter()
     uri = resolve_tracking_uri(settings)
     try:
-        record = _log(prepared, settings, uri, experiment, batch_size)
+        record = _log(prepared, settings, uri, experiment, batch_size, n_metrics)
     except store.UNREACHABLE as error:
         raise SystemExit(unreachable_message(uri, error)) from error
     finished = time.perf_counter()
@@ -406,7 +406,12 @@ def unreachable_message(uri: str, error: BaseException) -> str:
 
 
 def _log(
-    prepared: Prepared, settings: Mapping[str, Any], uri: str, experiment: str, batch_size: int
+    prepared: Prepared,
+    settings: Mapping[str, Any],
+    uri: str,
+    experiment: str,
+    batch_size: int,
+    n_metrics: int,
 ) -> dict[str, Any]:
     """Log ``prepared`` to the store at ``uri`` unless it is there; return the run record."""
     client = store.make_client(absolute_store_uri(uri))
@@ -439,7 +444,7 @@ def _log(
             "logged parent run %s with %d child runs and %d metrics to experiment '%s' (%s)",
             parent_id,
             len(prepared.children),
-            records.count_metrics([prepared.parent, *prepared.children]),
+            n_metrics,
             experiment,
             public_uri(uri),
         )

@@ -19,8 +19,6 @@ from schemas.contract import FILE_NAMES
 
 logger = logging.getLogger(__name__)
 
-"""Files of a campaign folder; stale ones are removed when a folder is overwritten."""
-
 FLOAT_FORMAT = "%.10g"
 
 

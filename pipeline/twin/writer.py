@@ -22,8 +22,6 @@ from schemas.contract import FILE_NAMES
 
 logger = logging.getLogger(__name__)
 
-"""Files of a campaign folder; stale ones are removed before a campaign is rewritten."""
-
 FORMATS = {
     "elapsed_s": "{:.1f}",
     "elapsed_min": "{:.1f}",
