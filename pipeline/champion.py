@@ -29,7 +29,7 @@ The registered model is the candidate's fit on all training campaigns (unit ``al
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field, replace
 
 import pandas as pd
 
@@ -72,6 +72,9 @@ class Decision:
         False when the champion is ``none``.
     reason : str
         Why, in one sentence.
+    ineligible : dict
+        ``(model, selection, mode)`` -> why that candidate cannot be champion
+        (:func:`ineligibility`), for every candidate of the axis that cannot.
     """
 
     axis: str
@@ -83,6 +86,7 @@ class Decision:
     best_score: float
     compensate: bool
     reason: str
+    ineligible: dict[tuple[str, str, str], str] = field(default_factory=dict)
 
     @property
     def label(self) -> str:
@@ -97,12 +101,43 @@ def eligible(summary: pd.DataFrame) -> pd.DataFrame:
     ]
 
 
-def covered(rows: pd.DataFrame, protocol: str, min_coverage: float) -> pd.Series:
-    """Whether each row predicted at least ``min_coverage`` of none's held-out samples."""
-    column = f"{protocol}_coverage"
-    if column not in rows:
-        return pd.Series(True, index=rows.index)
-    return rows[column].fillna(0.0) >= min_coverage
+def ineligibility(row: pd.Series, protocol: str | None, min_coverage: float = 0.95) -> str | None:
+    """Why a candidate cannot be champion, in words; ``None`` when it can.
+
+    Parameters
+    ----------
+    row : Series
+        One :func:`pipeline.scoring.candidate_summary` row.
+    protocol : str or None
+        ``loso``, ``loco`` or None (a single training campaign).
+    min_coverage : float
+        Share of none's held-out samples a model must have predicted.
+    """
+    if row["mode"] not in DEPLOYABLE_MODES:
+        return (
+            f"mode {row['mode']}: each prediction uses the measured error of the step before, "
+            "which a machine does not have while it cuts"
+        )
+    if row["model"] in NOT_REGISTRABLE_MODELS:
+        return (
+            "the physical twin needs the spindle program and the sensor roles, which the "
+            "registered model does not take"
+        )
+    column = protocol_column(protocol)
+    if column is None:
+        return "a single training campaign leaves no held-out score to rank by"
+    if pd.isna(row.get(column)):
+        return f"no {PROTOCOL_NAMES[protocol]} score"
+    share = row.get(f"{protocol}_coverage")
+    if share is not None and not (float(share) >= min_coverage):
+        share = 0.0 if pd.isna(share) else float(share)
+        return (
+            f"predicted {100 * share:.0f} % of the held-out samples (needs "
+            f"{100 * min_coverage:.0f} %): an input is missing in some campaigns"
+        )
+    if "pooled_S_rms_um" in row and pd.isna(row["pooled_S_rms_um"]):
+        return "no fit on all training campaigns to register"
+    return None
 
 
 def choose_champion(
@@ -154,9 +189,21 @@ def choose_champion(
             False, "a single training campaign leaves no campaign to test a model on: there is "
             "no held-out score to choose a compensation by",
         )  # fmt: skip
-    ranked = eligible(rows)
-    deployable = ranked["pooled_S_rms_um"].notna() if "pooled_S_rms_um" in ranked else True
-    ranked = ranked[ranked[column].notna() & covered(ranked, protocol, min_coverage) & deployable]
+    reasons = rows.apply(ineligibility, axis=1, args=(protocol, min_coverage))
+    ineligible = {
+        tuple(str(row[k]) for k in KEYS): str(reason)
+        for (_, row), reason in zip(rows.iterrows(), reasons, strict=True)
+        if isinstance(reason, str)
+    }
+    eligible_rows = rows[[not isinstance(reason, str) for reason in reasons]]
+    decision = _decide(eligible_rows, axis, protocol, column, min_improvement)
+    return replace(decision, ineligible=ineligible)
+
+
+def _decide(
+    ranked: pd.DataFrame, axis: str, protocol: str, column: str, min_improvement: float
+) -> Decision:
+    """Rank the eligible rows on ``column`` and choose: the best model, or ``none``."""
     ranked = ranked.sort_values([column, "model", "selection"]).reset_index(drop=True)
     none_row = ranked[ranked["model"] == NO_COMPENSATION].iloc[0]
     none_score = float(none_row[column])
@@ -232,6 +279,44 @@ def champion_card(
         "chosen_params": {k: _plain(v) for k, v in result.chosen_params.items()},
         "scores": scores,
     }
+
+
+def standing(summary: pd.DataFrame, decision: Decision) -> pd.DataFrame:
+    """Each candidate of the decision's axis: eligible or why not, its rank, champion or not.
+
+    Parameters
+    ----------
+    summary : DataFrame
+        :func:`pipeline.scoring.candidate_summary` rows (any axes).
+    decision : Decision
+        The axis' champion decision.
+
+    Returns
+    -------
+    DataFrame
+        Columns ``axis``, ``model``, ``selection``, ``mode``, ``eligible`` (bool),
+        ``ineligible_reason`` (empty when eligible), ``rank`` (1 = best on the protocol score
+        among the eligible candidates, ``none`` included; 0 when not ranked), ``champion``
+        (bool), in the summary's order.
+    """
+    rows = summary[summary["axis"] == decision.axis]
+    ranks = {
+        tuple(str(row[k]) for k in KEYS): position
+        for position, (_, row) in enumerate(decision.ranked.iterrows(), start=1)
+    }
+    champion = tuple(str(decision.champion[k]) for k in KEYS)
+    records = []
+    for _, row in rows.iterrows():
+        key = tuple(str(row[k]) for k in KEYS)
+        reason = decision.ineligible.get(key, "")
+        if not reason and key not in ranks:
+            reason = "not ranked: no score on the selection protocol"
+        records.append({
+            "axis": decision.axis, **dict(zip(KEYS, key, strict=True)),
+            "eligible": not reason, "ineligible_reason": reason,
+            "rank": ranks.get(key, 0), "champion": key == champion,
+        })  # fmt: skip
+    return pd.DataFrame(records)
 
 
 def _plain(value):

@@ -27,6 +27,7 @@ campaign is read and quarantined exactly as by those stages.
 from __future__ import annotations
 
 import argparse
+import json
 import logging
 from pathlib import Path
 
@@ -242,6 +243,13 @@ def main(argv: list[str] | None = None) -> int:
         "--params", type=Path, default=DEFAULT_PARAMS, help="params file (default params.yaml)"
     )
     parser.add_argument("--no-mlflow", action="store_true", help="do not log an MLflow run")
+    parser.add_argument(
+        "--run-record",
+        type=Path,
+        default=None,
+        help=f"where to write the MLflow run id (default {paths.DISCREPANCY_RECORD} when --out "
+        "is the default, else none)",
+    )
     args = parser.parse_args(argv)
     section = load_section("discrepancy", args.params)
     gap = float(load_section("ingest", args.params)["max_alignment_gap_s"])
@@ -255,7 +263,21 @@ def main(argv: list[str] | None = None) -> int:
     reason = untestable_reason(campaigns)
     common = {"quarantined": quarantined, "synthetic": synthetic, "mlflow": not args.no_mlflow}
     if reason is not None:
-        run_untestable(campaigns, reason, section, args.out, **common)
+        doc = run_untestable(campaigns, reason, section, args.out, **common)
     else:
-        run(campaigns, section, args.out, **common)
+        doc = run(campaigns, section, args.out, **common)[1]
+    record = args.run_record or (paths.DISCREPANCY_RECORD if args.out == DEFAULT_OUT else None)
+    if record is not None:
+        write_run_record(record, doc.get("mlflow_run_id"))
     return 0
+
+
+def write_run_record(path: Path, run_id: str | None) -> None:
+    """Write where this execution's MLflow run is (``{"run_id": ...}``; null if none logged).
+
+    The run id changes with every execution, so it is kept out of the report folder (a DVC
+    output that later stages depend on); the track stage reads it to link the discrepancy run
+    and the pipeline run of the same ``dvc repro`` both ways.
+    """
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(json.dumps({"run_id": run_id}, indent=2) + "\n", encoding="utf-8")

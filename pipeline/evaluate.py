@@ -28,12 +28,18 @@ import pandas as pd
 
 from pipeline import comparison_report, paths, plots
 from pipeline.candidates import candidate_list, run_all
-from pipeline.champion import NO_COMPENSATION, Decision, champion_card, choose_champion
+from pipeline.champion import (
+    NO_COMPENSATION,
+    Decision,
+    champion_card,
+    choose_champion,
+    standing,
+)
 from pipeline.config import load_section
 from pipeline.cross_season import UnitResult
 from pipeline.errors import MissingInputError
 from pipeline.features import InputSpec, SpeedResponses, check_feature_kind
-from pipeline.scoring import candidate_summary, metrics_tree, score_matrix
+from pipeline.scoring import candidate_summary, group_scores, metrics_tree, score_matrix
 from pipeline.training_units import (
     POOLED_UNIT,
     CampaignSeries,
@@ -424,7 +430,12 @@ def write_tables(
                  paths.COMPARISON_FIGURES / "x", paths.CHAMPION / "x"):  # fmt: skip
         path.parent.mkdir(parents=True, exist_ok=True)
     scores.to_csv(paths.SCORES_LONG, index=False, float_format="%.6g")
-    summary.to_csv(paths.CANDIDATE_SCORES, index=False, float_format="%.4f")
+    ranked = summary
+    if evaluations:
+        standings = pd.concat([standing(summary, e.decision) for e in evaluations])
+        ranked = summary.merge(standings, on=["axis", *CANDIDATE], how="left")
+    ranked.to_csv(paths.CANDIDATE_SCORES, index=False, float_format="%.4f")
+    group_scores(scores).to_csv(paths.GROUP_SCORES, index=False, float_format="%.4f")
     cards = champions(evaluations, table, features, separation)
     tree = metrics_tree(scores)
     metrics = {
@@ -490,17 +501,20 @@ def empty_scores() -> pd.DataFrame:
 
 
 def champion_metrics(card: dict) -> dict:
-    """Return an axis' champion entry of ``metrics/cross_season.json`` (held-out, validation)."""
+    """Return an axis' champion entry of ``metrics/cross_season.json``.
+
+    The champion's held-out and validation scores under their one name (``loso_Mn_rms_um``,
+    ``loso_eta``, ``pooled_Mn_val_rms_um``, ``pooled_eta_val``; ``loco_`` for
+    leave-one-campaign-out), ``compensate``, and under ``none`` what no compensation leaves on
+    the same held-out samples.
+    """
     scores = card["scores"]
     protocol = card["protocol"]
-    return {
-        "compensate": card["compensate"],
-        "heldout_rms_um": scores.get(f"{protocol}_Mn_rms_um") if protocol else None,
-        "heldout_eta": scores.get(f"{protocol}_eta") if protocol else None,
-        "none_heldout_rms_um": card["none_score_um"],
-        "validation_rms_um": scores.get("pooled_Mn_val_rms_um"),
-        "validation_eta": scores.get("pooled_eta_val"),
-    }
+    names = [f"{protocol}_Mn_rms_um", f"{protocol}_eta"] if protocol else []
+    entry = {name: scores.get(name) for name in [*names, "pooled_Mn_val_rms_um", "pooled_eta_val"]}
+    if protocol:
+        entry["none"] = {f"{protocol}_Mn_rms_um": card["none_score_um"]}
+    return {"compensate": card["compensate"], **entry}
 
 
 def _round(tree):

@@ -114,10 +114,13 @@ CANDIDATE_KEYS = ["axis", "model", "selection", "mode"]
 
 
 def metrics_tree(scores: pd.DataFrame) -> dict:
-    """Nest summaries as ``{axis: {model: {selection: {mode: {scheme: {...}}}}}}``.
+    """Nest each candidate's scores as ``{axis: {model: {selection: {mode: {...}}}}}``.
 
-    Each scheme entry holds ``overall`` (:func:`summarise` of all its rows) and
-    ``by_train_unit`` (one summary per training campaign, left-out season or pooled unit).
+    A candidate's entry holds its overall scores under the names of the
+    :func:`candidate_summary` columns (``S_um``, ``loso_Mn_rms_um``, ``pooled_eta_val``...: the
+    one name a score has in ``model_scores.csv``, ``metrics/`` and MLflow) and ``by_train_unit``:
+    one summary per training unit (a training campaign, a left-out season or campaign, or the
+    pooled unit), named the same way (e.g. ``by_train_unit.not_winter.loso_Mn_rms_um``).
 
     Parameters
     ----------
@@ -128,16 +131,15 @@ def metrics_tree(scores: pd.DataFrame) -> dict:
     for (axis, model, selection, mode, scheme), group in scores.groupby(
         [*CANDIDATE_KEYS, "scheme"], sort=True
     ):
-        modes = (
+        entry = (
             tree.setdefault(axis, {}).setdefault(model, {}).setdefault(selection, {})
             .setdefault(mode, {})
         )  # fmt: skip
-        modes[scheme] = {
-            "overall": summarise(group),
-            "by_train_unit": {
-                str(unit): summarise(rows) for unit, rows in group.groupby("train_unit", sort=True)
-            },
-        }
+        prefix = SCHEME_PREFIX[scheme]
+        entry.update({prefix + key: value for key, value in summarise(group).items()})
+        units = entry.setdefault("by_train_unit", {})
+        for unit, rows in group.groupby("train_unit", sort=True):
+            units[str(unit)] = {prefix + key: value for key, value in summarise(rows).items()}
     return tree
 
 
@@ -214,3 +216,68 @@ def score_matrix(scores: pd.DataFrame, column: str) -> pd.DataFrame:
 
 def _split_order(column: pd.Series) -> pd.Series:
     return column.map({"train": 0, "validation": 1}) if column.name == "test_split" else column
+
+
+HELD_OUT_PREFIX = "not_"
+"""Training units of the held-out schemes are named ``not_<season>`` or ``not_<campaign>``."""
+GROUP_COLUMNS = [*CANDIDATE_KEYS, "scheme", "split", "held_out"]
+
+
+def group_score_name(scheme: str, split: str, held_out: str, statistic: str) -> str:
+    """Name of a per-held-out-group score, e.g. ``loso_winter_rms_um`` or ``pooled_val_K13_eta``.
+
+    Parameters
+    ----------
+    scheme : str
+        ``loso``, ``loco`` (the group left out of training) or ``pooled`` (the fit on all
+        training campaigns, applied to the validation campaigns).
+    split : str
+        ``train`` (a held-out training season or campaign) or ``validation``.
+    held_out : str
+        Season (``loso`` and validation) or campaign id (``loco``).
+    statistic : str
+        ``rms_um`` (mean RMS of the residual over the group's campaigns, um) or ``eta``.
+    """
+    middle = "val_" if split == "validation" else ""
+    return f"{SCHEME_PREFIX[scheme]}{middle}{held_out}_{statistic}"
+
+
+def group_scores(scores: pd.DataFrame) -> pd.DataFrame:
+    """Held-out scores per season (or campaign): how well each candidate predicts, e.g., winter.
+
+    Groups, per candidate: for leave-one-season-out (``loso``) each season, for
+    leave-one-campaign-out (``loco``) each campaign, scored by the fit that did not see it
+    (rows of role ``prediction``); for the fit on all training campaigns (``pooled``) the
+    validation campaigns of each season (role ``validation``).
+
+    Parameters
+    ----------
+    scores : DataFrame
+        The long score table (``schemas.CrossSeasonScoresModel``).
+
+    Returns
+    -------
+    DataFrame
+        Columns ``axis``, ``model``, ``selection``, ``mode``, ``scheme``, ``split``,
+        ``held_out``, ``n_campaigns``, ``rms_um`` (mean RMS of the residual over the group's
+        campaigns, um), ``uncompensated_rms_um`` (the same for the error itself, um), ``eta``
+        (1 - their ratio, as :func:`summarise`) and ``name`` (:func:`group_score_name` of
+        ``rms_um``); one row per group.
+    """
+    held = scores[scores["scheme"].isin(["loso", "loco"]) & (scores["role"] == "prediction")]
+    held = held.assign(split="train", held_out=held["train_unit"].str.removeprefix(HELD_OUT_PREFIX))
+    val = scores[(scores["scheme"] == "pooled") & (scores["role"] == "validation")]
+    val = val.assign(split="validation", held_out=val["test_season"])
+    rows = []
+    for keys, group in pd.concat([held, val]).groupby(GROUP_COLUMNS, sort=True):
+        finite = group[group["rmse_um"].notna()]
+        rms = float(finite["rmse_um"].mean()) if len(finite) else float("nan")
+        raw = float(finite["uncompensated_rms_um"].mean()) if len(finite) else float("nan")
+        row = dict(zip(GROUP_COLUMNS, keys, strict=True))
+        rows.append({
+            **row, "n_campaigns": int(group["test_campaign"].nunique()), "rms_um": rms,
+            "uncompensated_rms_um": raw, "eta": compensation_ratio(rms, raw),
+            "name": group_score_name(row["scheme"], row["split"], row["held_out"], "rms_um"),
+        })  # fmt: skip
+    columns = [*GROUP_COLUMNS, "n_campaigns", "rms_um", "uncompensated_rms_um", "eta", "name"]
+    return pd.DataFrame(rows, columns=columns)

@@ -55,7 +55,9 @@ from pipeline.paths import (
     CHAMPION_ESTIMATOR_FILE,
     COMPARISON_FIGURES,
     CROSS_SEASON_METRICS,
+    DISCREPANCY_RECORD,
     FITTED_MODELS,
+    GROUP_SCORES,
     MATRICES,
     MATRIX_CSV,
     MODEL_COMPARISON,
@@ -67,8 +69,8 @@ from pipeline.paths import (
     TRACKING_RECORD,
     VALIDATION_REPORT,
 )
+from pipeline.tracking import guide, records, store
 from pipeline.tracking import identity as ident
-from pipeline.tracking import records, store
 from schemas.evaluated import CrossSeasonScoresModel
 
 logger = logging.getLogger(__name__)
@@ -79,6 +81,8 @@ DEFAULT_TRACKING_URI = "sqlite:///mlflow.db"
 DEFAULT_ARTIFACT_DIR = "mlartifacts"
 SCORE_FILES = (
     SCORES_LONG,
+    CANDIDATE_SCORES,
+    GROUP_SCORES,
     CROSS_SEASON_METRICS,
     FITTED_MODELS,
     SELECTED,
@@ -298,14 +302,78 @@ class Prepared:
     champions: dict[str, dict]
 
 
+def read_table(path: Path, text_columns: list[str]) -> list[dict[str, Any]]:
+    """Read an evaluate table (``model_scores.csv``, ``heldout_scores.csv``) as rows.
+
+    Raises
+    ------
+    MissingInputError
+        If the file is missing, naming the stage to run.
+    """
+    if not path.is_file():
+        raise MissingInputError(
+            f"{path} not found: the track stage logs the evaluate outputs; run `dvc repro "
+            "evaluate` (or `thermal evaluate`) first"
+        )
+    missing = {column: ["", "nan", "NaN"] for column in _numeric(path, text_columns)}
+    table = pd.read_csv(
+        path, dtype=dict.fromkeys(text_columns, "str"), keep_default_na=False, na_values=missing
+    )
+    return table.to_dict("records")
+
+
+def _numeric(path: Path, text_columns: list[str]) -> list[str]:
+    header = path.read_text(encoding="utf-8").split("\n", 1)[0].strip().split(",")
+    return [column for column in header if column not in text_columns]
+
+
+def heatmaps() -> dict[records.ChildKey, str]:
+    """Each candidate's heat-map (``reports/matrices/<axis>__<model>__<selection>__<mode>.png``)."""
+    found = {}
+    for path in sorted(MATRICES.glob("*.png")):
+        key = tuple(path.stem.split("__"))
+        if len(key) == len(records.KEY_COLUMNS):
+            found[key] = str(path)
+    return found
+
+
+def discrepancy_run_id() -> str | None:
+    """Return the MLflow run the discrepancy stage logged in this ``dvc repro``, if any."""
+    if not DISCREPANCY_RECORD.is_file():
+        return None
+    try:
+        run_id = json.loads(DISCREPANCY_RECORD.read_text(encoding="utf-8")).get("run_id")
+    except (json.JSONDecodeError, AttributeError):
+        logger.warning(
+            "%s is not a JSON object: the discrepancy run is not linked", DISCREPANCY_RECORD
+        )
+        return None
+    return str(run_id) if run_id else None
+
+
+def child_inputs(cards: Mapping[str, Mapping[str, Any]]) -> records.ChildInputs:
+    """Read the evaluate outputs every child record is built from."""
+    keys = list(records.KEY_COLUMNS)
+    text = [*keys, "ineligible_reason", "eligible", "champion"]
+    return records.ChildInputs(
+        scores=records.rows_by_child(read_scores(SCORES_LONG)),
+        summaries=records.summaries_by_child(read_table(CANDIDATE_SCORES, text)),
+        groups=records.groups_by_child(
+            read_table(GROUP_SCORES, [*keys, "scheme", "split", "held_out", "name"])
+        ),
+        units=records.unit_tables(read_json(CROSS_SEASON_METRICS)),
+        fits=records.fits_by_candidate(read_json(FITTED_MODELS)),
+        ranked_by={axis: str(card.get("chosen_on") or "") for axis, card in cards.items()},
+        heatmaps=heatmaps(),
+    )
+
+
 def prepare(params_path: Path) -> Prepared:
     """Read the evaluate outputs and provenance, compute the identity, build the run records."""
     all_params = _load_params(params_path)
-    fitted = read_json(FITTED_MODELS)
     cross_season = read_json(CROSS_SEASON_METRICS)
     selected = read_json(SELECTED)["axes"]
     axis_model = read_json(AXIS_MODEL_METRICS) if AXIS_MODEL_METRICS.is_file() else {}
-    score_rows = read_scores(SCORES_LONG)
 
     code_dirs = [_package_dir("pipeline"), _package_dir("schemas")]
     cards = champion_cards()
@@ -319,9 +387,12 @@ def prepare(params_path: Path) -> Prepared:
     tags = records.provenance_tags(
         run_identity.value, run_identity.parts, commit, dvc_hashes, synthetic
     )
-    children = records.child_records(
-        fitted, score_rows, cross_season, {"synthetic": synthetic}, cards
-    )
+    tags[records.NOTE_TAG] = guide.parent_description(commit, synthetic, run_identity.value, cards)
+    for axis, card in cards.items():
+        tags[records.safe_key(records.RANKED_BY_TAG, axis)] = str(card.get("chosen_on") or "-")
+        label = "/".join(str(card[k]) for k in records.KEY_COLUMNS[1:])
+        tags[records.safe_key(records.CHAMPION_TAG, axis)] = f"{axis}/{label}"
+    children = records.child_records(child_inputs(cards), {"synthetic": synthetic})
     parent = records.parent_record(
         f"pipeline-{run_identity.value[:12]}",
         cross_season,
@@ -448,6 +519,11 @@ def _log(
             experiment,
             public_uri(uri),
         )
+    store.describe_experiment(client, experiment_id, guide.experiment_description(experiment))
+    discrepancy = discrepancy_run_id()
+    linked = discrepancy is not None and store.link_runs(
+        client, parent_id, discrepancy, "discrepancy"
+    )
     registered = {axis: registered_name(prefix, axis) for axis in prepared.champions}
     versions = {
         axis: store.champion_version(client, name, "champion") for axis, name in registered.items()
@@ -475,4 +551,5 @@ def _log(
         },
         "git_commit": prepared.git_commit,
         "synthetic": prepared.synthetic,
+        "discrepancy_run_id": discrepancy if linked else None,
     }

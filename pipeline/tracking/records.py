@@ -1,14 +1,24 @@
 """Turn the evaluate outputs into MLflow run records (pure: no files, no MLflow).
 
-One parent record per pipeline execution (overall scores, all parameters, provenance tags,
-each axis' champion) and one child record per candidate (axis, model, selection, mode) found in
-``reports/cross_season_scores.csv`` or ``metrics/cross_season.json``, so that the MLflow UI
-lists the candidates side by side. A child's metrics are its summary scores (``S_um``,
-``Mn_um``, ``Sd_um``, ``Mn_val_um``... of the per-campaign protocol; ``loso.*`` leave one
-season out or ``loco.*`` leave one campaign out; ``pooled.*`` built on all training campaigns;
-``unit.<unit>.*`` per training unit; ``eta`` the compensation ratio) and every cross-campaign
-score ``rmse_um.<train unit>.<test campaign>``, ``resid_std_um.<train unit>.<test campaign>``
-(um) and ``eta.<train unit>.<test campaign>``.
+One parent record per pipeline execution and one child record per candidate (axis, model,
+selection, mode), so that the MLflow UI lists the candidates side by side and Compare shows
+their evidence. Every score has one name everywhere (``model_scores.csv``,
+``metrics/cross_season.json``, MLflow): the :func:`pipeline.scoring.candidate_summary` column,
+e.g. ``loso_Mn_rms_um`` (see :mod:`pipeline.tracking.guide` for the vocabulary).
+
+A child carries
+
+- metrics: its headline scores (at most :data:`MAX_CHILD_METRICS`): the summary of every scheme
+  and the score per held-out season (or campaign) and validation season
+  (:func:`pipeline.scoring.group_scores`, e.g. ``loso_winter_rms_um``, ``loso_winter_eta``);
+- tags: ``axis``, ``model``, ``selection``, ``mode``, ``eligible`` (``ineligible_reason`` when
+  not), ``rank`` (on the axis' selection score, eligible candidates only), ``champion``,
+  ``ranked_by``, and a run description (``mlflow.note.content``);
+- tables (JSON table artifacts under ``evidence/``): every (training unit, test campaign) score,
+  every training unit's summary, the held-out groups, what each fit chose; and its heat-map.
+
+The parent carries each axis' champion scores (``<axis>.champion.<name>``), the whole
+``params.yaml``, every selection's inputs, provenance tags and a description.
 """
 
 from __future__ import annotations
@@ -22,13 +32,26 @@ from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
+from pipeline.tracking import guide
+
 logger = logging.getLogger(__name__)
 
 SCORE_COLUMNS = ("rmse_um", "resid_std_um", "eta")
 KEY_COLUMNS = ("axis", "model", "selection", "mode")
 REQUIRED_SCORE_COLUMNS = (*KEY_COLUMNS, "train_unit", "test_campaign", *SCORE_COLUMNS)
-SCHEME_PREFIX = {"campaign": "", "loso": "loso", "loco": "loco", "pooled": "pooled"}
 CHAMPION_TAG = "champion"
+ELIGIBLE_TAG = "eligible"
+RANK_TAG = "rank"
+RANKED_BY_TAG = "ranked_by"
+NOTE_TAG = "mlflow.note.content"
+MAX_CHILD_METRICS = 100
+"""Most metrics on a child run: the headline scores; the rest go to its table artifacts."""
+SCORES_TABLE = "evidence/scores.json"
+UNITS_TABLE = "evidence/unit_scores.json"
+GROUPS_TABLE = "evidence/heldout_scores.json"
+FITS_TABLE = "evidence/fits.json"
+HEATMAP = "evidence/cross_season_rms.png"
+STANDING_COLUMNS = ("eligible", "ineligible_reason", "rank", "champion")
 IDENTITY_TAG = "run_identity"
 PARENT_RUN_TAG = "mlflow.parentRunId"
 MAX_PARAM_LENGTH = 6000  # MLflow's limit on a parameter value (characters)
@@ -53,12 +76,18 @@ class RunRecord:
         Metrics, scores in um.
     tags : dict of str to str
         Tags (the parent-run link is added by the writer).
+    tables : dict of str to list of dict
+        Table artifacts: artifact file (e.g. ``evidence/scores.json``) -> rows.
+    files : dict of str to str
+        Files to log: artifact path (e.g. ``evidence/cross_season_rms.png``) -> local path.
     """
 
     name: str
     params: dict[str, str] = field(default_factory=dict)
     metrics: dict[str, float] = field(default_factory=dict)
     tags: dict[str, str] = field(default_factory=dict)
+    tables: dict[str, list[dict]] = field(default_factory=dict)
+    files: dict[str, str] = field(default_factory=dict)
 
 
 def safe_key(*parts: str) -> str:
@@ -125,10 +154,10 @@ def parse_score(value: Any, source: str, row: int, column: str) -> float:
         ) from None
 
 
-def scores_by_child(
+def rows_by_child(
     rows: Sequence[Mapping[str, Any]], source: str = "cross_season_scores.csv"
-) -> dict[ChildKey, dict[str, float]]:
-    """Group the long score table into child metrics.
+) -> dict[ChildKey, list[dict[str, Any]]]:
+    """Group the long score table by candidate, scores parsed, for the child's table artifact.
 
     Parameters
     ----------
@@ -141,8 +170,8 @@ def scores_by_child(
     Returns
     -------
     dict
-        ``{(axis, model, selection, mode): {"rmse_um.<train unit>.<test>": um,
-        "resid_std_um.<train unit>.<test>": um, "eta.<train unit>.<test>": 1, ...}}``.
+        ``{(axis, model, selection, mode): [row, ...]}``: each row without the candidate keys,
+        ``rmse_um``, ``resid_std_um`` (um) and ``eta`` as float (NaN when empty).
 
     Raises
     ------
@@ -158,7 +187,7 @@ def scores_by_child(
                 f"{source}: missing column(s) {missing} (found {sorted(rows[0])}); "
                 "rerun the evaluate stage (dvc repro evaluate)"
             )
-    children: dict[ChildKey, dict[str, float]] = {}
+    children: dict[ChildKey, list[dict[str, Any]]] = {}
     seen: dict[tuple[str, ...], int] = {}
     for number, row in enumerate(rows, start=1):
         key = tuple(str(row[column]) for column in KEY_COLUMNS)
@@ -170,50 +199,111 @@ def scores_by_child(
                 f"row {seen[pair]}; each pair must be scored once, fix the evaluate stage"
             )
         seen[pair] = number
-        metrics = children.setdefault(key, {})
+        parsed = {name: value for name, value in row.items() if name not in KEY_COLUMNS}
         for column in SCORE_COLUMNS:
-            metrics[safe_key(column, pair[4], pair[5])] = parse_score(
-                row[column], source, number, column
-            )
+            parsed[column] = parse_score(row[column], source, number, column)
+        children.setdefault(key, []).append(parsed)
     return children
 
 
-def _entry_metrics(entry: Mapping[str, Any], *prefix: str) -> dict[str, float]:
+def _metrics(entry: Mapping[str, Any]) -> dict[str, float]:
+    """Return the numeric entries of ``entry`` (booleans and text left out)."""
     metrics = {}
     for key, value in entry.items():
         number = _as_metric(value)
         if number is not None:
-            metrics[safe_key(*prefix, key)] = number
+            metrics[safe_key(key)] = number
     return metrics
 
 
-def summary_metrics(cross_season: Mapping[str, Any]) -> dict[ChildKey, dict[str, float]]:
-    """Summary scores per candidate from ``metrics/cross_season.json``.
+@dataclass(frozen=True)
+class Standing:
+    """Where a candidate stands in its axis' champion decision (``model_scores.csv``)."""
+
+    eligible: bool
+    reason: str
+    rank: int
+    champion: bool
+
+
+def _flag(value: Any) -> bool:
+    return str(value).strip().lower() in {"true", "1", "1.0"}
+
+
+def summaries_by_child(
+    summary_rows: Sequence[Mapping[str, Any]],
+) -> dict[ChildKey, tuple[dict[str, float], Standing]]:
+    """Each candidate's summary scores and standing from ``reports/model_scores.csv``.
 
     Returns
     -------
     dict
-        ``{(axis, model, selection, mode): metrics}``: the ``campaign`` scheme's overall scores
-        under their own names (``S_um``, ``Mn_um``...), the other schemes' as
-        ``<SCHEME_PREFIX>.<key>``, and every training unit's as ``unit.<unit>.<key>`` (um).
+        ``{(axis, model, selection, mode): (scores, standing)}``: scores under their column
+        names (``S_um``, ``loso_Mn_rms_um``, ``pooled_eta_val``, ``loso_coverage``...; um or
+        dimensionless), NaN ones left out.
     """
-    found: dict[ChildKey, dict[str, float]] = {}
-    for axis, body in cross_season.items():
-        for model, selections in ((body or {}).get("candidates") or {}).items():
-            for selection, modes in (selections or {}).items():
-                for mode, schemes in (modes or {}).items():
-                    key = (str(axis), str(model), str(selection), str(mode))
-                    metrics = found.setdefault(key, {})
-                    for scheme, entry in (schemes or {}).items():
-                        prefix = SCHEME_PREFIX.get(scheme, scheme)
-                        overall = (entry or {}).get("overall") or {}
-                        metrics.update(_entry_metrics(overall, *([prefix] if prefix else [])))
-                        for unit, scores in ((entry or {}).get("by_train_unit") or {}).items():
-                            metrics.update(_entry_metrics(scores or {}, "unit", unit))
+    found = {}
+    for row in summary_rows:
+        key = tuple(str(row[column]) for column in KEY_COLUMNS)
+        scores = {
+            name: value
+            for name, value in _metrics(
+                {k: v for k, v in row.items() if k not in (*KEY_COLUMNS, *STANDING_COLUMNS)}
+            ).items()
+            if math.isfinite(value)
+        }
+        rank = _as_metric(row.get("rank"))
+        reason = row.get("ineligible_reason")
+        standing = Standing(
+            _flag(row.get("eligible")),
+            reason if isinstance(reason, str) else "",
+            int(rank) if rank is not None and math.isfinite(rank) else 0,
+            _flag(row.get("champion")),
+        )
+        found[key] = (scores, standing)
     return found
 
 
-def _fitted_by_candidate(fitted: Mapping[str, Any]) -> dict[tuple[str, ...], list[Mapping]]:
+def groups_by_child(group_rows: Sequence[Mapping[str, Any]]) -> dict[ChildKey, list[dict]]:
+    """Group the rows of ``reports/heldout_scores.csv`` by candidate (keys dropped)."""
+    found: dict[ChildKey, list[dict]] = {}
+    for row in group_rows:
+        key = tuple(str(row[column]) for column in KEY_COLUMNS)
+        found.setdefault(key, []).append({k: v for k, v in row.items() if k not in KEY_COLUMNS})
+    return found
+
+
+def group_metrics(groups: Sequence[Mapping[str, Any]]) -> dict[str, float]:
+    """Per held-out group: ``<name>`` (mean RMS, um) and the same name ending ``_eta``."""
+    metrics = {}
+    for row in groups:
+        name = str(row["name"])
+        for key, value in ((name, row.get("rms_um")),
+                           (name.removesuffix("_rms_um") + "_eta", row.get("eta"))):  # fmt: skip
+            number = _as_metric(value)
+            if number is not None and math.isfinite(number):
+                metrics[safe_key(key)] = number
+    return metrics
+
+
+def unit_tables(cross_season: Mapping[str, Any]) -> dict[ChildKey, list[dict]]:
+    """Each candidate's per-training-unit summaries (``metrics/cross_season.json``) as rows."""
+    found: dict[ChildKey, list[dict]] = {}
+    for axis, body in cross_season.items():
+        for model, selections in ((body or {}).get("candidates") or {}).items():
+            for selection, modes in (selections or {}).items():
+                for mode, entry in (modes or {}).items():
+                    key = (str(axis), str(model), str(selection), str(mode))
+                    units = (entry or {}).get("by_train_unit") or {}
+                    found[key] = [
+                        {"train_unit": unit, **{k: _as_metric(v) for k, v in scores.items()}}
+                        for unit, scores in units.items()
+                    ]
+    return found
+
+
+def fits_by_candidate(fitted: Mapping[str, Any]) -> dict[tuple[str, ...], list[Mapping]]:
+    """Group ``reports/fitted_models.json`` entries by (axis, model, selection)."""
     entries: dict[tuple[str, ...], list[Mapping]] = {}
     for name, entry in fitted.items():
         if not {"axis", "model", "selection", "train_unit"} <= set(entry):
@@ -226,66 +316,100 @@ def _fitted_by_candidate(fitted: Mapping[str, Any]) -> dict[tuple[str, ...], lis
     return entries
 
 
-def child_records(
-    fitted: Mapping[str, Any],
-    score_rows: Sequence[Mapping[str, Any]],
-    cross_season: Mapping[str, Any],
-    tags: Mapping[str, str] | None = None,
-    champions: Mapping[str, Mapping[str, Any]] | None = None,
-) -> list[RunRecord]:
+def fit_rows(entries: Sequence[Mapping[str, Any]]) -> list[dict[str, str]]:
+    """Return what each fit of a candidate used and chose: one row per training unit."""
+    return [
+        {
+            "train_unit": str(entry["train_unit"]),
+            "inputs": ",".join(str(sensor) for sensor in entry.get("inputs") or []) or "-",
+            "chosen_params": json.dumps(entry.get("chosen_params") or {}, sort_keys=True),
+        }
+        for entry in entries
+    ]
+
+
+def headline(scores: Mapping[str, float], groups: Mapping[str, float], name: str) -> dict:
+    """Return the child's metrics: summary scores, then held-out groups within the limit."""
+    metrics = dict(scores)
+    room = MAX_CHILD_METRICS - len(metrics)
+    if len(groups) > room:
+        logger.warning(
+            "%s: %d per-group scores, room for %d metrics: the rest are in %s only",
+            name, len(groups), max(room, 0), GROUPS_TABLE,
+        )  # fmt: skip
+    metrics.update(dict(list(groups.items())[: max(room, 0)]))
+    return metrics
+
+
+@dataclass(frozen=True)
+class ChildInputs:
+    """The evaluate outputs a child record is built from, grouped by candidate."""
+
+    scores: dict[ChildKey, list[dict]]
+    summaries: dict[ChildKey, tuple[dict[str, float], Standing]]
+    groups: dict[ChildKey, list[dict]]
+    units: dict[ChildKey, list[dict]]
+    fits: dict[tuple[str, ...], list[Mapping]]
+    ranked_by: dict[str, str]
+    heatmaps: dict[ChildKey, str]
+
+
+def child_records(inputs: ChildInputs, tags: Mapping[str, str] | None = None) -> list[RunRecord]:
     """Build one child record per candidate (axis, model, selection, mode).
 
     Parameters
     ----------
-    fitted : mapping
-        ``reports/fitted_models.json``: ``{"<axis>/<model>/<selection>/<unit>": {"axis",
-        "model", "selection", "train_unit", "scheme", "inputs": [...], "chosen_params":
-        {...}}}``.
-    score_rows : sequence of mapping
-        Rows of ``reports/cross_season_scores.csv``.
-    cross_season : mapping
-        ``metrics/cross_season.json``.
+    inputs : ChildInputs
+        The evaluate outputs by candidate (see :func:`child_inputs`).
     tags : mapping, optional
         Tags added to every child (e.g. ``synthetic``).
-    champions : mapping, optional
-        Axis -> champion card; the champion's child gets the tag ``champion: true``.
 
     Returns
     -------
     list of RunRecord
         Sorted by (axis, model, selection, mode), named ``<axis>/<model>/<selection>/<mode>``.
-        Parameters: ``axis``, ``model``, ``selection``, ``mode``, ``inputs.<unit>`` (chosen
-        inputs, comma-separated) and ``chosen.<unit>.<name>`` (what each fit decided: lag
-        order, components, penalty...). Metrics: see :func:`summary_metrics` and
-        :func:`scores_by_child`.
+        Parameters: ``axis``, ``model``, ``selection``, ``mode`` and the inputs and decisions
+        of the fit on all training campaigns (``inputs``, ``chosen.<name>``); the fits on the
+        other training units are in the table ``evidence/fits.json``.
     """
-    scores = scores_by_child(score_rows)
-    summaries = summary_metrics(cross_season)
-    models = _fitted_by_candidate(fitted)
-    winners = {
-        (axis, str(card["model"]), str(card["selection"]), str(card["mode"]))
-        for axis, card in (champions or {}).items()
-    }
     records = []
-    for key in sorted(set(scores) | set(summaries)):
+    for key in sorted(set(inputs.scores) | set(inputs.summaries)):
         axis, model, selection, mode = key
         name = "/".join(key)
-        for what, table in (("cross_season_scores.csv", scores), ("cross_season.json", summaries)):
+        for what, table in (("cross_season_scores.csv", inputs.scores),
+                            ("model_scores.csv", inputs.summaries)):  # fmt: skip
             if key not in table:
                 logger.warning("%s: no entry for %s; its child run lacks that part", what, name)
+        scores, standing = inputs.summaries.get(key, ({}, Standing(False, "not scored", 0, False)))
+        groups = inputs.groups.get(key, [])
+        fits = inputs.fits.get((axis, model, selection), [])
         params = {"axis": axis, "model": model, "selection": selection, "mode": mode}
-        for entry in models.get((axis, model, selection), []):
-            unit = str(entry["train_unit"])
-            inputs = ",".join(str(sensor) for sensor in entry.get("inputs") or [])
-            params[safe_key("inputs", unit)] = _text(inputs or "-", MAX_PARAM_LENGTH, name)
-            for param, value in flatten(entry.get("chosen_params") or {}).items():
-                params[safe_key("chosen", unit, param)] = _text(value, MAX_PARAM_LENGTH, name)
-        metrics = {**scores.get(key, {}), **summaries.get(key, {})}
+        for entry in fits:
+            if entry["train_unit"] == "all_training":
+                inputs_text = ",".join(str(s) for s in entry.get("inputs") or []) or "-"
+                params["inputs"] = _text(inputs_text, MAX_PARAM_LENGTH, name)
+                for param, value in flatten(entry.get("chosen_params") or {}).items():
+                    params[safe_key("chosen", param)] = _text(value, MAX_PARAM_LENGTH, name)
+        ranked_by = inputs.ranked_by.get(axis, "")
         child_tags = {
             **(tags or {}), "axis": axis, "model": model, "selection": selection, "mode": mode,
-            CHAMPION_TAG: str(key in winners).lower(),
+            ELIGIBLE_TAG: str(standing.eligible).lower(), RANKED_BY_TAG: ranked_by or "-",
+            CHAMPION_TAG: str(standing.champion).lower(),
         }  # fmt: skip
-        records.append(RunRecord(name=name, params=params, metrics=metrics, tags=child_tags))
+        if standing.rank:
+            child_tags[RANK_TAG] = str(standing.rank)
+        if not standing.eligible:
+            child_tags["ineligible_reason"] = _text(standing.reason, MAX_TAG_LENGTH, name)
+        child_tags[NOTE_TAG] = guide.child_description(name, standing, scores, groups, ranked_by)
+        tables = {
+            SCORES_TABLE: inputs.scores.get(key, []),
+            UNITS_TABLE: inputs.units.get(key, []),
+            GROUPS_TABLE: groups,
+            FITS_TABLE: fit_rows(fits),
+        }
+        files = {HEATMAP: inputs.heatmaps[key]} if key in inputs.heatmaps else {}
+        metrics = headline(scores, group_metrics(groups), name)
+        records.append(RunRecord(name, params, metrics, child_tags, tables, files))
     return records
 
 
@@ -297,21 +421,22 @@ def parent_record(
     selected: Mapping[str, Mapping[str, Mapping[str, Mapping[str, Any]]]] | None = None,
     axis_model: Mapping[str, Any] | None = None,
 ) -> RunRecord:
-    """Build the parent record: overall scores, champions, every parameter, provenance tags.
+    """Build the parent record: each axis' champion scores, every parameter, provenance tags.
 
     Parameters
     ----------
     name : str
         Run name.
     cross_season : mapping
-        ``metrics/cross_season.json``: per axis, each candidate's schemes' ``overall`` entries
-        become metrics ``<axis>.<model>.<selection>.<mode>.<scheme>.<key>`` (um), the
-        ``champion`` entry metrics ``<axis>.champion.<key>``, and the ``skipped`` candidates
-        tags ``skipped.<axis>.<candidate>`` (the reason).
+        ``metrics/cross_season.json``: each axis' ``champion`` entry becomes metrics
+        ``<axis>.champion.<name>`` (``Z.champion.loso_Mn_rms_um``,
+        ``Z.champion.none.loso_Mn_rms_um``, ``Z.champion.compensate``...), the ``skipped``
+        candidates tags ``skipped.<axis>.<candidate>`` (the reason). The candidates' own
+        scores are on their child runs.
     params : mapping
         The whole parsed ``params.yaml``, flattened to ``<section>.<key>`` parameters.
     tags : mapping
-        Provenance tags (identity, git commit, data hashes, synthetic flag).
+        Provenance tags (identity, git commit, data hashes, synthetic flag), description.
     selected : mapping, optional
         ``reports/selection/selected.json`` ``axes``; each method's choice on each training unit
         becomes a parameter ``selected.<axis>.<method>.<unit>`` (comma-separated inputs).
@@ -322,20 +447,11 @@ def parent_record(
     metrics = {}
     skipped = {}
     for axis, body in cross_season.items():
-        for model, selections in ((body or {}).get("candidates") or {}).items():
-            for selection, modes in (selections or {}).items():
-                for mode, schemes in (modes or {}).items():
-                    for scheme, entry in (schemes or {}).items():
-                        for key, value in ((entry or {}).get("overall") or {}).items():
-                            number = _as_metric(value)
-                            if number is not None:
-                                metrics[safe_key(axis, model, selection, mode, scheme, key)] = (
-                                    number
-                                )
-        metrics.update(_entry_metrics((body or {}).get("champion") or {}, axis, "champion"))
+        champion = flatten({"champion": (body or {}).get("champion") or {}}, str(axis))
+        metrics.update(_metrics(champion))
         for candidate, reason in ((body or {}).get("skipped") or {}).items():
             skipped[safe_key("skipped", axis, candidate)] = str(reason)
-    metrics.update(_entry_metrics(axis_model or {}, "axis_model"))
+    metrics.update(_metrics(flatten(axis_model or {}, "axis_model")))
     flat = {
         safe_key(key): _text(value, MAX_PARAM_LENGTH, f"params.yaml {key}")
         for key, value in flatten(params).items()
@@ -348,7 +464,8 @@ def parent_record(
                     inputs, MAX_PARAM_LENGTH, method
                 )
     clean_tags = {
-        safe_key(k): _text(v, MAX_TAG_LENGTH, f"tag {k}") for k, v in {**tags, **skipped}.items()
+        safe_key(k) if k != NOTE_TAG else k: _text(v, MAX_TAG_LENGTH, f"tag {k}")
+        for k, v in {**tags, **skipped}.items()
     }
     return RunRecord(name=name, params=flat, metrics=metrics, tags=clean_tags)
 
@@ -367,7 +484,7 @@ def provenance_tags(
     dict of str to str
         ``run_identity``, ``identity.<part>``, ``git_commit`` (and MLflow's
         ``mlflow.source.git.commit`` when known), ``synthetic``, ``dvc.data/raw`` and
-        ``dvc.<stage>.<out path>`` (md5 from ``dvc.lock``), and a run description.
+        ``dvc.<stage>.<out path>`` (md5 from ``dvc.lock``).
     """
     tags = {IDENTITY_TAG: identity, "git_commit": commit, "synthetic": synthetic}
     tags.update({safe_key("identity", part): value for part, value in identity_parts.items()})
@@ -376,11 +493,6 @@ def provenance_tags(
     for name, value in dvc_hashes.items():
         stage, _, path = name.rpartition(":")
         tags[safe_key("dvc", stage, path) if stage else safe_key("dvc", path)] = value
-    tags["mlflow.note.content"] = (
-        f"Thermal-error pipeline run: git commit {commit}, synthetic data: {synthetic}, "
-        f"identity {identity[:12]}. Child runs: one per candidate axis/model/selection/mode; "
-        "the tag champion=true marks each axis' champion."
-    )
     return tags
 
 

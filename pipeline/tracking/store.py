@@ -10,17 +10,21 @@ from __future__ import annotations
 
 import logging
 import os
+import posixpath
+import shutil
+import tempfile
 import time
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from pathlib import Path
 
+import pandas as pd
 import requests
 from mlflow.entities import Metric, Param, Run, RunStatus, RunTag
 from mlflow.exceptions import MlflowException
 from mlflow.tracking import MlflowClient
 
 from pipeline.errors import InputDataError
-from pipeline.tracking.records import IDENTITY_TAG, PARENT_RUN_TAG, RunRecord
+from pipeline.tracking.records import IDENTITY_TAG, NOTE_TAG, PARENT_RUN_TAG, RunRecord
 
 logger = logging.getLogger(__name__)
 
@@ -221,6 +225,21 @@ def _create_run(
     return run.info.run_id
 
 
+def log_evidence(client: MlflowClient, run_id: str, record: RunRecord) -> None:
+    """Log a record's tables (MLflow table artifacts) and files under their artifact paths."""
+    for artifact_file, rows in record.tables.items():
+        client.log_table(run_id, pd.DataFrame(rows), artifact_file)
+    if not record.files:
+        return
+    with tempfile.TemporaryDirectory() as folder:
+        for artifact_path, local in record.files.items():
+            target = Path(folder) / artifact_path
+            target.parent.mkdir(parents=True, exist_ok=True)
+            shutil.copyfile(local, target)
+            directory = posixpath.dirname(artifact_path)
+            client.log_artifact(run_id, str(target), artifact_path=directory or None)
+
+
 def _log_one(
     client: MlflowClient,
     experiment_id: str,
@@ -234,6 +253,7 @@ def _log_one(
         if hook is not None:
             hook(record, run_id)
         log_record(client, run_id, record, batch_size)
+        log_evidence(client, run_id, record)
     except BaseException:
         client.set_terminated(run_id, RunStatus.to_string(RunStatus.FAILED))
         raise
@@ -294,6 +314,32 @@ def log_pipeline(
         raise
     client.set_terminated(parent_id)
     return parent_id
+
+
+def describe_experiment(client: MlflowClient, experiment_id: str, text: str) -> None:
+    """Set the experiment's description (the tag ``mlflow.note.content``) to ``text``."""
+    client.set_experiment_tag(experiment_id, NOTE_TAG, text)
+
+
+def link_runs(client: MlflowClient, parent_id: str, other_id: str, name: str) -> bool:
+    """Tag a pipeline run and another run of the same ``dvc repro`` with each other's id.
+
+    The parent gets ``<name>_run_id`` (and ``<name>_experiment_id``), the other run
+    ``pipeline_run_id`` and ``pipeline_experiment_id``. Returns False, with a warning, when the
+    other run is not in this store (e.g. logged to another tracking URI).
+    """
+    try:
+        other = client.get_run(other_id)
+        parent = client.get_run(parent_id)
+    except MlflowException as error:
+        logger.warning("cannot link run %s to the pipeline run %s: %s", other_id, parent_id, error)
+        return False
+    client.set_tag(parent_id, f"{name}_run_id", other_id)
+    client.set_tag(parent_id, f"{name}_experiment_id", other.info.experiment_id)
+    client.set_tag(other_id, "pipeline_run_id", parent_id)
+    client.set_tag(other_id, "pipeline_experiment_id", parent.info.experiment_id)
+    client.set_tag(other_id, "pipeline_run_name", parent.info.run_name)
+    return True
 
 
 def restore_champions(
