@@ -416,6 +416,23 @@ def all_scores(evaluations: list[AxisEvaluation]) -> pd.DataFrame:
     return pd.concat([empty_scores(), *(e.scores for e in evaluations)], ignore_index=True)
 
 
+def ranked_summary(summary: pd.DataFrame, decisions: list[Decision]) -> pd.DataFrame:
+    """Add each candidate's standing (:func:`pipeline.champion.standing`) to the summary.
+
+    Returns
+    -------
+    DataFrame
+        ``summary`` plus ``eligible``, ``ineligible_reason``, ``rank``, ``champion``
+        (``reports/model_scores.csv``); the key columns alone when there is no candidate.
+    """
+    if not len(summary.columns):
+        return pd.DataFrame(columns=["axis", *CANDIDATE])
+    if not decisions:
+        return summary
+    standings = pd.concat([standing(summary, decision) for decision in decisions])
+    return summary.merge(standings, on=["axis", *CANDIDATE], how="left")
+
+
 def write_tables(
     evaluations: list[AxisEvaluation],
     scores: pd.DataFrame,
@@ -430,10 +447,7 @@ def write_tables(
                  paths.COMPARISON_FIGURES / "x", paths.CHAMPION / "x"):  # fmt: skip
         path.parent.mkdir(parents=True, exist_ok=True)
     scores.to_csv(paths.SCORES_LONG, index=False, float_format="%.6g")
-    ranked = summary
-    if evaluations:
-        standings = pd.concat([standing(summary, e.decision) for e in evaluations])
-        ranked = summary.merge(standings, on=["axis", *CANDIDATE], how="left")
+    ranked = ranked_summary(summary, [e.decision for e in evaluations])
     ranked.to_csv(paths.CANDIDATE_SCORES, index=False, float_format="%.4f")
     group_scores(scores).to_csv(paths.GROUP_SCORES, index=False, float_format="%.4f")
     cards = champions(evaluations, table, features, separation)

@@ -365,6 +365,9 @@ def child_inputs(cards: Mapping[str, Mapping[str, Any]]) -> records.ChildInputs:
         fits=records.fits_by_candidate(read_json(FITTED_MODELS)),
         ranked_by={axis: str(card.get("chosen_on") or "") for axis, card in cards.items()},
         heatmaps=heatmaps(),
+        champions=frozenset(
+            (axis, *(str(card[k]) for k in records.KEY_COLUMNS[1:])) for axis, card in cards.items()
+        ),
     )
 
 

@@ -9,6 +9,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 import pytest
 import yaml
@@ -21,6 +22,7 @@ pytestmark = pytest.mark.slow
 
 ROOT = Path(__file__).resolve().parents[1]
 BIN = Path(sys.executable).parent
+KEYS = ["axis", "model", "selection", "mode"]
 
 
 def _env(uri: str) -> dict[str, str]:
@@ -137,19 +139,37 @@ def test_every_score_reaches_a_real_mlflow_server_once_and_the_champion_loads(tm
         assert set(scores["axis"]) == {"Z"}  # the demo campaigns have a Z probe only
         assert len(parents) == 1
         assert len(children) == scores.groupby(["axis", "model", "selection", "mode"]).ngroups
-        logged = sum(
-            1
-            for r in children
-            for k in r.data.metrics
-            if k.startswith(("rmse_um.", "resid_std_um.", "eta."))
-        )
-        assert logged == 3 * len(scores)
+        # every (training unit, test campaign) score is in its child's table artifact, once
+        logged = []
+        for run in children:
+            assert len(run.data.metrics) <= 100, run.info.run_name
+            local = client.download_artifacts(
+                run.info.run_id, "evidence/scores.json", str(tmp_path / run.info.run_id)
+            )
+            content = json.loads(Path(local).read_text())
+            table = pd.DataFrame(content["data"], columns=content["columns"])
+            keys = dict(zip(KEYS, run.info.run_name.split("/"), strict=True))
+            logged.append(table.assign(**keys))
+        logged = pd.concat(logged, ignore_index=True)
+        assert len(logged) == len(scores)
+        pairs = [*KEYS, "train_unit", "test_campaign"]
+        both = scores.merge(logged, on=pairs, suffixes=("", "_logged"), validate="one_to_one")
+        assert len(both) == len(scores)
+        for column in ("rmse_um", "resid_std_um", "eta"):
+            np.testing.assert_allclose(both[f"{column}_logged"].astype(float), both[column])
+        # the headline scores are the model_scores.csv columns, under the same names
+        summary = pd.read_csv(work / "reports" / "model_scores.csv")
         child = next(r for r in children if r.info.run_name == "Z/dl/fc_grd/static")
-        expected = scores.query("model == 'dl' and train_unit == 'K01'")
-        for _, row in expected.iterrows():
-            key = f"rmse_um.K01.{row['test_campaign']}"
-            assert child.data.metrics[key] == pytest.approx(row["rmse_um"])
-        assert child.data.params["inputs.K01"]
+        row = summary.query("model == 'dl'").iloc[0]
+        for name in ("loso_Mn_rms_um", "loso_eta", "Mn_um", "pooled_Mn_val_rms_um"):
+            assert child.data.metrics[name] == pytest.approx(row[name], abs=1e-4)
+        assert {"loso_winter_rms_um", "loso_summer_eta"} <= set(child.data.metrics)
+        assert child.data.params["inputs"]
+        tags = {r.info.run_name: r.data.tags for r in children}
+        ranked = [t for t in tags.values() if t["eligible"] == "true"]
+        assert sorted(int(t["rank"]) for t in ranked) == list(range(1, len(ranked) + 1))
+        assert all(t["ineligible_reason"] for t in tags.values() if t["eligible"] == "false")
+        assert sum(t["champion"] == "true" for t in tags.values()) == 1
         assert parents[0].data.tags.get("git_commit")
         assert (work / "reports" / "model_comparison.md").is_file()
         twin = scores.query("model == 'twin'")
@@ -168,6 +188,9 @@ def test_every_score_reaches_a_real_mlflow_server_once_and_the_champion_loads(tm
         assert (work / "reports" / "discrepancy" / "heldout_fit.png").stat().st_size > 10_000
         discrepancy = client.get_experiment_by_name(params["discrepancy"]["experiment"])
         (disc_run,) = client.search_runs([discrepancy.experiment_id])
+        # the discrepancy run and the pipeline run of the same dvc repro name each other
+        assert disc_run.data.tags["pipeline_run_id"] == parents[0].info.run_id
+        assert parents[0].data.tags["discrepancy_run_id"] == disc_run.info.run_id
         assert disc_run.data.metrics["rmse_um_before"] == pytest.approx(disc["rmse_um_before"])
         named = ",".join(disc["named_effects"]) or "none"
         assert disc_run.data.params["named_effects"] == named

@@ -5,6 +5,8 @@ import pytest
 from pipeline.scoring import (
     candidate_summary,
     compensation_ratio,
+    group_score_name,
+    group_scores,
     metrics_tree,
     residual_std,
     root_mean_square,
@@ -70,11 +72,17 @@ def _two_campaigns_and_a_season():
 def test_metrics_tree_and_matrix_layout():
     scores = _two_campaigns_and_a_season()
     tree = metrics_tree(scores)["Z"]["mlr"]["all"]["static"]
-    assert set(tree) == {"campaign", "loso"}
-    assert set(tree["campaign"]["by_train_unit"]) == {"K1", "K2"}
-    assert tree["campaign"]["overall"]["S_um"] == pytest.approx(0.75)
-    assert tree["campaign"]["overall"]["Mn_um"] == pytest.approx(2.5)
-    assert tree["loso"]["overall"]["Mn_um"] == 7.0
+    assert set(tree["by_train_unit"]) == {"K1", "K2", "not_winter"}
+    assert tree["S_um"] == pytest.approx(0.75)
+    assert tree["Mn_um"] == pytest.approx(2.5)
+    assert tree["loso_Mn_um"] == 7.0
+    assert tree["by_train_unit"]["not_winter"]["loso_Mn_um"] == 7.0
+    assert tree["by_train_unit"]["K1"]["Mn_um"] == 3.0
+    # one name per score: the tree's names are the summary table's columns
+    summary = candidate_summary(scores).iloc[0]
+    for name, value in tree.items():
+        if name != "by_train_unit":
+            assert summary[name] == pytest.approx(value, nan_ok=True)
     matrix = score_matrix(scores, "resid_std_um")
     assert list(matrix.columns) == ["K1", "K2", "V1"]
     assert list(matrix.index) == ["K1", "K2", "not_winter"]
@@ -90,3 +98,18 @@ def test_candidate_summary_has_one_row_per_candidate_with_scheme_prefixes():
     assert row["loso_Mn_um"] == 7.0 and row["loso_Mn_val_um"] == 5.0
     assert row["loso_eta"] == pytest.approx(0.8) and row["axis"] == "Z"
     assert "pooled_Mn_val_um" not in summary and "loco_Mn_um" not in summary
+
+
+def test_group_scores_per_held_out_season_and_validation_season():
+    scores = _two_campaigns_and_a_season().assign(
+        test_season=lambda t: t["test_campaign"].map({"K1": "winter", "K2": "summer",
+                                                      "V1": "spring"}),
+    )  # fmt: skip
+    groups = group_scores(scores).set_index("name")
+    # the fit that left winter out, scored on winter's campaign K1: RMS 14 um of 70 um
+    assert groups.loc["loso_winter_rms_um", "rms_um"] == pytest.approx(14.0)
+    assert groups.loc["loso_winter_rms_um", "eta"] == pytest.approx(1 - 14.0 / 70.0)
+    assert groups.loc["loso_winter_rms_um", "n_campaigns"] == 1
+    assert "pooled_val_spring_rms_um" not in groups.index  # no pooled rows in this table
+    assert group_score_name("pooled", "validation", "spring", "eta") == "pooled_val_spring_eta"
+    assert group_score_name("loco", "train", "K07", "rms_um") == "loco_K07_rms_um"

@@ -36,10 +36,10 @@ from sklearn.linear_model import LinearRegression, Ridge
 from pipeline import track
 from pipeline.champion import champion_card, choose_champion
 from pipeline.cross_season import Candidate, fit_and_score
-from pipeline.evaluate import champion_metrics
+from pipeline.evaluate import champion_metrics, ranked_summary
 from pipeline.features import InputSpec, model_inputs
 from pipeline.models.reference import NoCompensation
-from pipeline.scoring import candidate_summary, metrics_tree
+from pipeline.scoring import candidate_summary, group_scores, metrics_tree
 from pipeline.tracking import identity, records, store
 from pipeline.training_units import (
     INDEX_NAMES,
@@ -285,8 +285,13 @@ def write_scores(root: Path, scores: pd.DataFrame, cards: dict) -> None:
     (root / "reports").mkdir(parents=True, exist_ok=True)
     (root / "metrics").mkdir(parents=True, exist_ok=True)
     scores.to_csv(root / "reports" / "cross_season_scores.csv", index=False, float_format="%.6g")
-    candidate_summary(scores).to_csv(
+    summary = candidate_summary(scores)
+    decisions = [choose_champion(summary, axis, "loso", 0.1) for axis in AXES]
+    ranked_summary(summary, decisions).to_csv(
         root / "reports" / "model_scores.csv", index=False, float_format="%.4f"
+    )
+    group_scores(scores).to_csv(
+        root / "reports" / "heldout_scores.csv", index=False, float_format="%.4f"
     )
     tree = metrics_tree(scores)
     metrics = {
@@ -393,25 +398,28 @@ def child_key(run) -> tuple[str, ...]:
 
 
 def expected_child_metrics(root: Path, key: tuple[str, ...]) -> dict[str, float]:
-    """Every score of one candidate from the CSV and the metrics JSON, named as documented."""
-    expected = {}
-    for row in read_scores(root):
-        if tuple(row[k] for k in records.KEY_COLUMNS) == key:
-            for column in records.SCORE_COLUMNS:
-                name = f"{column}.{row['train_unit']}.{row['test_campaign']}"
-                expected[name] = float(row[column])
-    axis, model, selection, mode = key
-    tree = read_json(root, "metrics/cross_season.json")[axis]["candidates"]
-    tree = tree[model][selection][mode]
-    for scheme, body in tree.items():
-        for name, value in body["overall"].items():
-            if value is not None:
-                expected[SCHEME_PREFIX[scheme] + name] = value
-        for unit, entry in body["by_train_unit"].items():
-            for name, value in entry.items():
-                if value is not None:
-                    expected[f"unit.{unit}.{name}"] = value
+    """A candidate's headline scores: its model_scores.csv row and its held-out groups."""
+    summary = pd.read_csv(root / "reports" / "model_scores.csv")
+    row = summary.set_index(list(records.KEY_COLUMNS)).loc[key]
+    standing = {"eligible", "ineligible_reason", "rank", "champion"}
+    expected = {
+        name: float(value)
+        for name, value in row.items()
+        if name not in standing and pd.notna(value)
+    }
+    groups = pd.read_csv(root / "reports" / "heldout_scores.csv", keep_default_na=False)
+    mine = groups.set_index(list(records.KEY_COLUMNS)).loc[[key]]
+    for _, group in mine.iterrows():
+        expected[group["name"]] = float(group["rms_um"])
+        expected[group["name"].removesuffix("_rms_um") + "_eta"] = float(group["eta"])
     return expected
+
+
+def table_artifact(client: MlflowClient, run_id: str, path: str, tmp: Path) -> pd.DataFrame:
+    """Download a table artifact (``mlflow.log_table`` JSON) as a DataFrame."""
+    local = client.download_artifacts(run_id, path, str(tmp))
+    content = json.loads(Path(local).read_text())
+    return pd.DataFrame(content["data"], columns=content["columns"])
 
 
 def versions(client: MlflowClient, axis: str = "Z") -> list[str]:
@@ -483,50 +491,106 @@ def test_one_child_per_candidate_model_selection_mode(workdir, client):
     assert record(workdir)["child_runs"] == len(CHILDREN)
 
 
-def test_child_metrics_equal_the_scores_csv_and_the_metrics_json(workdir, client):
+def test_child_metrics_are_the_headline_scores_and_the_rest_is_in_its_tables(
+    workdir, client, tmp_path_factory
+):
     track.main([])
     _, children = split_runs(all_runs(client))
     by_key = {child_key(r): r for r in children}
-    for row in read_scores(workdir):
-        run = by_key[tuple(row[k] for k in records.KEY_COLUMNS)]
-        for column in records.SCORE_COLUMNS:
-            name = f"{column}.{row['train_unit']}.{row['test_campaign']}"
-            assert run.data.metrics[name] == float(row[column])
     for key, run in by_key.items():
-        assert run.data.metrics == expected_child_metrics(workdir, key)
+        assert run.data.metrics == pytest.approx(expected_child_metrics(workdir, key))
+        assert len(run.data.metrics) <= records.MAX_CHILD_METRICS
     metrics = by_key[("Z", "mlr", "pair", "static")].data.metrics
-    assert {"S_um", "Mn_val_um", "loso.Mn_um", "pooled.Mn_val_um", "unit.K01.S_um", "loso.eta",
-            "eta.K01.K02"} <= set(metrics)  # fmt: skip
-    assert "pooled.Mn_um" not in metrics  # no prediction role when built on all campaigns: null
-    assert by_key[("Z", "none", "none", "static")].data.metrics["loso.eta"] == 0.0
+    assert {"S_um", "Mn_val_um", "loso_Mn_rms_um", "pooled_Mn_val_um", "loso_eta",
+            "loso_winter_rms_um", "loso_summer_eta",
+            "pooled_val_spring_rms_um"} <= set(metrics)  # fmt: skip
+    assert "pooled_Mn_um" not in metrics  # no prediction role when built on all campaigns: null
+    assert by_key[("Z", "none", "none", "static")].data.metrics["loso_eta"] == 0.0
+    # every (training unit, test campaign) score of the CSV is in the child's table artifact
+    tmp = tmp_path_factory.mktemp("artifacts")
+    rows = pd.DataFrame(read_scores(workdir))
+    for key, run in by_key.items():
+        table = table_artifact(client, run.info.run_id, records.SCORES_TABLE, tmp / run.info.run_id)
+        mine = rows.set_index(list(records.KEY_COLUMNS)).loc[[key]].reset_index(drop=True)
+        assert len(table) == len(mine)
+        merged = mine.merge(table, on=["train_unit", "test_campaign"], suffixes=("", "_logged"))
+        assert len(merged) == len(mine)
+        for column in records.SCORE_COLUMNS:
+            logged = merged[f"{column}_logged"].astype(float).to_numpy()
+            np.testing.assert_array_equal(merged[column].astype(float).to_numpy(), logged)
+    # and each training unit's summary (metrics/cross_season.json by_train_unit)
+    tree = read_json(workdir, "metrics/cross_season.json")["Z"]["candidates"]["mlr"]["pair"]
+    run = by_key[("Z", "mlr", "pair", "static")]
+    units = table_artifact(client, run.info.run_id, records.UNITS_TABLE, tmp / "units")
+    units = units.set_index("train_unit")
+    for unit, entry in tree["static"]["by_train_unit"].items():
+        for name, value in entry.items():
+            if value is not None:
+                assert units.loc[unit, name] == pytest.approx(value)
+    listed = {f.path for f in client.list_artifacts(run.info.run_id, "evidence")}
+    assert {records.SCORES_TABLE, records.UNITS_TABLE, records.GROUPS_TABLE,
+            records.FITS_TABLE, records.HEATMAP} <= listed  # fmt: skip
 
 
-def test_child_params_hold_sensors_and_chosen_params_per_unit(workdir, client, outputs):
+def test_child_tags_say_eligible_rank_champion_and_why_not(workdir, client):
+    track.main([])
+    _, children = split_runs(all_runs(client))
+    by_key = {child_key(r): r.data.tags for r in children}
+    for (axis, model, selection, mode), tags in by_key.items():
+        assert tags["axis"] == axis and tags["model"] == model and tags["mode"] == mode
+        assert tags["ranked_by"] == "loso_Mn_rms_um"
+        assert tags["champion"] == str((model, selection) == ("mlr", "pair")).lower()
+        assert "mlflow.note.content" in tags
+        if mode == "one_step":
+            assert tags["eligible"] == "false" and "rank" not in tags
+            assert "measured error" in tags["ineligible_reason"]
+        else:
+            assert tags["eligible"] == "true" and "ineligible_reason" not in tags
+    for axis in AXES:
+        ranks = sorted(int(t["rank"]) for (a, *_), t in by_key.items() if a == axis and "rank" in t)
+        assert ranks == list(range(1, len(ranks) + 1))
+        assert by_key[(axis, "mlr", "pair", "static")]["rank"] == "1"
+    note = by_key[("Z", "mlr", "pair", "static")]["mlflow.note.content"]
+    assert "Champion" in note and "winter" in note
+    experiment = client.get_experiment_by_name(EXPERIMENT)
+    description = experiment.tags["mlflow.note.content"]
+    for name in ("loso_", "Mn_um", "Sd_um", "S_um", "eta", "pooled_", "one_step", "free_run"):
+        assert name in description
+
+
+def test_child_params_hold_the_registered_fit_and_the_fits_table_every_unit(
+    workdir, client, outputs, tmp_path
+):
     track.main([])
     _, children = split_runs(all_runs(client))
     by_key = {child_key(r): r for r in children}
     for (axis, model, selection, mode), run in by_key.items():
         params = run.data.params
-        expected = {"axis": axis, "model": model, "selection": selection, "mode": mode}
-        for unit in UNITS:
-            fit = outputs.fitted[f"{axis}/{model}/{selection}/{unit}"]
-            expected[f"inputs.{unit}"] = ",".join(fit["inputs"]) or "-"
-            for name, value in fit["chosen_params"].items():
-                assert json.loads(params[f"chosen.{unit}.{name}"]) == value
-                expected[f"chosen.{unit}.{name}"] = params[f"chosen.{unit}.{name}"]
+        fit = outputs.fitted[f"{axis}/{model}/{selection}/{POOLED_UNIT}"]
+        expected = {"axis": axis, "model": model, "selection": selection, "mode": mode,
+                    "inputs": ",".join(fit["inputs"]) or "-"}  # fmt: skip
+        for name, value in fit["chosen_params"].items():
+            assert json.loads(params[f"chosen.{name}"]) == value
+            expected[f"chosen.{name}"] = params[f"chosen.{name}"]
         assert params == expected
-        champion = run.data.tags["champion"] == "true"
-        assert champion == ((model, selection) == ("mlr", "pair")), (axis, model, selection)
-    assert by_key[("Z", "mlr", "pair", "static")].data.params["inputs.K04"] == "T1,T3"
-    assert by_key[("X", "ridge", "all", "static")].data.params["chosen.K02.alpha"] == "50.0"
+        fits = table_artifact(
+            client, run.info.run_id, records.FITS_TABLE, tmp_path / run.info.run_id
+        )
+        fits = fits.set_index("train_unit")
+        assert set(fits.index) == set(UNITS)
+        for unit in UNITS:
+            entry = outputs.fitted[f"{axis}/{model}/{selection}/{unit}"]
+            assert fits.loc[unit, "inputs"] == (",".join(entry["inputs"]) or "-")
+            assert json.loads(fits.loc[unit, "chosen_params"]) == entry["chosen_params"]
+    assert by_key[("Z", "mlr", "pair", "static")].data.params["inputs"] == "T2,T1"
+    assert by_key[("X", "ridge", "all", "static")].data.params["chosen.alpha"] == "50.0"
     one_step = by_key[("Z", "ar1", "none", "one_step")].data.params
-    assert one_step["inputs.K01"] == "-"
-    assert one_step["chosen.not_summer.ar_order"] == "1"
+    assert one_step["inputs"] == "-"
     free_run = by_key[("Z", "ar1", "none", "free_run")].data.params
     assert one_step == free_run | {"mode": "one_step"}
 
 
-def test_parent_has_overall_scores_selected_sensors_tags_and_artifacts(workdir, client):
+def test_parent_has_champion_scores_selected_sensors_tags_and_artifacts(workdir, client, outputs):
     (workdir / "dvc.lock").write_text(
         yaml.safe_dump({
             "schema": "2.0",
@@ -554,15 +618,15 @@ def test_parent_has_overall_scores_selected_sensors_tags_and_artifacts(workdir, 
     assert "dvc.track.reports/mlflow_run.json" not in tags  # its own previous output
     expected = {}
     tree = read_json(workdir, "metrics/cross_season.json")
-    for axis, model, selection, mode in CHILDREN:
-        for scheme, body in tree[axis]["candidates"][model][selection][mode].items():
-            for key, value in body["overall"].items():
-                if value is not None:
-                    expected[f"{axis}.{model}.{selection}.{mode}.{scheme}.{key}"] = value
     for axis in AXES:
-        for key, value in tree[axis]["champion"].items():
+        champion = tree[axis]["champion"]
+        assert champion["loso_Mn_rms_um"] == outputs.cards[axis]["scores"]["loso_Mn_rms_um"]
+        for key, value in records.flatten(champion).items():
             if value is not None and not isinstance(value, bool):
                 expected[f"{axis}.champion.{key}"] = value
+        assert tags[f"ranked_by.{axis}"] == "loso_Mn_rms_um"
+        assert tags[f"champion.{axis}"] == f"{axis}/mlr/pair/static"
+    assert "Z.champion.none.loso_Mn_rms_um" in expected
     expected |= {f"axis_model.{key}": value for key, value in AXIS_METRICS.items()}
     assert parent.data.metrics == expected
     assert tags["skipped.X.twin/roles"] == SKIPPED["twin/roles"]
@@ -864,10 +928,11 @@ def test_bad_score_cell_names_file_row_and_column(workdir):
         ValueError,
         match=rf"cross_season_scores.csv, data row {number}, column 'rmse_um': 'n/a' is not a",
     ):
-        records.scores_by_child(rows)
+        records.rows_by_child(rows)
     rows[number - 1]["rmse_um"] = ""
-    scores = records.scores_by_child(rows)[("Z", "mlr", "pair", "static")]
-    assert math.isnan(scores["rmse_um.K01.V01"])
+    scores = records.rows_by_child(rows)[("Z", "mlr", "pair", "static")]
+    (cell,) = [r for r in scores if (r["train_unit"], r["test_campaign"]) == ("K01", "V01")]
+    assert math.isnan(cell["rmse_um"])
 
 
 def _rewrite_scores(root: Path, rows: list[dict[str, str]]) -> Path:
@@ -911,7 +976,7 @@ def test_duplicate_score_row_is_an_error(workdir):
         match=r"data row 2: axis=X model=none selection=none mode=static train_unit=K01 "
         r"test_campaign=K02 already on data row 1",
     ):
-        records.scores_by_child([rows[1], rows[1]])
+        records.rows_by_child([rows[1], rows[1]])
     _rewrite_scores(workdir, [*rows, rows[1]])
     with pytest.raises(ValueError, match=r"check one_score_per_pair failed"):
         track.main([])

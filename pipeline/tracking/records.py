@@ -29,7 +29,7 @@ import math
 import posixpath
 import re
 from collections.abc import Iterable, Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 from pipeline.tracking import guide
@@ -352,6 +352,8 @@ class ChildInputs:
     fits: dict[tuple[str, ...], list[Mapping]]
     ranked_by: dict[str, str]
     heatmaps: dict[ChildKey, str]
+    champions: frozenset[ChildKey] = frozenset()
+    """The candidates registered as champions (from the champion cards, which are registered)."""
 
 
 def child_records(inputs: ChildInputs, tags: Mapping[str, str] | None = None) -> list[RunRecord]:
@@ -381,6 +383,7 @@ def child_records(inputs: ChildInputs, tags: Mapping[str, str] | None = None) ->
             if key not in table:
                 logger.warning("%s: no entry for %s; its child run lacks that part", what, name)
         scores, standing = inputs.summaries.get(key, ({}, Standing(False, "not scored", 0, False)))
+        standing = replace(standing, champion=key in inputs.champions)
         groups = inputs.groups.get(key, [])
         fits = inputs.fits.get((axis, model, selection), [])
         params = {"axis": axis, "model": model, "selection": selection, "mode": mode}
