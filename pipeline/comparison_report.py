@@ -48,7 +48,9 @@ def score_table(summary: pd.DataFrame, decision: Decision) -> str:
     (as the champion is chosen), then the others (``one_step``, ``twin``), which are never chosen.
     """
     columns = _columns(summary, decision.protocol)
-    header = "| model | selection | mode | " + " | ".join(columns.values()) + " |"
+    header = "| model | selection | mode | " + " | ".join(
+        f"{label} `{name}`" for name, label in columns.items()
+    ) + " |"  # fmt: skip
     lines = [header, "|" + "---|" * (3 + len(columns))]
     sort_by = decision.column if decision.column in summary else "Mn_rms_um"
     chosen = eligible(summary).index
@@ -226,6 +228,37 @@ class AxisContext:
     series: Sequence[CampaignSeries]
     skipped: Mapping[str, str]
     plain: pd.Series | None = None
+    groups: pd.DataFrame | None = None
+    """The axis' rows of :func:`pipeline.scoring.group_scores` (per held-out season)."""
+
+
+def group_table(summary: pd.DataFrame, decision: Decision, groups: pd.DataFrame | None) -> str:
+    """Markdown table: each eligible candidate's held-out RMS per season (or campaign), um.
+
+    Rows in rank order; columns the held-out groups of the selection protocol, then the
+    validation seasons; each header is the score's name (``loso_winter_rms_um``...).
+    """
+    if groups is None or groups.empty or decision.ranked.empty:
+        return ""
+    mine = groups[groups["scheme"].isin([decision.protocol, "pooled"])]
+    names = list(dict.fromkeys(mine.sort_values(["split", "held_out"])["name"]))
+    if not names:
+        return ""
+    table = mine.pivot_table(index=["model", "selection", "mode"], columns="name",
+                             values="rms_um", aggfunc="first")  # fmt: skip
+    lines = [
+        "Held-out RMS per group (um): each season (or campaign) predicted by the fit that left "
+        "it out, then each validation season by the fit on all training campaigns.",
+        "",
+        "| rank | candidate | " + " | ".join(f"`{name}`" for name in names) + " |",
+        "|" + "---|" * (2 + len(names)),
+    ]
+    for rank, (_, row) in enumerate(decision.ranked.iterrows(), start=1):
+        key = (row["model"], row["selection"], row["mode"])
+        values = table.loc[key] if key in table.index else pd.Series(dtype=float)
+        cells = [_number(values.get(name)) for name in names]
+        lines.append(f"| {rank} | {'/'.join(key)} | " + " | ".join(cells) + " |")
+    return "\n".join(lines) + "\n"
 
 
 @dataclass(frozen=True)
@@ -261,6 +294,8 @@ def axis_section(
 {_baseline_text(c.decision, c.plain)}
 
 {score_table(c.summary, c.decision)}
+
+{group_table(c.summary, c.decision, c.groups)}
 {skipped_lines}
 {twin}
 ### What the error is counted from

@@ -386,9 +386,10 @@ def report_axis(
         else "each training campaign, predicted by the fit that left it out"
     )
     plots.predicted_vs_measured(panels, labels, f"Axis {item.axis}: {where} ({origin})", figure)
+    groups = group_scores(item.scores)
     context = comparison_report.AxisContext(
         item.axis, rows, decision, card, selected["axes"][item.axis], item.series,
-        item.skipped, second,
+        item.skipped, second, groups,
     )  # fmt: skip
     figures = comparison_report.AxisFigures(
         figure.relative_to(paths.REPORTS).as_posix(), labels,

@@ -669,6 +669,10 @@ def test_each_axis_champion_is_registered_from_its_child_run_and_predicts(workdi
         assert (str(version.version), version.run_id) == ("1", child.info.run_id)
         assert version.tags["inputs"] == "T2,T1" and version.tags["needs_speed_log"] == "false"
         assert "leave-one-season-out" in version.description
+        assert "`loso_Mn_rms_um`" in version.description  # the score's one name
+        assert version.tags["ranked_by"] == "loso_Mn_rms_um"
+        assert version.tags["trained_on"] == "K01,K02,K03,K04"
+        assert "@champion" in client.get_registered_model(NAMES[axis]).description
 
     mlflow.set_tracking_uri(f"sqlite:///{workdir / 'mlflow.db'}")
     model = mlflow.pyfunc.load_model(URIS["Z"])

@@ -89,11 +89,26 @@ def description(card: dict) -> str:
         f"Inputs: {', '.join(spec.inputs) or 'none'}"
         + ("; needs the table's rpm and elapsed_s (speed log)." if spec.needs_speed else "."),
         f"Reference: {spec.reference} of each run ({spec.features}).",
-        f"Chosen on {card.get('protocol_name')}: held-out RMS {held_out} um against "
-        f"{card.get('none_score_um')} um without compensation.",
-        f"Validation RMS (all-training fit): {scores.get('pooled_Mn_val_rms_um')} um.",
+        f"Chosen on {card.get('protocol_name')}: held-out RMS {held_out} um "
+        f"(`{card.get('chosen_on')}`) against {card.get('none_score_um')} um without "
+        f"compensation (eta {scores.get(f'{protocol}_eta') if protocol else None}).",
+        f"Validation RMS (all-training fit): {scores.get('pooled_Mn_val_rms_um')} um "
+        f"(`pooled_Mn_val_rms_um`, eta {scores.get('pooled_eta_val')}).",
+        f"Trained on: {', '.join(card.get('trained_on') or [])}.",
     ]
     return "\n".join(lines)
+
+
+def model_description(card: dict) -> str:
+    """Registered-model description: what the model is and which version to use."""
+    return (
+        f"Thermal error of the spindle along {card['axis']} (um), predicted from the machine's "
+        "own temperature sensors (degC) and spindle speed. Each `dvc repro` registers the "
+        "champion of its candidates as a new version, logged from that candidate's child run "
+        "in the `thermal-error` experiment; the alias `champion` points at the current one: "
+        f"`mlflow.pyfunc.load_model('models:/<this model>@champion')`. Read a version's "
+        "description for its inputs, protocol and held-out scores."
+    )
 
 
 def log_and_register(tracking_uri: str, run_id: str, registered_name: str, folder: Path) -> str:
@@ -145,11 +160,13 @@ def log_and_register(tracking_uri: str, run_id: str, registered_name: str, folde
     client = MlflowClient(tracking_uri=tracking_uri)
     client.set_registered_model_alias(registered_name, ALIAS, version)
     client.update_model_version(registered_name, version, description=description(card))
+    client.update_registered_model(registered_name, description=model_description(card))
     tags = {
         "axis": card["axis"], "model": card["model"], "selection": card["selection"],
         "mode": card["mode"], "compensate": str(card["compensate"]).lower(),
         "protocol": str(card.get("protocol")), "needs_speed_log": str(spec.needs_speed).lower(),
-        "inputs": ",".join(spec.inputs) or "-",
+        "inputs": ",".join(spec.inputs) or "-", "ranked_by": str(card.get("chosen_on")),
+        "trained_on": ",".join(card.get("trained_on") or []) or "-",
     }  # fmt: skip
     for key, value in tags.items():
         client.set_model_version_tag(registered_name, version, key, value)
