@@ -4,7 +4,7 @@ import pytest
 from sklearn.linear_model import LinearRegression
 
 from pipeline.candidates import run_all
-from pipeline.champion import choose_champion
+from pipeline.champion import choose_champion, standing
 from pipeline.comparison_report import score_table
 from pipeline.cross_season import Candidate
 from pipeline.features import InputSpec, SpeedResponses, model_inputs, speed_responses
@@ -171,3 +171,21 @@ def test_units_whose_campaigns_share_no_sensor_select_nothing_and_fit_nothing():
     fitted = {(r.candidate.model, r.unit.name) for r in results}
     assert ("mlr", "K1") in fitted and ("mlr", "all_training") not in fitted
     assert ("none", "all_training") in fitted
+
+
+def test_standing_ranks_the_eligible_and_says_why_the_others_are_not():
+    summary = _summary()
+    summary.loc[summary["model"] == "dl", "loco_coverage"] = 0.5
+    decision = choose_champion(summary, "Z", "loco", 0.1)
+    table = standing(summary, decision).set_index(["model", "mode"])
+    assert table.loc[("mlr", "static"), ["eligible", "rank", "champion"]].tolist() == [
+        True, 1, True,
+    ]  # fmt: skip
+    assert table.loc[("arma", "free_run"), "rank"] == 2
+    assert table.loc[("none", "static"), "rank"] == 3 and table["champion"].sum() == 1
+    reasons = table.loc[~table["eligible"], "ineligible_reason"]
+    assert "measured error" in reasons[("arma", "one_step")]
+    assert "spindle program" in reasons[("twin", "static")]
+    assert "50 % of the held-out samples" in reasons[("dl", "static")]
+    assert (table.loc[~table["eligible"], "rank"] == 0).all()
+    assert (table.loc[table["eligible"], "ineligible_reason"] == "").all()

@@ -1,0 +1,95 @@
+"""The MLflow layout: every score name explained, the headline capped, evidence complete."""
+
+from __future__ import annotations
+
+import logging
+import re
+
+import pandas as pd
+
+from pipeline.scoring import SCHEME_PREFIX, candidate_summary, group_score_name, summarise
+from pipeline.tracking import guide, records
+from tests.test_scoring import _two_campaigns_and_a_season
+
+
+def _statistic(column: str) -> str:
+    """``loso_Mn_val_rms_um`` -> ``Mn_val_um``: the statistic the guide explains."""
+    for prefix in sorted(SCHEME_PREFIX.values(), key=len, reverse=True):
+        if prefix and column.startswith(prefix):
+            column = column[len(prefix) :]
+            break
+    return column.replace("_rms_um", "_um")
+
+
+def test_the_experiment_description_explains_every_score_name():
+    scores = _two_campaigns_and_a_season()
+    columns = [c for c in candidate_summary(scores).columns if c not in records.KEY_COLUMNS]
+    assert {_statistic(c) for c in columns} <= set(guide.STATISTICS)
+    assert set(summarise(scores)) - {"eta", "eta_val"} <= {
+        f"{s}_um" for s in ("S", "Mn", "Sd", "Mn_val", "Sd_val", "S_rms", "Mn_rms", "Sd_rms",
+                            "Mn_val_rms", "Sd_val_rms")
+    }  # fmt: skip
+    text = guide.experiment_description("thermal-error")
+    for statistic in guide.STATISTICS:
+        assert f"`{statistic}`" in text
+    for scheme, prefix in SCHEME_PREFIX.items():
+        assert scheme in guide.SCHEMES and (not prefix or f"`{prefix}`" in text)
+    for mode in ("static", "free_run", "one_step"):
+        assert f"`{mode}`" in text
+    for pattern in guide.GROUPS:  # the per-group names follow the documented patterns
+        assert f"`{pattern}`" in text
+    names = [group_score_name("loso", "train", "winter", "rms_um"),
+             group_score_name("loco", "train", "K07", "rms_um"),
+             group_score_name("pooled", "validation", "winter", "rms_um")]  # fmt: skip
+    patterns = [re.escape(p).replace(re.escape("<season>"), "[a-z]+").replace(
+        re.escape("<campaign>"), "K[0-9]+") for p in guide.GROUPS]  # fmt: skip
+    assert all(any(re.fullmatch(p, name) for p in patterns) for name in names)
+
+
+def _inputs(n_groups: int) -> records.ChildInputs:
+    key = ("Z", "mlr", "all", "static")
+    groups = [
+        {"scheme": "loco", "split": "train", "held_out": f"K{i:03d}", "n_campaigns": 1,
+         "rms_um": 1.0 + i, "uncompensated_rms_um": 50.0, "eta": 1 - (1.0 + i) / 50.0,
+         "name": group_score_name("loco", "train", f"K{i:03d}", "rms_um")}
+        for i in range(n_groups)
+    ]  # fmt: skip
+    summary = {"loco_Mn_rms_um": 3.0, "loco_eta": 0.9, "S_um": 0.2}
+    standing = records.Standing(True, "", 1, True)
+    return records.ChildInputs(
+        scores={key: [{"train_unit": "not_K000", "test_campaign": "K000", "rmse_um": 1.0,
+                       "resid_std_um": 0.5, "eta": 0.98}]},
+        summaries={key: (summary, standing)},
+        groups={key: groups},
+        units={key: []},
+        fits={},
+        ranked_by={"Z": "loco_Mn_rms_um"},
+        heatmaps={},
+        champions=frozenset({key}),
+    )  # fmt: skip
+
+
+def test_a_child_carries_at_most_100_metrics_and_the_rest_in_its_tables(caplog):
+    with caplog.at_level(logging.WARNING):
+        (child,) = records.child_records(_inputs(80))
+    assert len(child.metrics) == records.MAX_CHILD_METRICS
+    assert {"loco_Mn_rms_um", "loco_eta", "S_um", "loco_K000_rms_um", "loco_K000_eta"} <= set(
+        child.metrics
+    )
+    assert len(child.tables[records.GROUPS_TABLE]) == 80  # every group in the table
+    assert "the rest are in evidence/heldout_scores.json" in caplog.text
+    (small,) = records.child_records(_inputs(3))
+    assert len(small.metrics) == 3 + 2 * 3
+    assert small.tags["champion"] == "true" and small.tags["rank"] == "1"
+    assert "K002 3.00 um" in small.tags[records.NOTE_TAG]
+
+
+def test_group_scores_read_back_from_csv_give_the_same_child_metrics(tmp_path):
+    rows = pd.DataFrame(_inputs(2).groups[("Z", "mlr", "all", "static")])
+    rows.insert(0, "axis", "Z")
+    path = tmp_path / "heldout.csv"
+    rows.assign(model="mlr", selection="all", mode="static").to_csv(path, index=False)
+    read = pd.read_csv(path, keep_default_na=False).to_dict("records")
+    metrics = records.group_metrics(records.groups_by_child(read)[("Z", "mlr", "all", "static")])
+    assert metrics == {"loco_K000_rms_um": 1.0, "loco_K000_eta": 0.98,
+                       "loco_K001_rms_um": 2.0, "loco_K001_eta": 0.96}  # fmt: skip
