@@ -264,6 +264,19 @@ def prediction_panels(item: AxisEvaluation, first: pd.Series, second: pd.Series 
 def write_matrices(scores: pd.DataFrame, title_suffix: str) -> list[str]:
     """Matrices CSV (every axis and candidate, both scores) and one heat-map per candidate.
 
+    Each heat-map shows the RMS of the residual (um) of the candidate built on each training
+    unit (rows) and applied to each campaign (columns, labelled with their season; training
+    campaigns, then the validation ones), the fits on a unit's own campaigns outlined.
+
+    Parameters
+    ----------
+    scores : DataFrame
+        The long score table (``reports/cross_season_scores.csv``): ``axis``, ``model``,
+        ``selection``, ``mode``, ``scheme``, ``train_unit``, ``test_campaign``, ``test_split``,
+        ``test_season``, ``role``, ``resid_std_um`` and ``rmse_um`` (um).
+    title_suffix : str
+        Says whether the data are synthetic; ends the heat-maps' titles.
+
     Returns
     -------
     list of str
@@ -284,11 +297,16 @@ def write_matrices(scores: pd.DataFrame, title_suffix: str) -> list[str]:
             )
             frames.append(matrix)
         out = paths.MATRICES / f"{'__'.join(keys)}.png"
+        campaigns = group.drop_duplicates("test_campaign")
+        in_sample = group.assign(fit=(group["role"] == "fit").astype(float))
         plots.score_heatmaps(
             {"RMS of the residual (um)": score_matrix(group, "rmse_um")},
-            f"axis {keys[0]}, {'/'.join(keys[1:])}: built on one training unit, applied to every "
-            f"campaign ({title_suffix})",
+            f"Axis {keys[0]}, candidate {' / '.join(keys[1:])}: built on each training unit, "
+            f"applied to every campaign ({title_suffix})",
             out,
+            seasons=dict(zip(campaigns["test_campaign"], campaigns["test_season"], strict=True)),
+            validation=set(campaigns.loc[campaigns["test_split"] == "validation", "test_campaign"]),
+            in_sample=score_matrix(in_sample, "fit") > 0,
         )
         figures.append(out.relative_to(paths.REPORTS).as_posix())
     matrix = pd.concat(frames) if frames else pd.DataFrame(columns=[*keys_all, "score"])

@@ -3,8 +3,8 @@
 The report states, in an engineer's words, where the calibrated baseline twin disagrees with the
 measurements (:mod:`pipeline.discrepancy.localise`), which effects the forward search named
 (:mod:`pipeline.discrepancy.search`), with what evidence, and how far the held-out displacement
-residual shrinks. Figures use matplotlib's Agg backend (as :mod:`pipeline.plots`); mlflow is
-imported only when a run is logged.
+residual shrinks. Figures are built and saved with the helpers of :mod:`pipeline.plots` (Agg
+canvas, no pyplot); mlflow is imported only when a run is logged.
 """
 
 from __future__ import annotations
@@ -15,14 +15,13 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-import matplotlib
+import numpy as np
+from matplotlib import colormaps
+from matplotlib.figure import Figure
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-
-from pipeline.discrepancy.localise import Localisation  # noqa: E402
-from pipeline.discrepancy.search import SearchResult, SearchSettings  # noqa: E402
+from pipeline import plots
+from pipeline.discrepancy.localise import Localisation
+from pipeline.discrepancy.search import SearchResult, SearchSettings
 
 logger = logging.getLogger(__name__)
 
@@ -330,76 +329,145 @@ def _prediction(campaign, residual: np.ndarray) -> np.ndarray:
     return np.asarray(campaign.z_um, dtype=float) - np.asarray(residual, dtype=float)
 
 
-def plot_heldout_fit(
-    campaigns: Sequence, result: SearchResult, title: str, out: Path, max_panels: int = 3
-) -> None:
-    """Measured Z vs held-out baseline and augmented twin, a few campaigns.
+def heldout_fit_figure(
+    campaigns: Sequence, result: SearchResult, title: str, max_panels: int = 3
+) -> Figure:
+    """Build measured Z vs held-out baseline and augmented twin, a few campaigns.
 
     Parameters
     ----------
     campaigns : sequence of MeasuredCampaign
+        ``t_s`` (s), ``z_um`` (um), ``rpm`` (rpm) and ``season`` (optional) of each campaign.
     result : SearchResult
+        ``baseline.heldout`` / ``final.heldout`` ``z_residual_um`` by campaign (um) and
+        ``named_effects``.
     title : str
-    out : Path
-        PNG path; parent folders are created.
+        Wrapped to the figure's width.
     max_panels : int
         Campaigns shown (those with the largest baseline residual).
+
+    Returns
+    -------
+    Figure
     """
     base = result.baseline.heldout.z_residual_um
     final = result.final.heldout.z_residual_um
     by_id = {c.campaign_id: c for c in campaigns}
     ranked = sorted(base, key=lambda c: -float(np.sqrt(np.nanmean(base[c] ** 2))))[:max_panels]
-    fig, axes = plt.subplots(1, len(ranked), figsize=(5 * len(ranked), 3.6), squeeze=False)
+    fig = plots.new_figure(1.6 + 3.6 * max(len(ranked), 1), 4.6)
+    axes = fig.subplots(1, max(len(ranked), 1), squeeze=False)
     label = "twin + " + ", ".join(result.named_effects) if result.named_effects else "twin (same)"
-    for ax, cid in zip(axes[0], ranked, strict=True):
+    speed_handles: list = []
+    for ax, cid in zip(axes[0], ranked, strict=False):
         c = by_id[cid]
         minutes = np.asarray(c.t_s, dtype=float) / 60.0
+        speed = ax.twinx()
+        speed_handles = speed.step(minutes, c.rpm, where="post", color="0.65", lw=0.9,
+                                   label="spindle speed (right axis)")  # fmt: skip
+        speed.set_ylabel("spindle speed (rpm)", color="0.4")
+        ax.set_zorder(speed.get_zorder() + 1)
+        ax.patch.set_visible(False)
         ax.plot(minutes, c.z_um, "k.", ms=3, label="measured")
         ax.plot(minutes, _prediction(c, base[cid]), "-", label="baseline twin")
         ax.plot(minutes, _prediction(c, final[cid]), "--", label=label)
-        ax.set(title=f"{cid} (held out)", xlabel="time (min)", ylabel="Z drift (um)")
-        speed = ax.twinx()
-        speed.step(minutes, c.rpm, where="post", color="0.7", lw=0.8)
-        speed.set_ylabel("spindle speed (rpm)", color="0.5")
-    axes[0][0].legend(fontsize=7)
-    fig.suptitle(title, fontsize=10)
-    fig.tight_layout()
-    out.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(out, dpi=100)
-    plt.close(fig)
+        name = plots.campaign_label(cid, getattr(c, "season", None))
+        ax.set_title(f"{name}, held out", fontsize=plots.PANEL_TITLE_FONTSIZE)
+        ax.set(xlabel="elapsed time (min)", ylabel="Z drift (um)")
+    if ranked:
+        handles, names = axes[0][0].get_legend_handles_labels()
+        fig.legend([*handles, *speed_handles], [*names, "spindle speed (right axis)"],
+                   loc="outside lower center", ncols=4, fontsize=9)  # fmt: skip
+    fig.suptitle(plots.wrap_text(fig, title, plots.TITLE_FONTSIZE), fontsize=plots.TITLE_FONTSIZE)
+    return fig
 
 
-def plot_residuals(campaigns: Sequence, result: SearchResult, title: str, out: Path) -> None:
-    """Held-out Z residuals before and after, every campaign, and RMS per campaign."""
+def plot_heldout_fit(
+    campaigns: Sequence, result: SearchResult, title: str, out: Path, max_panels: int = 3
+) -> None:
+    """Measured Z vs held-out baseline and augmented twin, a few campaigns, as a PNG.
+
+    Parameters
+    ----------
+    campaigns, result, title, max_panels
+        See :func:`heldout_fit_figure`.
+    out : Path
+        PNG path; parent folders are created.
+    """
+    plots.save_figure(heldout_fit_figure(campaigns, result, title, max_panels), out)
+
+
+def residuals_figure(campaigns: Sequence, result: SearchResult, title: str) -> Figure:
+    """Build the held-out Z residuals before and after, every campaign, and RMS per campaign.
+
+    Parameters
+    ----------
+    campaigns : sequence of MeasuredCampaign
+        ``t_s`` (s) and ``season`` (optional) of each campaign.
+    result : SearchResult
+        ``baseline.heldout`` / ``final.heldout`` ``z_residual_um`` by campaign (um) and
+        ``named_effects``.
+    title : str
+        Wrapped to the figure's width.
+
+    Returns
+    -------
+    Figure
+    """
     before = result.baseline.heldout.z_residual_um
     after = result.final.heldout.z_residual_um
     by_id = {c.campaign_id: c for c in campaigns}
-    fig, axes = plt.subplots(1, 3, figsize=(16, 4.2))
-    lim = max(float(np.nanmax(np.abs(v))) for v in before.values()) * 1.05
-    for ax, series, name in (
-        (axes[0], before, "baseline twin"),
-        (axes[1], after, "augmented twin"),
+    ids = sorted(before)
+    seasons = {cid: getattr(by_id[cid], "season", None) for cid in ids}
+    names = {cid: plots.campaign_label(cid, seasons[cid]) for cid in ids}
+    fig = plots.new_figure(plots.MAX_WIDTH_IN, 8.0)
+    axes = fig.subplot_mosaic([["before", "after"], ["rms", "rms"]], sharey=False)
+    palette = colormaps["tab20" if len(ids) <= 20 else "turbo"]
+    colours = palette(np.linspace(0, 1, len(ids))) if len(ids) > 20 else palette.colors
+    lim = max((float(np.nanmax(np.abs(v))) for v in before.values()), default=1.0) * 1.05
+    augmented = "twin + " + ", ".join(result.named_effects) if result.named_effects else None
+    for key, series, name in (
+        ("before", before, "baseline twin"),
+        ("after", after, augmented or "augmented twin (nothing named: the baseline)"),
     ):
-        for cid, r in series.items():
-            ax.plot(np.asarray(by_id[cid].t_s) / 60.0, r, lw=1, label=cid)
+        ax = axes[key]
+        for colour, cid in zip(colours, ids, strict=False):
+            if cid in series:
+                ax.plot(np.asarray(by_id[cid].t_s) / 60.0, series[cid], lw=1, color=colour,
+                        label=names[cid])  # fmt: skip
         ax.axhline(0, color="k", lw=0.5)
-        ax.set(title=f"held-out residual, {name}", xlabel="time (min)",
-               ylabel="measured - twin Z (um)", ylim=(-lim, lim))  # fmt: skip
-    axes[0].legend(fontsize=6, ncol=2)
-    ids = list(before)
+        ax.set_title(plots.wrap_text(fig, f"held-out residual, {name}", 10.5, 5.0), fontsize=10.5)
+        ax.set(xlabel="elapsed time (min)", ylabel="measured - twin Z (um)", ylim=(-lim, lim))
+    handles, labels = axes["before"].get_legend_handles_labels()
+    named = "campaign (season)" if any(seasons.values()) else "campaign"
+    fig.legend(handles, labels, loc="outside right upper", fontsize=8, title=named,
+               title_fontsize=8)  # fmt: skip
     rms_b = [float(np.sqrt(np.nanmean(before[c] ** 2))) for c in ids]
-    rms_a = [float(np.sqrt(np.nanmean(after[c] ** 2))) for c in ids]
+    rms_a = [float(np.sqrt(np.nanmean(after[c] ** 2))) if c in after else np.nan for c in ids]
     x = np.arange(len(ids))
-    axes[2].bar(x - 0.2, rms_b, 0.4, label="baseline")
-    axes[2].bar(x + 0.2, rms_a, 0.4, label="augmented")
-    axes[2].set_xticks(x, ids, rotation=90, fontsize=7)
-    axes[2].set(title="held-out Z RMS per campaign", ylabel="um")
-    axes[2].legend(fontsize=7)
-    fig.suptitle(title, fontsize=10)
-    fig.tight_layout()
-    out.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(out, dpi=100)
-    plt.close(fig)
+    bars = axes["rms"]
+    bars.bar(x - 0.2, rms_b, 0.4, label="baseline twin")
+    bars.bar(x + 0.2, rms_a, 0.4, label=augmented or "augmented twin")
+    bars.set_xticks(x, [plots.campaign_label(c, seasons[c], "\n") for c in ids], fontsize=8.5)
+    bars.set_title("held-out Z RMS per campaign", fontsize=10.5)
+    bars.set(xlabel=f"held-out {named}", ylabel="held-out Z RMS (um)")
+    bars.legend(fontsize=8)
+    fig.suptitle(plots.wrap_text(fig, title, plots.TITLE_FONTSIZE), fontsize=plots.TITLE_FONTSIZE)
+    fig.canvas.draw()
+    plots.fit_tick_labels(fig, bars.xaxis, bars.bbox.width / max(len(ids), 1))
+    return fig
+
+
+def plot_residuals(campaigns: Sequence, result: SearchResult, title: str, out: Path) -> None:
+    """Held-out Z residuals before and after, every campaign, and RMS per campaign, as a PNG.
+
+    Parameters
+    ----------
+    campaigns, result, title
+        See :func:`residuals_figure`.
+    out : Path
+        PNG path; parent folders are created.
+    """
+    plots.save_figure(residuals_figure(campaigns, result, title), out)
 
 
 def write_outputs(
