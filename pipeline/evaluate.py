@@ -403,7 +403,9 @@ def report_axis(
         if any(s.split == "validation" for s in item.series)
         else "each training campaign, predicted by the fit that left it out"
     )
-    plots.predicted_vs_measured(panels, labels, f"Axis {item.axis}: {where} ({origin})", figure)
+    seasons = {s.campaign_id: s.season for s in item.series}
+    title = f"Axis {item.axis}: {where} ({origin})"
+    plots.predicted_vs_measured(panels, labels, title, figure, seasons=seasons)
     groups = group_scores(item.scores)
     context = comparison_report.AxisContext(
         item.axis, rows, decision, card, selected["axes"][item.axis], item.series,
