@@ -6,7 +6,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: install run test test-fast bench trials demo-check lint simulate clean
+.PHONY: install run test test-fast bench trials demo-check ui-check lint simulate clean
 
 install: $(STAMP)
 
@@ -37,6 +37,10 @@ trials: install
 
 demo-check: install
 	$(BIN)/thermal discrepancy-demo-check --out reports/discrepancy_demo_check
+
+# The MLflow UI in headless Chromium after `make run`: screenshots and checks in reports/ui/.
+ui-check: install
+	$(BIN)/thermal ui-check
 
 lint: install
 	$(BIN)/ruff check .

@@ -35,6 +35,7 @@ COMMANDS = {
     ),
     "track": ("pipeline.track", "log the scores to MLflow"),
     "summary": ("pipeline.summary", "print where the results are and how to open MLflow"),
+    "ui-check": ("pipeline.tracking.ui_check", "check in Chromium what the MLflow UI shows"),
     "contract-doc": ("pipeline.contract_doc", "write the tables of docs/data-contract.md"),
     "bench": ("pipeline.bench", "time each stage of the default dvc repro"),
 }

@@ -1,0 +1,294 @@
+"""``thermal ui-check``: prove in a real browser that the MLflow UI shows the pipeline's runs.
+
+After ``make run`` (its ``track`` stage), ``thermal ui-check`` reads ``reports/mlflow_run.json``
+and the store, starts ``mlflow ui`` on the store (a tracking server, ``MLFLOW_TRACKING_URI``
+``http(s)://...``, is used as it is, and so is ``--ui-url``), opens each page a metrology
+engineer needs in headless Chromium, writes a screenshot of each to ``reports/ui/`` and checks
+the rendered text:
+
+1. ``01_experiment.png``: the experiment, model-training view: its name and description;
+2. ``02_runs_ranked_<axis>.png``: the axis' eligible candidates sorted by the metric the
+   pipeline ranks them by (parent tag ``ranked_by.<axis>``), best first: the champion and the
+   top-ranked runs, in rank order, and the number of eligible runs;
+3. ``03_compare_<axis>.png``: the Compare page of the top-ranked candidates (names, ``rank``);
+4. ``04_champion_model_<axis>.png``: the champion's registered version: name, version,
+   description, alias ``champion``, source run;
+5. ``05_ranking_metric_<axis>.png``: the ranking metric of the top-ranked candidates;
+6. ``06_champion_heatmap_<axis>.png``: the champion's ``evidence/cross_season_rms.png``.
+
+It also checks the store's layout (:mod:`pipeline.tracking.ui_expect`) and that the UI server
+serves each champion's evidence files. Each problem is one line naming the page (or ``store``,
+``record``, ``artifacts``) and what is missing. Exit code 0 when there is none, 1 otherwise, 2
+without Chromium.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import tempfile
+from collections.abc import Callable, Mapping, Sequence
+from pathlib import Path
+from typing import Any
+from urllib.parse import unquote, urlencode, urlsplit, urlunsplit
+
+from pipeline.config import DEFAULT_PARAMS, load_section
+from pipeline.errors import InputDataError, MissingInputError
+from pipeline.paths import REPORTS, TRACKING_RECORD
+from pipeline.tracking import ui_browser
+from pipeline.tracking.ui_dom import parse_dom
+from pipeline.tracking.ui_expect import EVIDENCE, Plan, make_plan, read_store
+from pipeline.tracking.ui_pages import WINDOW_WIDTH, Page, check_page, make_pages
+
+ENV_TRACKING_URI = "MLFLOW_TRACKING_URI"
+DEFAULT_STORE = "sqlite:///mlflow.db"
+SCREENSHOTS = REPORTS / "ui"
+BUDGET_MS = 15000
+NO_CHROMIUM = (
+    "no Chromium found; install Debian's chromium (apt-get install -y chromium) "
+    "or set CHROMIUM=/path"
+)
+
+Write = Callable[[str], None]
+
+
+def read_record(path: Path) -> dict[str, Any]:
+    """Read ``reports/mlflow_run.json``, written by the ``track`` stage.
+
+    Raises
+    ------
+    MissingInputError
+        If the file is missing.
+    InputDataError
+        If it is not a JSON object with ``experiment_id`` and ``parent_run_id``.
+    """
+    if not path.is_file():
+        raise MissingInputError(
+            f"{path} not found: run `make run` (or .venv/bin/dvc repro) first; its track stage "
+            "logs the runs to MLflow and writes this file"
+        )
+    try:
+        record = json.loads(path.read_text(encoding="utf-8"))
+    except (json.JSONDecodeError, UnicodeDecodeError) as error:
+        raise InputDataError(f"{path} is not valid JSON ({error}); rerun thermal track") from None
+    if not isinstance(record, dict):
+        raise InputDataError(f"{path} is not a JSON object; rerun thermal track")
+    missing = [key for key in ("experiment_id", "parent_run_id") if not record.get(key)]
+    if missing:
+        raise InputDataError(f"{path} lacks {', '.join(missing)}; rerun thermal track")
+    return record
+
+
+def _sqlite_path(uri: str) -> str | None:
+    prefix = "sqlite:///"
+    if not uri.startswith(prefix):
+        return None
+    path = unquote(uri[len(prefix) :].split("?", 1)[0])
+    return None if not path or path == ":memory:" else path
+
+
+def resolve_store(
+    option: str | None,
+    env: Mapping[str, str],
+    record: Mapping[str, Any],
+    params_path: Path = DEFAULT_PARAMS,
+) -> str:
+    """Return the tracking store to check; a SQLite path is made absolute.
+
+    Parameters
+    ----------
+    option : str or None
+        ``--tracking-uri``.
+    env : mapping
+        The environment (``MLFLOW_TRACKING_URI``).
+    record : mapping
+        ``reports/mlflow_run.json`` (``tracking_uri``: where the track stage logged).
+    params_path : Path
+        ``params.yaml`` (``track.default_tracking_uri``), if it exists.
+
+    Returns
+    -------
+    str
+        The first of ``option``, ``$MLFLOW_TRACKING_URI``, the record's ``tracking_uri``, the
+        params default and ``sqlite:///mlflow.db``; a relative SQLite path is taken from the
+        working directory, as the track stage does.
+
+    Raises
+    ------
+    MissingInputError
+        If a SQLite store's file does not exist.
+    """
+    default = DEFAULT_STORE
+    if params_path.is_file():
+        default = str(load_section("track", params_path).get("default_tracking_uri") or default)
+    uri = option or env.get(ENV_TRACKING_URI) or record.get("tracking_uri") or default
+    path = _sqlite_path(uri)
+    if path is None:
+        return uri
+    if not Path(path).is_file():
+        raise MissingInputError(
+            f"no MLflow store at {path} ({uri}): run `make run` first (its track stage fills "
+            f"it), or set {ENV_TRACKING_URI} to the store the pipeline logged to"
+        )
+    return f"sqlite:///{Path(path).resolve().as_posix()}"
+
+
+def public(uri: str) -> str:
+    """Return ``uri`` without a user name and password, safe to print."""
+    parts = urlsplit(uri)
+    if "@" not in parts.netloc:
+        return uri
+    return urlunsplit(parts._replace(netloc=parts.netloc.rsplit("@", 1)[1]))
+
+
+def is_server(uri: str) -> bool:
+    """Return whether ``uri`` is a tracking server (which serves its own UI)."""
+    return uri.startswith(("http://", "https://"))
+
+
+def _is_table(body: bytes) -> bool:
+    try:
+        table = json.loads(body)
+    except (json.JSONDecodeError, UnicodeDecodeError):
+        return False
+    return isinstance(table, dict) and {"columns", "data"} <= set(table)
+
+
+def evidence_problems(base: str, plan: Plan) -> list[str]:
+    """Return a problem for each champion evidence file the UI server does not serve.
+
+    The heat-map must come back as a PNG, the score table as MLflow's table JSON (``columns``,
+    ``data``), from the ``get-artifact`` endpoint the UI itself uses.
+    """
+    problems = []
+    for axis in plan.axes:
+        champion = axis.champion
+        if champion is None:
+            continue
+        for path in (path for path in EVIDENCE if path in champion.artifacts):
+            query = urlencode({"path": path, "run_uuid": champion.run_id})
+            status, body = ui_browser.fetch(f"{base}/get-artifact?{query}")
+            served = body.startswith(b"\x89PNG") if path.endswith(".png") else _is_table(body)
+            if status != 200 or not served:
+                problems.append(
+                    f"artifacts {axis.axis}: the UI server answers {status or 'nothing'} "
+                    f"({len(body)} bytes) for {path} of {champion.name}"
+                )
+    return problems
+
+
+def visit(
+    pages: Sequence[Page], chromium: str, out: Path, budget_ms: int, write: Write
+) -> list[str]:
+    """Render each page, write its screenshot and summary; return the problems.
+
+    The pages share one fresh temporary Chromium profile (its cache spares reloading the app).
+    """
+    problems: list[str] = []
+    with tempfile.TemporaryDirectory(prefix="thermal-ui-check-chromium-") as profile:
+        for page in pages:
+            screenshot = out / page.screenshot
+            write(f"{page.name}\n  {page.url}\n")
+            try:
+                html = ui_browser.render_page(
+                    chromium,
+                    page.url,
+                    screenshot,
+                    Path(profile),
+                    (WINDOW_WIDTH, page.height),
+                    budget_ms,
+                )
+            except ui_browser.BrowserError as error:
+                problems.append(f"{page.name}: not rendered: {str(error).splitlines()[0]}")
+                write(f"  not rendered: {error}\n")
+                continue
+            result = check_page(page, parse_dom(html))
+            problems += result.problems
+            write(f"  screenshot {screenshot}\n  found: {'; '.join(result.found) or '-'}\n")
+            if result.missing:
+                write(f"  missing: {'; '.join(result.missing)}\n")
+    return problems
+
+
+def run_check(args: argparse.Namespace, chromium: str, write: Write) -> list[str]:
+    """Read the record and the store, serve the UI, visit the pages; return the problems."""
+    from mlflow import MlflowClient
+
+    record = read_record(args.record)
+    store = resolve_store(args.tracking_uri, os.environ, record)
+    view = read_store(MlflowClient(tracking_uri=store, registry_uri=store), record)
+    plan, problems = make_plan(view, record)
+
+    def check(base: str) -> list[str]:
+        pages = make_pages(base, plan, args.top)
+        return (
+            problems
+            + evidence_problems(base, plan)
+            + visit(pages, chromium, args.out, args.budget_ms, write)
+        )
+
+    if args.ui_url or is_server(store):
+        base = (args.ui_url or store).rstrip("/")
+        if not ui_browser.healthy(base, timeout_s=10):
+            raise InputDataError(f"the MLflow UI at {public(base)} does not answer /health")
+        write(f"thermal ui-check: MLflow UI {public(base)}, store {public(store)}\n")
+        return check(base)
+    try:
+        with ui_browser.running_mlflow_ui(store) as base:
+            write(f"thermal ui-check: started mlflow ui {base} on {store}\n")
+            return check(base)
+    except ui_browser.ServerError as error:
+        raise InputDataError(str(error)) from None
+
+
+def _parse_args(argv: list[str] | None) -> argparse.Namespace:
+    parser = argparse.ArgumentParser(prog="thermal ui-check", description=__doc__.splitlines()[0])
+    parser.add_argument(
+        "--tracking-uri",
+        help=f"store to check (default: ${ENV_TRACKING_URI}, the record's tracking_uri, "
+        f"params.yaml track.default_tracking_uri, {DEFAULT_STORE})",
+    )
+    parser.add_argument(
+        "--ui-url", help="an MLflow UI already serving that store (default: start mlflow ui)"
+    )
+    parser.add_argument("--record", type=Path, default=TRACKING_RECORD, help="the track record")
+    parser.add_argument("--out", type=Path, default=SCREENSHOTS, help="screenshot folder")
+    parser.add_argument(
+        "--budget-ms",
+        type=int,
+        default=BUDGET_MS,
+        help=f"Chromium's virtual time budget per page, ms (default {BUDGET_MS})",
+    )
+    parser.add_argument("--top", type=int, default=3, help="best-ranked runs to compare")
+    return parser.parse_args(argv)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the check; print a summary per page, then one line per problem.
+
+    Returns
+    -------
+    int
+        0 when every page shows what it must, 1 otherwise, 2 without Chromium.
+    """
+    args = _parse_args(argv)
+    chromium = ui_browser.find_chromium()
+    if chromium is None:
+        sys.stderr.write(f"thermal ui-check: error: {NO_CHROMIUM}\n")
+        return 2
+
+    def write(text: str) -> None:
+        sys.stdout.write(text)
+        sys.stdout.flush()
+
+    problems = run_check(args, chromium, write)
+    if problems:
+        sys.stderr.write(
+            f"thermal ui-check: {len(problems)} problem(s):\n"
+            + "".join(f"  {problem}\n" for problem in problems)
+        )
+        return 1
+    write("thermal ui-check: every page shows what it must\n")
+    return 0
