@@ -93,6 +93,9 @@ def summary_lines(root: Path) -> list[str]:
         uri = tracking.get("tracking_uri", uri)
         if tracking.get("experiment_id") is not None:
             runs_page = runs_page_path(str(tracking["experiment_id"]))
+        ranked = sorted(k for k in (tracking.get("views") or {}) if k.startswith("ranked-"))
+        if ranked:  # each axis' candidates ranked, scores as columns (a shared view)
+            runs_page = tracking["views"][ranked[0]]
         lines.append(
             f"  MLflow           experiment '{tracking.get('experiment')}', parent run "
             f"{tracking.get('parent_run_id')} at {uri}"

@@ -69,7 +69,7 @@ from pipeline.paths import (
     TRACKING_RECORD,
     VALIDATION_REPORT,
 )
-from pipeline.tracking import guide, records, store
+from pipeline.tracking import guide, records, store, views
 from pipeline.tracking import identity as ident
 from schemas.evaluated import CrossSeasonScoresModel
 
@@ -523,6 +523,11 @@ def _log(
             public_uri(uri),
         )
     store.describe_experiment(client, experiment_id, guide.experiment_description(experiment))
+    ranked_by = {
+        axis: str(card.get("chosen_on") or "") for axis, card in prepared.champions.items()
+    }
+    shared = views.shared_views(parent_id, prepared.children, ranked_by)
+    store.share_views(client, experiment_id, shared)
     discrepancy = discrepancy_run_id()
     linked = discrepancy is not None and store.link_runs(
         client, parent_id, discrepancy, "discrepancy"
@@ -555,4 +560,5 @@ def _log(
         "git_commit": prepared.git_commit,
         "synthetic": prepared.synthetic,
         "discrepancy_run_id": discrepancy if linked else None,
+        "views": {key: views.view_path(experiment_id, key) for key in shared},
     }

@@ -144,7 +144,7 @@ def test_every_score_reaches_a_real_mlflow_server_once_and_the_champion_loads(tm
         for run in children:
             assert len(run.data.metrics) <= 100, run.info.run_name
             local = client.download_artifacts(
-                run.info.run_id, "evidence/scores.json", str(tmp_path / run.info.run_id)
+                run.info.run_id, "scores.json", str(tmp_path / run.info.run_id)
             )
             content = json.loads(Path(local).read_text())
             table = pd.DataFrame(content["data"], columns=content["columns"])

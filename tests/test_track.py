@@ -527,7 +527,7 @@ def test_child_metrics_are_the_headline_scores_and_the_rest_is_in_its_tables(
         for name, value in entry.items():
             if value is not None:
                 assert units.loc[unit, name] == pytest.approx(value)
-    listed = {f.path for f in client.list_artifacts(run.info.run_id, "evidence")}
+    listed = {f.path for f in client.list_artifacts(run.info.run_id)}
     assert {records.SCORES_TABLE, records.UNITS_TABLE, records.GROUPS_TABLE,
             records.FITS_TABLE, records.HEATMAP} <= listed  # fmt: skip
 

@@ -2,13 +2,14 @@
 
 from __future__ import annotations
 
+import json
 import logging
 import re
 
 import pandas as pd
 
 from pipeline.scoring import SCHEME_PREFIX, candidate_summary, group_score_name, summarise
-from pipeline.tracking import guide, records
+from pipeline.tracking import guide, records, views
 from tests.test_scoring import _two_campaigns_and_a_season
 
 
@@ -77,7 +78,7 @@ def test_a_child_carries_at_most_100_metrics_and_the_rest_in_its_tables(caplog):
         child.metrics
     )
     assert len(child.tables[records.GROUPS_TABLE]) == 80  # every group in the table
-    assert "the rest are in evidence/heldout_scores.json" in caplog.text
+    assert "the rest are in heldout_scores.json" in caplog.text
     (small,) = records.child_records(_inputs(3))
     assert len(small.metrics) == 3 + 2 * 3
     assert small.tags["champion"] == "true" and small.tags["rank"] == "1"
@@ -93,3 +94,23 @@ def test_group_scores_read_back_from_csv_give_the_same_child_metrics(tmp_path):
     metrics = records.group_metrics(records.groups_by_child(read)[("Z", "mlr", "all", "static")])
     assert metrics == {"loco_K000_rms_um": 1.0, "loco_K000_eta": 0.98,
                        "loco_K001_rms_um": 2.0, "loco_K001_eta": 0.96}  # fmt: skip
+
+
+def test_the_shared_views_list_an_axis_children_ranked_with_their_scores_as_columns():
+    (child,) = records.child_records(_inputs(3))
+    other = records.RunRecord("X/mlr/all/static", tags={"axis": "X"}, metrics={"S_um": 1.0})
+    shared = views.shared_views("p1", [child, other], {"Z": "loco_Mn_rms_um", "X": ""})
+    assert set(shared) == {"ranked-Z", "all-Z"}  # X has no ranking score: no view
+    ranked = json.loads(shared["ranked-Z"])
+    assert ranked["searchFilter"] == (
+        "tags.`mlflow.parentRunId` = 'p1' and tags.axis = 'Z' and tags.eligible = 'true'"
+    )
+    assert (ranked["orderByKey"], ranked["orderByAsc"]) == ("metrics.`loco_Mn_rms_um`", True)
+    assert ranked["selectedColumns"] == [
+        "tags.`rank`", "tags.`champion`", "metrics.`loco_Mn_rms_um`", "metrics.`loco_eta`",
+        "metrics.`loco_K000_rms_um`", "metrics.`loco_K001_rms_um`", "metrics.`loco_K002_rms_um`",
+    ]  # fmt: skip
+    assert "eligible" not in json.loads(shared["all-Z"])["searchFilter"]
+    assert views.view_path("4", "ranked-Z") == (
+        "/#/experiments/4/runs?workflowType=machine_learning&viewStateShareKey=ranked-Z"
+    )

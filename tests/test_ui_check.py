@@ -83,13 +83,13 @@ def test_rows_are_read_in_screen_order_and_hidden_text_is_left_out():
         "<body><noscript>You need to enable JavaScript</noscript>"
         + row.format(i=1, run="b" * 32, name="Z/ridge/all/static")
         + row.format(i=0, run="a" * 32, name="Z/mlr/all/static")
-        + '<svg><text>Failed to load</text></svg><img alt="evidence/x.png" src="blob:http://h/1">'
+        + '<svg><text>Failed to load</text></svg><img alt="x.png" src="blob:http://h/1">'
         "</body>"
     )
     dom = parse_dom(html)
     assert dom.run_order() == ["a" * 32, "b" * 32]
     assert dom.nodes == ["Z/ridge/all/static", "Z/mlr/all/static"]
-    assert dom.images == [("evidence/x.png", "blob:http://h/1")]
+    assert dom.images == [("x.png", "blob:http://h/1")]
     assert error_phrases(dom.text) == []
 
 
@@ -127,9 +127,7 @@ def _child(name, rank, metric, *, eligible=True, champion=False, layout=True):
     else:
         tags["champion"] = str(champion).lower()
     metrics = {("loso_Mn_rms_um" if layout else "loso.Mn_rms_um"): metric}
-    evidence = frozenset(
-        {"evidence/cross_season_rms.png", "evidence/scores.json"} if layout else ()
-    )
+    evidence = frozenset({"cross_season_rms.png", "scores.json"} if layout else ())
     return Child(name.replace("/", "")[:32].ljust(32, "0"), name, tags, metrics, evidence)
 
 
@@ -140,7 +138,9 @@ def _view(children, *, layout=True, version_run=None):
     return StoreView(
         "2",
         "thermal-error",
-        {"mlflow.note.content": "Thermal-error models"} if layout else {},
+        {"mlflow.note.content": "Thermal-error models", "mlflow.sharedViewState.ranked-Z": "{}"}
+        if layout
+        else {},
         PARENT,
         {"ranked_by.Z": "loso_Mn_rms_um"} if layout else {},
         tuple(children),
@@ -169,8 +169,10 @@ def test_plan_of_the_complete_layout_ranks_the_eligible_runs():
     assert axis.champion.name == "Z/pls_dl/gra_top_k/static"
     assert axis.metric == "loso_Mn_rms_um"
     assert axis.search_filter.endswith("and tags.axis = 'Z' and tags.eligible = 'true'")
-    names = [page.screenshot for page in make_pages("http://h", plan)]
-    assert names == list(SCREENSHOTS)
+    pages = make_pages("http://h", plan)
+    assert [page.screenshot for page in pages] == list(SCREENSHOTS)
+    (runs,) = [page for page in pages if page.name == "runs Z"]
+    assert runs.url.endswith("/runs?workflowType=machine_learning&viewStateShareKey=ranked-Z")
 
 
 def test_plan_of_an_older_store_names_what_is_missing_and_falls_back():
@@ -184,7 +186,7 @@ def test_plan_of_an_older_store_names_what_is_missing_and_falls_back():
     assert "store: tag 'eligible' missing: 2 of 2 child runs" in text
     assert "store: tag 'rank' missing" in text
     assert "store: parent run pppp" in text and "no tag ranked_by.Z" in text
-    assert "store: artifact evidence/cross_season_rms.png missing" in text
+    assert "store: artifact cross_season_rms.png missing" in text
     (axis,) = plan.axes
     assert axis.metric == "loso.Mn_rms_um"
     assert [c.name for c in axis.ranked] == ["Z/tv_ar/none/one_step", "Z/pls_dl/gra_top_k/static"]

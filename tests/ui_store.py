@@ -3,7 +3,7 @@
 No pipeline run: :class:`mlflow.MlflowClient` on a SQLite store writes one experiment with a
 description, one parent run (tag ``ranked_by.Z``), five child runs of axis Z (tags ``axis``,
 ``model``, ``selection``, ``mode``, ``eligible``, ``ineligible_reason``, ``rank``, ``champion``;
-the ranking metric; artifacts ``evidence/cross_season_rms.png`` and ``evidence/scores.json``), the
+the ranking metric; artifacts ``cross_season_rms.png`` and ``scores.json``), the
 champion's model logged from its child run and registered (description, alias ``champion``),
 and the ``reports/mlflow_run.json`` the ``track`` stage writes.
 """
@@ -20,6 +20,8 @@ import mlflow.pyfunc
 import numpy as np
 from matplotlib.figure import Figure
 from mlflow import MlflowClient
+
+from pipeline.tracking import views
 
 RANKING_METRIC = "loso_Mn_rms_um"
 DESCRIPTION = (
@@ -154,16 +156,23 @@ def build_ui_store(
         figure = figures / str(seed) / "cross_season_rms.png"
         figure.parent.mkdir(exist_ok=True)
         _heat_map(figure, seed)
-        client.log_artifact(run_id, str(figure), "evidence")
+        client.log_artifact(run_id, str(figure))
         client.log_table(
             run_id,
             {"test_campaign": ["K01", "K02"], "rmse_um": [rms, rms * 1.1]},
-            "evidence/scores.json",
+            "scores.json",
         )
         client.set_terminated(run_id)
         if champion:
             champion_id, champion_name = run_id, name
     client.set_terminated(parent_id)
+    key = views.view_key("ranked", "Z")
+    state = {  # as pipeline.tracking.views writes it for the pipeline
+        "searchFilter": f"tags.`mlflow.parentRunId` = '{parent_id}' and tags.eligible = 'true'",
+        "orderByKey": views.column("metrics", RANKING_METRIC), "orderByAsc": True,
+        "selectedColumns": [views.column("tags", "rank"), views.column("metrics", RANKING_METRIC)],
+    }  # fmt: skip
+    client.set_experiment_tag(experiment_id, f"{views.SHARED_VIEW_TAG}{key}", json.dumps(state))
     version = _register_zero_model(client, uri, champion_id, registered_model)
     record = {
         "tracking_uri": uri,

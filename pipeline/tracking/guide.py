@@ -71,12 +71,12 @@ TAGS = {
     "ranked_by": "the score the axis' candidates are ranked and the champion chosen by",
 }
 EVIDENCE = {
-    "evidence/scores.json": "every (training unit, test campaign) score: rmse_um, "
+    "scores.json": "every (training unit, test campaign) score: rmse_um, "
     "resid_std_um, eta, season, split, samples",
-    "evidence/unit_scores.json": "the summary statistics of each training unit",
-    "evidence/heldout_scores.json": "the per-season (or per-campaign) scores, all of them",
-    "evidence/fits.json": "the inputs and decisions of each fit",
-    "evidence/cross_season_rms.png": "heat-map: RMS of the residual, model built on each "
+    "unit_scores.json": "the summary statistics of each training unit",
+    "heldout_scores.json": "the per-season (or per-campaign) scores, all of them",
+    "fits.json": "the inputs and decisions of each fit",
+    "cross_season_rms.png": "heat-map: RMS of the residual, model built on each "
     "training unit (rows) applied to each campaign (columns, with its season)",
 }
 
@@ -105,7 +105,7 @@ def experiment_description(experiment: str) -> str:
         "`<axis>/<model>/<selection>/<mode>`. To compare: show the children (filter "
         "`tags.eligible = 'true'`), sort by the metric named in the tag `ranked_by` (lower is "
         "better), tick two runs, Compare: headline scores, per-season scores and the heat-maps "
-        "under `evidence/` side by side. Every score is in um unless it is a ratio.",
+        "under `` side by side. Every score is in um unless it is a ratio.",
         "",
         f"**Score names** `<scheme prefix><statistic>`, prefixes: {prefixes}.",
         "",
@@ -175,8 +175,8 @@ def child_description(
     if validation:
         lines.append("Validation (fit on all training campaigns): " + ", ".join(validation) + ".")
     lines.append(
-        "Evidence: `evidence/scores.json` (every training unit x test campaign), "
-        "`evidence/cross_season_rms.png` (heat-map)."
+        "Evidence: `scores.json` (every training unit x test campaign), "
+        "`cross_season_rms.png` (heat-map)."
     )
     return "\n\n".join(lines)
 

@@ -14,7 +14,7 @@ A child carries
 - tags: ``axis``, ``model``, ``selection``, ``mode``, ``eligible`` (``ineligible_reason`` when
   not), ``rank`` (on the axis' selection score, eligible candidates only), ``champion``,
   ``ranked_by``, and a run description (``mlflow.note.content``);
-- tables (JSON table artifacts under ``evidence/``): every (training unit, test campaign) score,
+- tables (JSON table artifacts under ````): every (training unit, test campaign) score,
   every training unit's summary, the held-out groups, what each fit chose; and its heat-map.
 
 The parent carries each axis' champion scores (``<axis>.champion.<name>``), the whole
@@ -46,11 +46,11 @@ RANKED_BY_TAG = "ranked_by"
 NOTE_TAG = "mlflow.note.content"
 MAX_CHILD_METRICS = 100
 """Most metrics on a child run: the headline scores; the rest go to its table artifacts."""
-SCORES_TABLE = "evidence/scores.json"
-UNITS_TABLE = "evidence/unit_scores.json"
-GROUPS_TABLE = "evidence/heldout_scores.json"
-FITS_TABLE = "evidence/fits.json"
-HEATMAP = "evidence/cross_season_rms.png"
+SCORES_TABLE = "scores.json"
+UNITS_TABLE = "unit_scores.json"
+GROUPS_TABLE = "heldout_scores.json"
+FITS_TABLE = "fits.json"
+HEATMAP = "cross_season_rms.png"
 STANDING_COLUMNS = ("eligible", "ineligible_reason", "rank", "champion")
 IDENTITY_TAG = "run_identity"
 PARENT_RUN_TAG = "mlflow.parentRunId"
@@ -77,9 +77,9 @@ class RunRecord:
     tags : dict of str to str
         Tags (the parent-run link is added by the writer).
     tables : dict of str to list of dict
-        Table artifacts: artifact file (e.g. ``evidence/scores.json``) -> rows.
+        Table artifacts: artifact file (e.g. ``scores.json``) -> rows.
     files : dict of str to str
-        Files to log: artifact path (e.g. ``evidence/cross_season_rms.png``) -> local path.
+        Files to log: artifact path (e.g. ``cross_season_rms.png``) -> local path.
     """
 
     name: str
@@ -372,7 +372,7 @@ def child_records(inputs: ChildInputs, tags: Mapping[str, str] | None = None) ->
         Sorted by (axis, model, selection, mode), named ``<axis>/<model>/<selection>/<mode>``.
         Parameters: ``axis``, ``model``, ``selection``, ``mode`` and the inputs and decisions
         of the fit on all training campaigns (``inputs``, ``chosen.<name>``); the fits on the
-        other training units are in the table ``evidence/fits.json``.
+        other training units are in the table ``fits.json``.
     """
     records = []
     for key in sorted(set(inputs.scores) | set(inputs.summaries)):

@@ -25,6 +25,7 @@ from mlflow.tracking import MlflowClient
 
 from pipeline.errors import InputDataError
 from pipeline.tracking.records import IDENTITY_TAG, NOTE_TAG, PARENT_RUN_TAG, RunRecord
+from pipeline.tracking.views import SHARED_VIEW_TAG
 
 logger = logging.getLogger(__name__)
 
@@ -319,6 +320,12 @@ def log_pipeline(
 def describe_experiment(client: MlflowClient, experiment_id: str, text: str) -> None:
     """Set the experiment's description (the tag ``mlflow.note.content``) to ``text``."""
     client.set_experiment_tag(experiment_id, NOTE_TAG, text)
+
+
+def share_views(client: MlflowClient, experiment_id: str, views: Mapping[str, str]) -> None:
+    """Store shared views of the run list (experiment tags ``mlflow.sharedViewState.<key>``)."""
+    for key, state in views.items():
+        client.set_experiment_tag(experiment_id, f"{SHARED_VIEW_TAG}{key}", state)
 
 
 def link_runs(client: MlflowClient, parent_id: str, other_id: str, name: str) -> bool:

@@ -14,7 +14,7 @@ the rendered text:
 4. ``04_champion_model_<axis>.png``: the champion's registered version: name, version,
    description, alias ``champion``, source run;
 5. ``05_ranking_metric_<axis>.png``: the ranking metric of the top-ranked candidates;
-6. ``06_champion_heatmap_<axis>.png``: the champion's ``evidence/cross_season_rms.png``.
+6. ``06_champion_heatmap_<axis>.png``: the champion's ``cross_season_rms.png``.
 
 It also checks the store's layout (:mod:`pipeline.tracking.ui_expect`) and that the UI server
 serves each champion's evidence files. Each problem is one line naming the page (or ``store``,

@@ -2,14 +2,14 @@
 
 :func:`read_store` copies what the store holds about the execution named in
 ``reports/mlflow_run.json`` (experiment, parent run, child runs with tags, metrics and
-``evidence/`` artifacts, each champion's registered version) into plain data;
+```` artifacts, each champion's registered version) into plain data;
 :func:`make_plan` (pure) checks the tracking layout and decides, per axis, which runs the pages
 must show and in which order:
 
 - each child run has tags ``axis``, ``model``, ``selection``, ``mode`` (its name is
   ``<axis>/<model>/<selection>/<mode>``), ``eligible`` (``true``/``false``, with
   ``ineligible_reason`` when false), ``rank`` (``1``..``n`` among the eligible runs of its axis)
-  and ``champion``; artifacts ``evidence/cross_season_rms.png`` and ``evidence/scores.json``;
+  and ``champion``; artifacts ``cross_season_rms.png`` and ``scores.json``;
 - the parent run's tag ``ranked_by.<axis>`` names the metric the candidates are ranked by
   (ascending, e.g. ``loso_Mn_rms_um``, the mean held-out RMS in um), which every eligible child
   has;
@@ -29,14 +29,15 @@ from typing import Any
 
 from pipeline.errors import InputDataError
 from pipeline.paths import TRACKING_RECORD
+from pipeline.tracking import records, views
 
 DESCRIPTION_TAG = "mlflow.note.content"
 PARENT_TAG = "mlflow.parentRunId"
 RANKED_BY_TAG = "ranked_by."
 KEY_TAGS = ("axis", "model", "selection", "mode")
 LAYOUT_TAGS = (*KEY_TAGS, "eligible", "champion")
-HEAT_MAP = "evidence/cross_season_rms.png"
-SCORES_TABLE = "evidence/scores.json"
+HEAT_MAP = records.HEATMAP
+SCORES_TABLE = records.SCORES_TABLE
 EVIDENCE = (HEAT_MAP, SCORES_TABLE)
 # For the pages only, when the parent has no ranked_by.<axis> tag; the check still fails.
 FALLBACK_METRICS = ("loso_Mn_rms_um", "loco_Mn_rms_um", "loso.Mn_rms_um", "loco.Mn_rms_um")
@@ -100,6 +101,9 @@ class AxisPlan:
         The run list's filter (MLflow search syntax).
     has_rank : bool
         Whether the children carry ``rank`` tags.
+    shared_view : str or None
+        Share key of the axis' ranked view (:mod:`pipeline.tracking.views`), None if the
+        experiment has none.
     """
 
     axis: str
@@ -110,6 +114,7 @@ class AxisPlan:
     version: Version | None
     search_filter: str
     has_rank: bool
+    shared_view: str | None = None
 
 
 @dataclass(frozen=True)
@@ -132,7 +137,7 @@ def _children(client: Any, experiment_id: str, parent_id: str) -> list[Child]:
             page_token=token,
         )
         for run in page:
-            evidence = client.list_artifacts(run.info.run_id, "evidence")
+            evidence = client.list_artifacts(run.info.run_id)
             children.append(
                 Child(
                     run.info.run_id,
@@ -174,7 +179,7 @@ def read_store(client: Any, record: Mapping[str, Any]) -> StoreView:
     -------
     StoreView
         The experiment, the parent's tags, every child run with its tags, metrics and
-        ``evidence/`` artifacts, and each champion's registered version (None if absent).
+        ```` artifacts, and each champion's registered version (None if absent).
 
     Raises
     ------
@@ -391,7 +396,16 @@ def axis_plan(axis: str, view: StoreView, record: Mapping[str, Any]) -> tuple[Ax
     if has_eligible:
         search += " and tags.eligible = 'true'"
     has_rank = any(rank_of(child) is not None for child in listed)
-    plan = AxisPlan(axis, metric, tuple(listed), tuple(ranked), champion, version, search, has_rank)
+    key = views.view_key("ranked", axis)
+    shared = key if f"{views.SHARED_VIEW_TAG}{key}" in view.experiment_tags else None
+    if shared is None:
+        problems.append(
+            f"store: experiment has no shared view {key} (tag {views.SHARED_VIEW_TAG}{key}): "
+            "the run list cannot open with the scores as columns"
+        )
+    plan = AxisPlan(
+        axis, metric, tuple(listed), tuple(ranked), champion, version, search, has_rank, shared
+    )
     return plan, problems
 
 

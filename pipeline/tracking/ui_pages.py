@@ -13,7 +13,7 @@ read from its bundled JavaScript (``mlflow/server/js/build/static/js/``):
 - ``/compare-runs?runs=["<id>",...]&experiments=["<id>"]``: JSON lists, as the UI writes them.
   Its metric and tag tables render about 300 px of rows (the first metrics in alphabetical
   order), and its artifact section lists only the files common to the runs' artifact roots, so
-  a figure under ``evidence/`` is not shown there;
+  figure in a sub-folder would not be shown there (the pipeline logs its evidence at the root);
 - ``/metric?runs=[...]&metric="<key>"&experiments=[...]&plot_metric_keys=["<key>"]``: one metric
   of several runs, chart and table, the page Compare links each metric to;
 - ``/models/<name>/versions/<version>``: a registered version, aliases shown as ``@ <alias>``;
@@ -30,6 +30,7 @@ from dataclasses import dataclass, field
 from typing import Any
 from urllib.parse import quote, urlencode
 
+from pipeline.tracking import views
 from pipeline.tracking.ui_dom import PageDom, error_phrases
 from pipeline.tracking.ui_expect import HEAT_MAP, AxisPlan, Child, Plan, Version
 
@@ -192,9 +193,14 @@ def _runs_page(base: str, plan: Plan, axis: AxisPlan, leaders: Sequence[Child]) 
         checks.append(Check(f"'Sort: {axis.metric}'", f"Sort: {axis.metric}", exact=False))
     count = f"{len(axis.listed)} matching runs"
     checks.append(Check(f"'{count}'", count, exact=False))
+    if axis.shared_view:  # the shared view opens with the scores as columns
+        url = base + views.view_path(plan.experiment_id, axis.shared_view)
+        checks.append(Check("'Metrics' columns", "Metrics"))
+    else:
+        url = runs_url(base, plan.experiment_id, axis.search_filter, axis.metric)
     return Page(
         f"runs {axis.axis}",
-        runs_url(base, plan.experiment_id, axis.search_filter, axis.metric),
+        url,
         f"02_runs_ranked_{axis.axis}.png",
         tuple(checks),
         order=tuple((child.run_id, child.name) for child in leaders) if axis.metric else (),
