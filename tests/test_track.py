@@ -75,7 +75,6 @@ SELECTED_SENSORS = {  # method -> unit -> sensors, in order of preference
     "all": dict.fromkeys(UNITS, ["T1", "T2", "T3"]),
 }
 AXIS_METRICS = {"residual_band_um": 3.2, "rmse_um": 1.4, "n_samples": 120}
-SCHEME_PREFIX = {"campaign": "", "loso": "loso.", "pooled": "pooled."}
 PNG = b"\x89PNG\r\n\x1a\nfake"
 PARAMS = {
     "evaluate": {
