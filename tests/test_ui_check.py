@@ -173,6 +173,9 @@ def test_plan_of_the_complete_layout_ranks_the_eligible_runs():
     assert [page.screenshot for page in pages] == list(SCREENSHOTS)
     (runs,) = [page for page in pages if page.name == "runs Z"]
     assert runs.url.endswith("/runs?workflowType=machine_learning&viewStateShareKey=ranked-Z")
+    (compare,) = [page for page in pages if page.name == "compare Z"]
+    heat_map = "cross_season_rms.png"
+    assert (compare.select, compare.image, compare.image_count) == (heat_map, heat_map, 3)
 
 
 def test_plan_of_an_older_store_names_what_is_missing_and_falls_back():
@@ -241,6 +244,25 @@ def test_metric_values_must_follow_the_run_names():
     assert result.problems[0] == "metric Z: value of 'Z/b' not shown"
 
 
+def test_compare_must_show_one_loaded_heat_map_per_run():
+    page = Page("compare Z", "http://h/#/compare-runs", "03.png", image="cross_season_rms.png",
+                image_count=3, select="cross_season_rms.png")  # fmt: skip
+    images = (
+        "".join(f'<img alt="cross_season_rms.png" src="blob:http://h/{i}">' for i in range(3))
+        + '<img alt="" src="blob:http://h/0">'
+    )
+    dom = parse_dom(f"<body>{images}</body>")
+    dom.loaded = frozenset({"blob:http://h/0", "blob:http://h/1", "blob:http://h/2"})
+    assert check_page(page, dom).found == ["3 of 3 compared runs show image cross_season_rms.png"]
+    dom.loaded = frozenset({"blob:http://h/0", "blob:http://h/2"})  # one still loading
+    assert check_page(page, dom).problems == [
+        "compare Z: 2 of 3 compared runs show image cross_season_rms.png in the Artifacts "
+        "section (one loaded image per run expected)"
+    ]
+    dom = parse_dom("<body><h3>Select a file to preview</h3></body>")
+    assert check_page(page, dom).missing == ["0 of 3 compared runs show image cross_season_rms.png"]
+
+
 # --- the store and the command ----------------------------------------------------------------
 
 
@@ -291,7 +313,11 @@ def served_store(tmp_path_factory, chromium):
     root = tmp_path_factory.mktemp("ui-store")
     complete = build_ui_store(root, "thermal-error-ui", "thermal-error-spindle-ui-Z")
     broken = build_ui_store(
-        root, "thermal-error-ui-broken", "thermal-error-spindle-broken-Z", drop_champion_metric=True
+        root,
+        "thermal-error-ui-broken",
+        "thermal-error-spindle-broken-Z",
+        drop_champion_metric=True,
+        drop_heat_map_rank="2",
     )
     with ui_browser.running_mlflow_ui(complete.tracking_uri) as base:
         yield base, complete, broken
@@ -313,13 +339,16 @@ def test_ui_check_passes_and_writes_the_screenshots(tmp_path, served_store):
     assert done.returncode == 0, done.stdout + done.stderr
     assert "every page shows what it must" in done.stdout
     assert f"found: champion run '{complete.champion_run_name}'" in done.stdout
+    compare = done.stdout.split("\ncompare Z\n", 1)[1].split("\nmodel Z\n", 1)[0]
+    assert "; 3 of 3 compared runs show image cross_season_rms.png" in compare, compare
+    assert "missing:" not in compare, compare
     for name in SCREENSHOTS:
         png = (tmp_path / "reports" / "ui" / name).read_bytes()
         assert png.startswith(b"\x89PNG") and len(png) > 20_000, name
 
 
 @pytest.mark.slow
-def test_ui_check_names_the_missing_ranking_metric(tmp_path, served_store):
+def test_ui_check_names_the_missing_ranking_metric_and_heat_map(tmp_path, served_store):
     base, _, broken = served_store
     done = _ui_check(tmp_path, broken, base)
     assert done.returncode == 1, done.stdout + done.stderr
@@ -334,6 +363,14 @@ def test_ui_check_names_the_missing_ranking_metric(tmp_path, served_store):
         "metric Z: loso_Mn_rms_um of 'Z/pls_dl/gra_top_k/static' (none in the store) not shown"
     ) in problems
     assert "runs Z: champion run" not in problems  # the champion is listed, only not first
+    # The rank-2 run logged no heat-map: Compare's file tree (common files only) cannot list it.
+    assert "store: artifact cross_season_rms.png missing: 1 of 5 child runs" in problems
+    assert (
+        "compare Z: the Artifacts file tree lists no cross_season_rms.png (it lists: " in problems
+    )
+    assert (
+        "compare Z: 0 of 3 compared runs show image cross_season_rms.png in the Artifacts section"
+    ) in problems
 
 
 @pytest.mark.slow

@@ -97,7 +97,12 @@ def _register_zero_model(client: MlflowClient, uri: str, run_id: str, name: str)
 
 
 def build_ui_store(
-    root: Path, experiment: str, registered_model: str, *, drop_champion_metric: bool = False
+    root: Path,
+    experiment: str,
+    registered_model: str,
+    *,
+    drop_champion_metric: bool = False,
+    drop_heat_map_rank: str | None = None,
 ) -> UiStore:
     """Write one pipeline execution to the SQLite store ``root/mlflow.db``.
 
@@ -111,6 +116,8 @@ def build_ui_store(
         Registered model name of the axis Z champion (unique in the store).
     drop_champion_metric : bool
         Leave the ranking metric out of the champion's child run.
+    drop_heat_map_rank : str or None
+        Leave ``cross_season_rms.png`` out of the child run of this rank (e.g. ``"2"``).
 
     Returns
     -------
@@ -153,10 +160,11 @@ def build_ui_store(
         if not (champion and drop_champion_metric):
             client.log_metric(run_id, RANKING_METRIC, rms)
         client.log_metric(run_id, "pooled_Mn_val_rms_um", rms * 0.98)
-        figure = figures / str(seed) / "cross_season_rms.png"
-        figure.parent.mkdir(exist_ok=True)
-        _heat_map(figure, seed)
-        client.log_artifact(run_id, str(figure))
+        if rank != drop_heat_map_rank:
+            figure = figures / str(seed) / "cross_season_rms.png"
+            figure.parent.mkdir(exist_ok=True)
+            _heat_map(figure, seed)
+            client.log_artifact(run_id, str(figure))
         client.log_table(
             run_id,
             {"test_campaign": ["K01", "K02"], "rmse_um": [rms, rms * 1.1]},

@@ -96,7 +96,7 @@ def _tail(path: Path, lines: int = LOG_TAIL_LINES) -> str:
         return "(no output)"
 
 
-def _stop(process: subprocess.Popen, grace_s: float = 5.0) -> None:
+def stop_group(process: subprocess.Popen, grace_s: float = 5.0) -> None:
     """Stop the process group of ``process`` (started in its own session) and reap it.
 
     SIGTERM first, SIGKILL to whatever of the group is left after ``grace_s`` seconds or after
@@ -189,7 +189,7 @@ def running_mlflow_ui(store_uri: str, timeout_s: float = HEALTH_TIMEOUT_S) -> It
                 time.sleep(0.25)
             yield base_url
         finally:
-            _stop(process)
+            stop_group(process)
 
 
 def render_page(
@@ -260,7 +260,7 @@ def render_page(
         except subprocess.TimeoutExpired:
             code = None
         finally:
-            _stop(process)
+            stop_group(process)
         output.seek(0)
         dom = output.read().decode("utf-8", errors="replace")
         errors.seek(0)

@@ -10,7 +10,9 @@ the rendered text:
 2. ``02_runs_ranked_<axis>.png``: the axis' eligible candidates sorted by the metric the
    pipeline ranks them by (parent tag ``ranked_by.<axis>``), best first: the champion and the
    top-ranked runs, in rank order, and the number of eligible runs;
-3. ``03_compare_<axis>.png``: the Compare page of the top-ranked candidates (names, ``rank``);
+3. ``03_compare_<axis>.png``: the Compare page of the top-ranked candidates (names, ``rank``)
+   with ``cross_season_rms.png`` clicked in its Artifacts file tree: one heat-map per run, side
+   by side (driven through the DevTools protocol, :mod:`pipeline.tracking.ui_compare`);
 4. ``04_champion_model_<axis>.png``: the champion's registered version: name, version,
    description, alias ``champion``, source run;
 5. ``05_ranking_metric_<axis>.png``: the ranking metric of the top-ranked candidates;
@@ -37,8 +39,8 @@ from urllib.parse import unquote, urlencode, urlsplit, urlunsplit
 from pipeline.config import DEFAULT_PARAMS, load_section
 from pipeline.errors import InputDataError, MissingInputError
 from pipeline.paths import REPORTS, TRACKING_RECORD
-from pipeline.tracking import ui_browser
-from pipeline.tracking.ui_dom import parse_dom
+from pipeline.tracking import ui_browser, ui_compare
+from pipeline.tracking.ui_dom import PageDom, parse_dom
 from pipeline.tracking.ui_expect import EVIDENCE, Plan, make_plan, read_store
 from pipeline.tracking.ui_pages import WINDOW_WIDTH, Page, check_page, make_pages
 
@@ -179,12 +181,38 @@ def evidence_problems(base: str, plan: Plan) -> list[str]:
     return problems
 
 
+def render(
+    page: Page, chromium: str, screenshot: Path, profile: Path, budget_ms: int
+) -> tuple[PageDom, list[str]]:
+    """Render ``page``, write its screenshot; return its DOM and, as notes, what went wrong.
+
+    A page with an artifact to select (Compare) is driven through the DevTools protocol
+    (:mod:`pipeline.tracking.ui_compare`), the others by one ``chromium --screenshot --dump-dom``.
+
+    Raises
+    ------
+    ui_browser.BrowserError
+        If Chromium did not render the page.
+    """
+    window = (WINDOW_WIDTH, page.height)
+    if page.select is None:
+        html = ui_browser.render_page(chromium, page.url, screenshot, profile, window, budget_ms)
+        return parse_dom(html), []
+    capture = ui_compare.capture_selected(
+        chromium, page.url, page.select, page.image_count, screenshot, window, budget_ms / 1000
+    )
+    dom = parse_dom(capture.html)
+    dom.loaded = capture.loaded
+    return dom, capture.notes
+
+
 def visit(
     pages: Sequence[Page], chromium: str, out: Path, budget_ms: int, write: Write
 ) -> list[str]:
     """Render each page, write its screenshot and summary; return the problems.
 
-    The pages share one fresh temporary Chromium profile (its cache spares reloading the app).
+    The pages rendered by ``--dump-dom`` share one fresh temporary Chromium profile (its cache
+    spares reloading the app); a DevTools session has its own.
     """
     problems: list[str] = []
     with tempfile.TemporaryDirectory(prefix="thermal-ui-check-chromium-") as profile:
@@ -192,23 +220,16 @@ def visit(
             screenshot = out / page.screenshot
             write(f"{page.name}\n  {page.url}\n")
             try:
-                html = ui_browser.render_page(
-                    chromium,
-                    page.url,
-                    screenshot,
-                    Path(profile),
-                    (WINDOW_WIDTH, page.height),
-                    budget_ms,
-                )
+                dom, notes = render(page, chromium, screenshot, Path(profile), budget_ms)
             except ui_browser.BrowserError as error:
                 problems.append(f"{page.name}: not rendered: {str(error).splitlines()[0]}")
                 write(f"  not rendered: {error}\n")
                 continue
-            result = check_page(page, parse_dom(html))
-            problems += result.problems
+            result = check_page(page, dom)
+            problems += [f"{page.name}: {note}" for note in notes] + result.problems
             write(f"  screenshot {screenshot}\n  found: {'; '.join(result.found) or '-'}\n")
-            if result.missing:
-                write(f"  missing: {'; '.join(result.missing)}\n")
+            if result.missing or notes:
+                write(f"  missing: {'; '.join(notes + result.missing)}\n")
     return problems
 
 

@@ -64,12 +64,16 @@ class PageDom:
         ``(alt, src)`` of every ``img`` element.
     rows : dict of int to list of str
         Run ids linked from each table row, by the row's ``row-index`` (its position on screen).
+    loaded : frozenset of str or None
+        ``src`` of the images the browser had loaded (complete, natural width > 0) when the DOM
+        was taken; None when unknown (``--dump-dom`` says nothing about it).
     """
 
     nodes: list[str] = field(default_factory=list)
     banners: list[str] = field(default_factory=list)
     images: list[tuple[str, str]] = field(default_factory=list)
     rows: dict[int, list[str]] = field(default_factory=dict)
+    loaded: frozenset[str] | None = None
 
     @property
     def text(self) -> str:

@@ -13,7 +13,9 @@ read from its bundled JavaScript (``mlflow/server/js/build/static/js/``):
 - ``/compare-runs?runs=["<id>",...]&experiments=["<id>"]``: JSON lists, as the UI writes them.
   Its metric and tag tables render about 300 px of rows (the first metrics in alphabetical
   order), and its artifact section lists only the files common to the runs' artifact roots, so
-  figure in a sub-folder would not be shown there (the pipeline logs its evidence at the root);
+  figure in a sub-folder would not be shown there (the pipeline logs its evidence at the root).
+  Which file the section previews is React state: the check clicks the heat-map in its file
+  tree (:attr:`Page.select`) and expects one loaded image per compared run;
 - ``/metric?runs=[...]&metric="<key>"&experiments=[...]&plot_metric_keys=["<key>"]``: one metric
   of several runs, chart and table, the page Compare links each metric to;
 - ``/models/<name>/versions/<version>``: a registered version, aliases shown as ``@ <alias>``;
@@ -40,6 +42,7 @@ WINDOW_WIDTH = 1600
 WINDOW_HEIGHT = 1200
 COMPARE_HEIGHT = 2700  # visualisations, run details, parameters, metrics, artifacts, tags
 ROW_HEIGHT = 45  # a run-list row with its margins, CSS px
+IMAGE_SOURCES = ("blob:", "data:", "http")
 MIN_TEXT_NODES = 60  # fewer on a page with missing items: probably still loading
 VALUE_NODE = re.compile(r"(-?[\d,]+(?:\.\d+)?(?:e[-+]?\d+)?) \(step=-?\d+\)", re.IGNORECASE)
 
@@ -93,6 +96,11 @@ class Page:
         Names of the runs the table may show, by run id, for the report.
     image : str or None
         ``alt`` of an image the page must show loaded (an artifact path).
+    image_count : int
+        How many such images it must show: one per compared run on Compare.
+    select : str or None
+        Artifact to click in the Compare page's Artifacts file tree before the capture (the
+        selection is React state, not in the URL; :mod:`pipeline.tracking.ui_compare`).
     height : int
         Window height, CSS px (tables render only the rows that fit).
     """
@@ -105,6 +113,8 @@ class Page:
     order_metric: Mapping[str, float] = field(default_factory=dict)
     run_names: Mapping[str, str] = field(default_factory=dict)
     image: str | None = None
+    image_count: int = 1
+    select: str | None = None
     height: int = WINDOW_HEIGHT
 
 
@@ -225,6 +235,9 @@ def _compare_page(base: str, plan: Plan, axis: AxisPlan, leaders: Sequence[Child
         compare_url(base, ids, [plan.experiment_id]),
         f"03_compare_{axis.axis}.png",
         tuple(checks),
+        image=HEAT_MAP,
+        image_count=len(leaders),
+        select=HEAT_MAP,
         height=COMPARE_HEIGHT,
     )
 
@@ -334,6 +347,30 @@ def _shows_value(nodes: Sequence[str], name: str, value: float) -> bool:
     return False
 
 
+def _check_images(page: Page, dom: PageDom, result: PageResult) -> None:
+    """Count the images ``alt=page.image`` with a source (loaded, when the capture knows)."""
+    shown = [
+        src
+        for alt, src in dom.images
+        if alt == page.image
+        and src.startswith(IMAGE_SOURCES)
+        and (dom.loaded is None or src in dom.loaded)
+    ]
+    if page.select is None:
+        label, ok = f"image {page.image}", bool(shown)
+        problem = f"{page.name}: {label} not shown"
+    else:
+        count = page.image_count
+        label = f"{len(shown)} of {count} compared runs show image {page.image}"
+        ok = len(shown) == count
+        problem = (
+            f"{page.name}: {label} in the Artifacts section (one loaded image per run expected)"
+        )
+    (result.found if ok else result.missing).append(label)
+    if not ok:
+        result.problems.append(problem)
+
+
 def check_page(page: Page, dom: PageDom) -> PageResult:
     """Compare what a rendered page shows with what it must show.
 
@@ -364,12 +401,7 @@ def check_page(page: Page, dom: PageDom) -> PageResult:
         if not shown and check.required:
             result.problems.append(f"{page.name}: {check.label} not shown")
     if page.image:
-        sources = [src for alt, src in dom.images if alt == page.image]
-        if any(src.startswith(("blob:", "data:", "http")) for src in sources):
-            result.found.append(f"image {page.image}")
-        else:
-            result.missing.append(f"image {page.image}")
-            result.problems.append(f"{page.name}: image {page.image} not shown")
+        _check_images(page, dom, result)
     if page.order:
         problem = _order_problem(page, dom)
         if problem:
