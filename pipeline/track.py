@@ -37,7 +37,6 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
-from urllib.parse import unquote, urlsplit, urlunsplit
 
 import pandas as pd
 import pandera.pandas as pa
@@ -98,29 +97,13 @@ def resolve_tracking_uri(settings: Mapping[str, Any]) -> str:
     )
 
 
-def public_uri(uri: str) -> str:
-    """Return ``uri`` without user name and password, safe to write to a report."""
-    parts = urlsplit(uri)
-    if "@" not in parts.netloc:
-        return uri
-    return urlunsplit(parts._replace(netloc=parts.netloc.rsplit("@", 1)[1]))
-
-
-def _sqlite_path(uri: str) -> str | None:
-    prefix = "sqlite:///"
-    if not uri.startswith(prefix):
-        return None
-    path = unquote(uri[len(prefix) :].split("?", 1)[0])
-    return None if not path or path == ":memory:" else path
-
-
 def absolute_store_uri(uri: str) -> str:
     """Return ``uri`` with a relative SQLite path made absolute (from the working directory).
 
     MLflow caches one store per URI string in a process, so a relative ``sqlite:///mlflow.db``
     would keep pointing at the first working directory's file.
     """
-    path = _sqlite_path(uri)
+    path = store.sqlite_path(uri)
     if path is None or Path(path).is_absolute():
         return uri
     query = uri.split("?", 1)[1] if "?" in uri else ""
@@ -146,7 +129,7 @@ def local_artifact_location(uri: str, artifact_dir: str, experiment: str) -> str
     str or None
         A ``file://`` URI, or ``None`` for non-SQLite or in-memory stores.
     """
-    db_path = _sqlite_path(uri)
+    db_path = store.sqlite_path(uri)
     if db_path is None:
         return None
     folder = records.safe_key(experiment).replace("/", "_").replace(" ", "_")
@@ -468,7 +451,7 @@ def main(argv: list[str] | None = None) -> int:
 def unreachable_message(uri: str, error: BaseException) -> str:
     """Return the message of a track stage that could not log: nothing lost, how to log later."""
     return (
-        f"thermal track: the MLflow tracking store {public_uri(uri)} cannot be used "
+        f"thermal track: the MLflow tracking store {store.public_uri(uri)} cannot be used "
         f"({str(error).strip()[:300]}). Nothing is lost: the scores, reports and champion models "
         "of this pipeline execution are DVC outputs (reports/, metrics/, data/models/champion/) "
         "and stay as they are. When the store can be reached (start the server, or fix "
@@ -505,7 +488,7 @@ def _log(
             prepared.identity.value[:12],
             parent_id,
             experiment,
-            public_uri(uri),
+            store.public_uri(uri),
         )
         names = [registered_name(prefix, axis) for axis in prepared.champions]
         store.restore_champions(client, experiment_id, parent_id, names, "champion")
@@ -520,7 +503,7 @@ def _log(
             len(prepared.children),
             n_metrics,
             experiment,
-            public_uri(uri),
+            store.public_uri(uri),
         )
     store.describe_experiment(client, experiment_id, guide.experiment_description(experiment))
     ranked_by = {
@@ -537,7 +520,7 @@ def _log(
         axis: store.champion_version(client, name, "champion") for axis, name in registered.items()
     }
     return {
-        "tracking_uri": public_uri(uri),
+        "tracking_uri": store.public_uri(uri),
         "experiment": experiment,
         "experiment_id": experiment_id,
         "parent_run_id": parent_id,

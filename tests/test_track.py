@@ -993,7 +993,7 @@ def test_tracking_uri_env_var_overrides_default(workdir, monkeypatch, tmp_path_f
     assert (other.parent / "mlartifacts" / EXPERIMENT).is_dir()
     assert not (workdir / "mlartifacts").exists()
     assert MlflowClient(f"sqlite:///{other}").get_model_version_by_alias(NAMES["Z"], "champion")
-    assert track.public_uri("https://user:secret@mlflow.example.org/x") == (
+    assert store.public_uri("https://user:secret@mlflow.example.org/x") == (
         "https://mlflow.example.org/x"
     )
 

@@ -16,6 +16,7 @@ import tempfile
 import time
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from pathlib import Path
+from urllib.parse import unquote, urlsplit, urlunsplit
 
 import pandas as pd
 import requests
@@ -86,6 +87,23 @@ UNREACHABLE = (MlflowException, requests.exceptions.RequestException)
 """What a store that cannot be reached (or refuses a request) raises."""
 
 HTTP_DEFAULTS = {"MLFLOW_HTTP_REQUEST_MAX_RETRIES": "2", "MLFLOW_HTTP_REQUEST_TIMEOUT": "20"}
+
+
+def sqlite_path(uri: str) -> str | None:
+    """Return the database path of a ``sqlite:///`` URI (None: not SQLite, or in memory)."""
+    prefix = "sqlite:///"
+    if not uri.startswith(prefix):
+        return None
+    path = unquote(uri[len(prefix) :].split("?", 1)[0])
+    return None if not path or path == ":memory:" else path
+
+
+def public_uri(uri: str) -> str:
+    """Return ``uri`` without user name and password, safe to write to a report."""
+    parts = urlsplit(uri)
+    if "@" not in parts.netloc:
+        return uri
+    return urlunsplit(parts._replace(netloc=parts.netloc.rsplit("@", 1)[1]))
 
 
 def make_client(tracking_uri: str) -> MlflowClient:

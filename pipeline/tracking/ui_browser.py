@@ -125,14 +125,21 @@ def mlflow_command() -> list[str]:
 
 
 @contextmanager
-def running_mlflow_ui(store_uri: str, timeout_s: float = HEALTH_TIMEOUT_S) -> Iterator[str]:
-    """Run ``mlflow ui`` on ``store_uri`` until the ``with`` block ends; yield its base URL.
+def running_mlflow(
+    arguments: list[str], folder: Path, timeout_s: float = HEALTH_TIMEOUT_S
+) -> Iterator[str]:
+    """Run ``mlflow <arguments>`` on a free 127.0.0.1 port until the ``with`` block ends.
+
+    The process runs in ``folder`` (its output in ``folder/mlflow.log``), without the caller's
+    ``MLFLOW_*`` variables, in its own process group, stopped with its workers on exit.
 
     Parameters
     ----------
-    store_uri : str
-        Backend store, e.g. ``sqlite:////abs/path/mlflow.db``. The runs' artifacts are served
-        from their own (``file://``) artifact locations.
+    arguments : list of str
+        E.g. ``["ui", "--backend-store-uri", uri]`` or ``["server", ...]``; ``--host``,
+        ``--port`` and ``--workers 1`` are added.
+    folder : Path
+        Working folder of the process (and of its log).
     timeout_s : float
         How long to wait for ``/health`` to answer 200, in seconds.
 
@@ -144,52 +151,54 @@ def running_mlflow_ui(store_uri: str, timeout_s: float = HEALTH_TIMEOUT_S) -> It
     Raises
     ------
     ServerError
-        If the server exits or is not healthy in time, with the end of its output.
+        If the process exits or is not healthy in time, with the end of its output.
     """
     port = free_port()
     base_url = f"http://127.0.0.1:{port}"
-    command = [
-        *mlflow_command(),
-        "ui",
-        "--backend-store-uri",
-        store_uri,
-        "--host",
-        "127.0.0.1",
-        "--port",
-        str(port),
-        "--workers",
-        "1",
-    ]
+    command = [*mlflow_command(), *arguments, "--host", "127.0.0.1", "--port", str(port),
+               "--workers", "1"]  # fmt: skip
     env = {k: v for k, v in os.environ.items() if not k.startswith("MLFLOW_")}
+    log = Path(folder) / "mlflow.log"
+    with log.open("wb") as output:
+        process = subprocess.Popen(  # noqa: S603
+            command,
+            cwd=folder,
+            env=env,
+            stdout=output,
+            stderr=subprocess.STDOUT,
+            stdin=subprocess.DEVNULL,
+            start_new_session=True,
+        )
+    try:
+        deadline = time.monotonic() + timeout_s
+        while not healthy(base_url):
+            if process.poll() is not None:
+                raise ServerError(
+                    f"mlflow {arguments[0]} exited with code {process.returncode} before "
+                    f"answering {base_url}/health; its output ends with:\n{_tail(log)}"
+                )
+            if time.monotonic() > deadline:
+                raise ServerError(
+                    f"mlflow {arguments[0]} did not answer {base_url}/health within "
+                    f"{timeout_s:.0f} s; its output ends with:\n{_tail(log)}"
+                )
+            time.sleep(0.25)
+        yield base_url
+    finally:
+        stop_group(process)
+
+
+@contextmanager
+def running_mlflow_ui(store_uri: str, timeout_s: float = HEALTH_TIMEOUT_S) -> Iterator[str]:
+    """Run ``mlflow ui`` on ``store_uri`` until the ``with`` block ends; yield its base URL.
+
+    The runs' artifacts are served from their own (``file://``) artifact locations. See
+    :func:`running_mlflow`.
+    """
     with tempfile.TemporaryDirectory(prefix="thermal-ui-check-") as folder:
-        log = Path(folder) / "mlflow-ui.log"
-        with log.open("wb") as output:
-            process = subprocess.Popen(  # noqa: S603
-                command,
-                cwd=folder,
-                env=env,
-                stdout=output,
-                stderr=subprocess.STDOUT,
-                stdin=subprocess.DEVNULL,
-                start_new_session=True,
-            )
-        try:
-            deadline = time.monotonic() + timeout_s
-            while not healthy(base_url):
-                if process.poll() is not None:
-                    raise ServerError(
-                        f"mlflow ui exited with code {process.returncode} before answering "
-                        f"{base_url}/health; its output ends with:\n{_tail(log)}"
-                    )
-                if time.monotonic() > deadline:
-                    raise ServerError(
-                        f"mlflow ui did not answer {base_url}/health within {timeout_s:.0f} s; "
-                        f"its output ends with:\n{_tail(log)}"
-                    )
-                time.sleep(0.25)
+        arguments = ["ui", "--backend-store-uri", store_uri]
+        with running_mlflow(arguments, Path(folder), timeout_s) as base_url:
             yield base_url
-        finally:
-            stop_group(process)
 
 
 def render_page(

@@ -34,12 +34,14 @@ import tempfile
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
-from urllib.parse import unquote, urlencode, urlsplit, urlunsplit
+from urllib.parse import urlencode
 
 from pipeline.config import DEFAULT_PARAMS, load_section
 from pipeline.errors import InputDataError, MissingInputError
 from pipeline.paths import REPORTS, TRACKING_RECORD
 from pipeline.tracking import ui_browser, ui_compare
+from pipeline.tracking.store import public_uri as public
+from pipeline.tracking.store import sqlite_path
 from pipeline.tracking.ui_dom import PageDom, parse_dom
 from pipeline.tracking.ui_expect import EVIDENCE, Plan, make_plan, read_store
 from pipeline.tracking.ui_pages import WINDOW_WIDTH, Page, check_page, make_pages
@@ -83,14 +85,6 @@ def read_record(path: Path) -> dict[str, Any]:
     return record
 
 
-def _sqlite_path(uri: str) -> str | None:
-    prefix = "sqlite:///"
-    if not uri.startswith(prefix):
-        return None
-    path = unquote(uri[len(prefix) :].split("?", 1)[0])
-    return None if not path or path == ":memory:" else path
-
-
 def resolve_store(
     option: str | None,
     env: Mapping[str, str],
@@ -126,7 +120,7 @@ def resolve_store(
     if params_path.is_file():
         default = str(load_section("track", params_path).get("default_tracking_uri") or default)
     uri = option or env.get(ENV_TRACKING_URI) or record.get("tracking_uri") or default
-    path = _sqlite_path(uri)
+    path = sqlite_path(uri)
     if path is None:
         return uri
     if not Path(path).is_file():
@@ -135,14 +129,6 @@ def resolve_store(
             f"it), or set {ENV_TRACKING_URI} to the store the pipeline logged to"
         )
     return f"sqlite:///{Path(path).resolve().as_posix()}"
-
-
-def public(uri: str) -> str:
-    """Return ``uri`` without a user name and password, safe to print."""
-    parts = urlsplit(uri)
-    if "@" not in parts.netloc:
-        return uri
-    return urlunsplit(parts._replace(netloc=parts.netloc.rsplit("@", 1)[1]))
 
 
 def is_server(uri: str) -> bool:
