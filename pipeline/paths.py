@@ -1,6 +1,7 @@
 """Where each stage reads and writes, relative to the repository root.
 
-``dvc.yaml`` declares the same paths as stage ``deps``/``outs``; keep the two in step.
+``dvc.yaml`` declares the same paths as stage ``deps``/``outs``; ``tests/test_dvc_paths.py``
+fails when one side names an output the other does not.
 """
 
 from pathlib import Path
