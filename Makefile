@@ -30,13 +30,13 @@ test-fast: install
 	PATH="$(CURDIR)/$(BIN):$$PATH" $(BIN)/python -m pytest -n 2 --dist worksteal -m "not slow"
 
 bench: install
-	PATH="$(CURDIR)/$(BIN):$$PATH" $(BIN)/thermal bench
+	PATH="$(CURDIR)/$(BIN):$$PATH" $(BIN)/python -m benchmarks.bench
 
 trials: install
-	$(BIN)/thermal discrepancy-trials --seeds 1 2 3 --out reports/discrepancy_trials
+	$(BIN)/python -m benchmarks.discrepancy_trials --seeds 1 2 3 --out reports/discrepancy_trials
 
 demo-check: install
-	$(BIN)/thermal discrepancy-demo-check --out reports/discrepancy_demo_check
+	$(BIN)/python -m benchmarks.discrepancy_demo_check --out reports/discrepancy_demo_check
 
 # The MLflow UI in headless Chromium after `make run`: screenshots and checks in reports/ui/.
 ui-check: install

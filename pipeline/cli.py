@@ -18,26 +18,21 @@ from pipeline.errors import UserError
 COMMANDS = {
     "simulate": ("pipeline.twin.cli", "write synthetic campaigns from the physical twin"),
     "import": ("pipeline.importers.cli", "a logger's table or laser exports -> campaign folders"),
-    "ingest": ("pipeline.ingest", "raw campaign folders -> tidy parquet tables"),
-    "validate": ("pipeline.validate", "Pandera checks; quarantine bad campaigns"),
-    "separate": ("pipeline.separate", "geometric / thermal error separation"),
-    "model-axis": ("pipeline.model_axis", "linear-axis composite model (the patent)"),
-    "select": ("pipeline.select", "sensitive temperature points by every selection method"),
-    "evaluate": ("pipeline.evaluate", "fit models, score every campaign against every other"),
-    "discrepancy": ("pipeline.discrepancy_stage", "twin vs measurements: which effect is missing"),
-    "discrepancy-trials": (
-        "pipeline.discrepancy.trials",
-        "rate of correct naming on campaigns with hidden effects",
+    "ingest": ("pipeline.stages.ingest", "raw campaign folders -> tidy parquet tables"),
+    "validate": ("pipeline.stages.validate", "Pandera checks; quarantine bad campaigns"),
+    "separate-spindle": ("pipeline.stages.separate_spindle", "spindle thermal error and its runs"),
+    "separate-axis": ("pipeline.stages.separate_axis", "axis geometric / thermal separation"),
+    "model-axis": ("pipeline.stages.model_axis", "linear-axis composite model (the patent)"),
+    "select": ("pipeline.stages.select", "sensitive temperature points by every selection method"),
+    "evaluate": (
+        "pipeline.stages.evaluate",
+        "fit models, score every campaign against every other",
     ),
-    "discrepancy-demo-check": (
-        "pipeline.discrepancy.demo_check",
-        "the workflow on the demo plans with and without their unseen state",
-    ),
-    "track": ("pipeline.track", "log the scores to MLflow"),
-    "summary": ("pipeline.summary", "print where the results are and how to open MLflow"),
+    "discrepancy": ("pipeline.stages.discrepancy", "twin vs measurements: which effect is missing"),
+    "track": ("pipeline.stages.track", "log the scores to MLflow"),
+    "summary": ("pipeline.reporting.summary", "print where the results are and how to open MLflow"),
     "ui-check": ("pipeline.tracking.ui_check", "check in Chromium what the MLflow UI shows"),
-    "contract-doc": ("pipeline.contract_doc", "write the tables of docs/data-contract.md"),
-    "bench": ("pipeline.bench", "time each stage of the default dvc repro"),
+    "contract-doc": ("pipeline.io.contract_doc", "write the tables of docs/data-contract.md"),
 }
 
 

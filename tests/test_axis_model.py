@@ -6,8 +6,11 @@ import pandas as pd
 import pytest
 from numpy.polynomial import Polynomial
 
-from pipeline import model_axis, paths
-from pipeline.axis_model import (
+from pipeline import paths
+from pipeline.io.reader import read_campaign
+from pipeline.io.tables import tabulate
+from pipeline.models import axis_fit
+from pipeline.models.axis_composite import (
     CompositeModel,
     bands,
     candidate_sensors,
@@ -17,9 +20,9 @@ from pipeline.axis_model import (
     score_campaigns,
     select_sensors,
 )
-from pipeline.axis_separation import separate_axis
-from pipeline.ingest import tabulate
-from pipeline.raw_reader import read_campaign
+from pipeline.reporting import axis_model
+from pipeline.separation.axis import separate_axis
+from pipeline.stages import model_axis
 
 RAW = Path(__file__).resolve().parents[1] / "data" / "raw"
 SENSORS = ["T1", "T2", "T3", "T4", "T5"]
@@ -87,7 +90,7 @@ def planted():
 
 
 def _fit(tables, params=PARAMS):
-    return model_axis.build(params, tables["slopes"], tables["geometric"], tables["thermal"])
+    return axis_fit.build(params, tables["slopes"], tables["geometric"], tables["thermal"])
 
 
 def test_planted_sensors_and_coefficients_recovered(planted):
@@ -147,7 +150,7 @@ def test_pass_features_are_rises_from_each_campaigns_cold_pass(planted):
 def test_no_validation_campaign_scores_the_fit_only(planted, tmp_path):
     tables = {name: frame.query("campaign_id == 'A01'") for name, frame in planted.items()}
     report, metrics, points = _fit(tables)
-    model_axis.plot(points, report, tmp_path / "fit.png")
+    axis_model.plot(points, report, tmp_path / "fit.png")
     assert (tmp_path / "fit.png").stat().st_size > 0
     assert report["status"] == "no_validation_campaign"
     assert "no validation axis campaign" in report["message"]
@@ -158,8 +161,8 @@ def test_no_validation_campaign_scores_the_fit_only(planted, tmp_path):
 
 def test_no_axis_campaign_at_all(tmp_path):
     empty = pd.DataFrame()
-    report, metrics, points = model_axis.build(PARAMS, empty, empty, empty)
-    model_axis.plot(points, report, tmp_path / "none.png")
+    report, metrics, points = axis_fit.build(PARAMS, empty, empty, empty)
+    axis_model.plot(points, report, tmp_path / "none.png")
     assert (tmp_path / "none.png").stat().st_size > 0
     assert report["status"] == "no_axis_campaign"
     assert metrics == {} and points.empty

@@ -3,7 +3,7 @@ import pandas as pd
 import pytest
 from numpy.polynomial import Polynomial
 
-from pipeline.axis_separation import bidirectional_mean, fit_geometric, separate_axis
+from pipeline.separation.axis import bidirectional_mean, fit_geometric, separate_axis
 from pipeline.twin import demo_plans, simulate_axis_campaign
 
 

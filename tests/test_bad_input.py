@@ -27,7 +27,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from pipeline import ingest, paths, validate
+from pipeline import paths
+from pipeline.stages import ingest, validate
 from pipeline.validation.plausibility import CHECKS as PLAUSIBILITY_CHECKS
 from pipeline.validation.texts import FALLBACK_TEXT, PROBLEM_TEXTS
 from tests.raw_builders import write_axis_campaign, write_spindle_campaign

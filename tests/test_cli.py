@@ -82,7 +82,7 @@ def test_an_internal_error_keeps_its_traceback(monkeypatch):
     def broken(argv):
         raise RuntimeError("bug")
 
-    monkeypatch.setattr(importlib.import_module("pipeline.summary"), "main", broken)
+    monkeypatch.setattr(importlib.import_module("pipeline.reporting.summary"), "main", broken)
     with pytest.raises(RuntimeError, match="bug"):
         main(["summary"])
 

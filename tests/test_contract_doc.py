@@ -8,9 +8,9 @@ from pathlib import Path
 
 import yaml
 
-from pipeline import contract_doc
-from pipeline.raw_metadata import REQUIRED_KEYS
-from pipeline.raw_reader import read_campaign
+from pipeline.io import contract_doc
+from pipeline.io.metadata import REQUIRED_KEYS
+from pipeline.io.reader import read_campaign
 from pipeline.validation.texts import PROBLEM_TEXTS
 from schemas import CampaignsModel, LaserModel
 from schemas.contract import (
@@ -105,7 +105,7 @@ def _reported_checks(path: Path) -> set[str]:
 
 
 def test_every_check_the_readers_report_is_documented():
-    readers = ("raw_reader.py", "raw_files.py", "raw_metadata.py")
+    readers = ("io/reader.py", "io/files.py", "io/metadata.py")
     checks = set().union(*(_reported_checks(ROOT / "pipeline" / name) for name in readers))
     assert len(checks) >= 20
     assert checks <= set(PROBLEM_TEXTS), sorted(checks - set(PROBLEM_TEXTS))

@@ -4,8 +4,8 @@ import pytest
 from sklearn.base import BaseEstimator, RegressorMixin
 from sklearn.linear_model import LinearRegression
 
-from pipeline.cross_season import Candidate, fit_and_score, modes_of
-from pipeline.training_units import campaign_series, protocol_scheme, stack, training_units
+from pipeline.protocol.cross_season import Candidate, fit_and_score, modes_of
+from pipeline.protocol.units import campaign_series, protocol_scheme, stack, training_units
 
 GAINS = np.array([3.0, -1.5])
 CAMPAIGNS = [

@@ -7,7 +7,7 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from pipeline.discrepancy.demo_check import VARIANTS, markdown, summarise, write_demo
+from benchmarks.discrepancy_demo_check import VARIANTS, markdown, summarise, write_demo
 from pipeline.twin.effects import DEMO_EFFECTS
 
 REPO = Path(__file__).resolve().parents[1]

@@ -1,6 +1,6 @@
 """Tests of the discrepancy search: forward selection, localisation, hidden effects, the stage.
 
-Hidden-effect tests (:mod:`pipeline.discrepancy.trials`) generate "measured" campaigns with the
+Hidden-effect tests (:mod:`benchmarks.discrepancy_trials`) generate "measured" campaigns with the
 project's twin with chosen effects switched on and random plausible parameters, write them in
 the raw contract and run the workflow on the folder. The generator's truth (its effects and
 parameters) is used only in the assertions.
@@ -15,6 +15,15 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from benchmarks.discrepancy_trials import (
+    CASES,
+    TrialResult,
+    rates_markdown,
+    rates_table,
+    run_trial,
+    run_workflow,
+    write_hidden_campaigns,
+)
 from pipeline.config import load_section
 from pipeline.discrepancy.localise import (
     LocaliseSettings,
@@ -30,15 +39,6 @@ from pipeline.discrepancy.search import (
     forward_search,
     make_folds,
     split_for_search,
-)
-from pipeline.discrepancy.trials import (
-    CASES,
-    TrialResult,
-    rates_markdown,
-    rates_table,
-    run_trial,
-    run_workflow,
-    write_hidden_campaigns,
 )
 
 # ------------------------------------------------------------------ phase split, noise floor
@@ -325,7 +325,7 @@ def test_smoke_one_hidden_effect_is_named_and_reported(tmp_path):
     """The CLI on 4 campaigns + 1 broken one, three candidates, two folds (about a minute)."""
     import yaml
 
-    from pipeline.discrepancy_stage import main
+    from pipeline.stages.discrepancy import main
 
     truth = frozenset({"motor_heat"})
     write_hidden_campaigns(tmp_path / "raw", truth, seed=11, n=4)

@@ -8,9 +8,10 @@ import shutil
 
 import yaml
 
+from benchmarks.discrepancy_trials import write_hidden_campaigns
 from pipeline.config import load_section
-from pipeline.discrepancy.trials import write_hidden_campaigns
-from pipeline.discrepancy_stage import STRUCTURE_ROLES, main
+from pipeline.discrepancy.workflow import STRUCTURE_ROLES
+from pipeline.stages.discrepancy import main
 
 
 def _params(tmp_path):

@@ -14,7 +14,7 @@ import pandas as pd
 import pytest
 import yaml
 
-from pipeline import evaluate, ingest, select, separate, track, validate
+from pipeline.stages import evaluate, ingest, select, separate_spindle, track, validate
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -35,7 +35,7 @@ def folder(tmp_path, monkeypatch):
 def _stages(folder: Path, *campaigns: str) -> dict:
     for campaign in campaigns:
         shutil.copytree(ROOT / "data" / "raw" / campaign, folder / "data" / "raw" / campaign)
-    for stage, argv in ((ingest, []), (validate, []), (separate, ["spindle"]), (select, []),
+    for stage, argv in ((ingest, []), (validate, []), (separate_spindle, []), (select, []),
                         (evaluate, []), (track, [])):  # fmt: skip
         assert stage.main(argv) == 0, stage.__name__
     return json.loads((folder / "metrics" / "cross_season.json").read_text())

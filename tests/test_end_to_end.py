@@ -15,7 +15,7 @@ import pytest
 import yaml
 from mlflow.tracking import MlflowClient
 
-from pipeline.bench import copy_repository
+from benchmarks.bench import copy_repository
 from tests.mlflow_server import running_mlflow_server
 
 pytestmark = pytest.mark.slow

@@ -21,10 +21,10 @@ from pipeline.importers import logger_import
 from pipeline.importers.cutting import MIN_SAMPLES, CutRule, segments
 from pipeline.importers.logger_table import TableError, read_logger_table
 from pipeline.importers.mapping import MappingError, load_mapping
-from pipeline.ingest import ingest
-from pipeline.raw_reader import read_campaign
-from pipeline.runs import RunSettings, build_runs, candidate_links, spans_from_tables
-from pipeline.validate import validate_tables
+from pipeline.io.reader import read_campaign
+from pipeline.io.tables import ingest
+from pipeline.separation.runs import RunSettings, build_runs, candidate_links, spans_from_tables
+from pipeline.validation.checks import validate_tables
 from pipeline.validation.limits import limits_from_params
 
 REPO = Path(__file__).resolve().parents[1]

@@ -19,7 +19,7 @@ import schemas
 from pipeline.config import load_section
 from pipeline.importers import rtl_import
 from pipeline.importers.renishaw import RtlFormatError, read_rtl
-from pipeline.raw_reader import read_campaign
+from pipeline.io.reader import read_campaign
 from pipeline.validation.laser_checks import validate_laser
 from pipeline.validation.limits import limits_from_params
 from schemas.contract import LASER_COLUMNS

@@ -2,7 +2,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from pipeline.ingest import ingest
+from pipeline.io.tables import ingest
 from tests.raw_builders import write_spindle_campaign
 
 

@@ -14,9 +14,10 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from pipeline import evaluate, paths, plots
+from pipeline import paths, plots
 from pipeline.discrepancy import report
 from pipeline.discrepancy.data import MeasuredCampaign
+from pipeline.reporting.evaluation import write_matrices
 
 SEASONS = ("winter", "spring", "summer", "autumn")
 TRAIN = [f"K{i:02d}" for i in range(1, 13)]
@@ -157,7 +158,7 @@ def test_write_matrices_passes_seasons_split_and_fits(tmp_path, monkeypatch):
         return drawn["fig"]
 
     monkeypatch.setattr(plots, "score_heatmap_figure", keep)
-    figures = evaluate.write_matrices(pd.DataFrame(rows), "synthetic data")
+    figures = write_matrices(pd.DataFrame(rows), "synthetic data")
     assert figures == ["matrices/Z__mlr__all__static.png"]
     assert (tmp_path / figures[0]).is_file()
     ax = drawn["fig"].axes[0]

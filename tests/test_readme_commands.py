@@ -23,7 +23,7 @@ import pandas as pd
 import pytest
 from mlflow.tracking import MlflowClient
 
-from pipeline.bench import copy_repository
+from benchmarks.bench import copy_repository
 from pipeline.cli import COMMANDS
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -2,7 +2,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from pipeline.scoring import (
+from pipeline.protocol.scoring import (
     candidate_summary,
     compensation_ratio,
     group_score_name,

@@ -3,14 +3,19 @@ import pandas as pd
 import pytest
 from sklearn.linear_model import LinearRegression
 
-from pipeline.candidates import run_all
-from pipeline.champion import choose_champion, standing
-from pipeline.comparison_report import score_table
-from pipeline.cross_season import Candidate
-from pipeline.features import InputSpec, SpeedResponses, model_inputs, speed_responses
-from pipeline.scoring import coverage
-from pipeline.select import method_entries, select_axis, selected_record, stability_table
-from pipeline.training_units import series_by_axis, training_units
+from pipeline.protocol.candidates import run_all
+from pipeline.protocol.champion import choose_champion, standing
+from pipeline.protocol.cross_season import Candidate
+from pipeline.protocol.scoring import coverage
+from pipeline.protocol.selection_runs import (
+    method_entries,
+    select_axis,
+    selected_record,
+    stability_table,
+)
+from pipeline.protocol.units import series_by_axis, training_units
+from pipeline.reporting.comparison import score_table
+from pipeline.separation.features import InputSpec, SpeedResponses, model_inputs, speed_responses
 
 
 def _table(n=40):

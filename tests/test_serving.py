@@ -7,9 +7,9 @@ import numpy as np
 import pandas as pd
 from sklearn.linear_model import LinearRegression
 
-from pipeline.features import InputSpec, SpeedResponses
-from pipeline.serving import predict_table
-from pipeline.spindle_separation import SeparationSettings, spindle_thermal_error
+from pipeline.protocol.serving import predict_table
+from pipeline.separation.features import InputSpec, SpeedResponses
+from pipeline.separation.spindle import SeparationSettings, spindle_thermal_error
 
 SPEED = SpeedResponses((30.0,), (1.0,))
 

@@ -4,9 +4,9 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from pipeline.features import SpeedResponses, reference_value, resample, speed_responses
-from pipeline.runs import RunSettings
-from pipeline.spindle_separation import SeparationSettings, spindle_thermal_error
+from pipeline.separation.features import SpeedResponses, reference_value, resample, speed_responses
+from pipeline.separation.runs import RunSettings
+from pipeline.separation.spindle import SeparationSettings, spindle_thermal_error
 from schemas import SpindleThermalErrorModel
 
 START = pd.Timestamp("2025-03-03T08:00:00")

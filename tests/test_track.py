@@ -1,13 +1,14 @@
 """Tests of the track stage on small evaluate outputs built with the real pipeline functions.
 
-The fixture fits small estimators with :func:`pipeline.cross_season.fit_and_score` on synthetic
-campaigns of two displacement axes (four training campaigns in two seasons, one validation
+The fixture fits small estimators with :func:`pipeline.protocol.cross_season.fit_and_score` on
+synthetic campaigns of two displacement axes (four training campaigns in two seasons, one validation
 campaign, ``training_units`` gives each campaign, each season left out and all of them),
 validates the scores with ``schemas.evaluated.CrossSeasonScoresModel``, summarises them with
-``pipeline.scoring`` and picks each axis' champion with ``pipeline.champion``, then writes the
-files the select and evaluate stages write. So the fixture follows the code that produces the
-real outputs. The estimators are test-local (sklearn, a ridge reporting ``chosen_params_``, an
-AR(1) with error feedback) so the track tests do not depend on the model registry.
+``pipeline.protocol.scoring`` and picks each axis' champion with ``pipeline.protocol.champion``,
+then writes the files the select and evaluate stages write. So the fixture follows the code that
+produces the real outputs. The estimators are test-local (sklearn, a ridge reporting
+``chosen_params_``, an AR(1) with error feedback) so the track tests do not depend on the model
+registry.
 """
 
 from __future__ import annotations
@@ -33,20 +34,20 @@ from mlflow.tracking import MlflowClient
 from sklearn.base import BaseEstimator, RegressorMixin
 from sklearn.linear_model import LinearRegression, Ridge
 
-from pipeline import track
-from pipeline.champion import champion_card, choose_champion
-from pipeline.cross_season import Candidate, fit_and_score
-from pipeline.evaluate import champion_metrics, ranked_summary
-from pipeline.features import InputSpec, model_inputs
 from pipeline.models.reference import NoCompensation
-from pipeline.scoring import candidate_summary, group_scores, metrics_tree
-from pipeline.tracking import identity, records, store
-from pipeline.training_units import (
+from pipeline.protocol.champion import champion_card, choose_champion
+from pipeline.protocol.cross_season import Candidate, fit_and_score
+from pipeline.protocol.evaluation import champion_metrics, ranked_summary
+from pipeline.protocol.scoring import candidate_summary, group_scores, metrics_tree
+from pipeline.protocol.units import (
     INDEX_NAMES,
     POOLED_UNIT,
     CampaignSeries,
     training_units,
 )
+from pipeline.separation.features import InputSpec, model_inputs
+from pipeline.stages import track
+from pipeline.tracking import identity, records, stage_outputs, store
 from schemas.evaluated import CrossSeasonScoresModel
 from tests.mlflow_server import running_mlflow_server
 
@@ -723,7 +724,7 @@ def test_a_none_champion_is_registered_and_predicts_no_compensation(workdir, cli
 
 def test_missing_champion_warns_and_still_logs_the_runs(workdir, client, caplog):
     shutil.rmtree(workdir / "data" / "models" / "champion")
-    caplog.set_level("WARNING", logger="pipeline.track")
+    caplog.set_level("WARNING", logger="pipeline.tracking.pipeline_run")
     assert track.main([]) == 0
     assert "no champion model to register" in caplog.text
     parents, children = split_runs(all_runs(client))
@@ -748,7 +749,7 @@ def test_second_run_on_unchanged_inputs_logs_and_registers_nothing(workdir, clie
     track.main([])
     first = record(workdir)
     count = len(all_runs(client))
-    caplog.set_level("INFO", logger="pipeline.track")
+    caplog.set_level("INFO", logger="pipeline.tracking.pipeline_run")
     track.main([])
     second = record(workdir)
     assert len(all_runs(client)) == count
@@ -950,7 +951,7 @@ def _rewrite_scores(root: Path, rows: list[dict[str, str]]) -> Path:
 def test_scores_are_read_exactly_and_checked_against_the_schema(workdir):
     path = workdir / "reports" / "cross_season_scores.csv"
     rows = read_scores(workdir)
-    parsed = track.read_scores(path)
+    parsed = stage_outputs.read_scores(path)
     assert [r["rmse_um"] for r in parsed] == [float(r["rmse_um"]) for r in rows]
     assert [r["train_unit"] for r in parsed] == [r["train_unit"] for r in rows]
     negative = _row_number(rows, model="ridge", train_unit="K02", test_campaign="K03")
@@ -959,7 +960,7 @@ def test_scores_are_read_exactly_and_checked_against_the_schema(workdir):
     rows[wrong_role - 1]["role"] = "validation"
     _rewrite_scores(workdir, rows)
     with pytest.raises(ValueError) as caught:
-        track.read_scores(path)
+        stage_outputs.read_scores(path)
     message = str(caught.value)
     assert f"data row {negative}, column 'rmse_um': -1.5 fails greater_than_or_equal_to(0)" in (
         message

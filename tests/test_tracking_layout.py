@@ -8,7 +8,7 @@ import re
 
 import pandas as pd
 
-from pipeline.scoring import SCHEME_PREFIX, candidate_summary, group_score_name, summarise
+from pipeline.protocol.scoring import SCHEME_PREFIX, candidate_summary, group_score_name, summarise
 from pipeline.tracking import guide, records, views
 from tests.test_scoring import _two_campaigns_and_a_season
 

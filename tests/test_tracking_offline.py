@@ -21,7 +21,7 @@ import yaml
 from mlflow.entities import RunStatus
 from mlflow.tracking import MlflowClient
 
-from pipeline.bench import copy_repository
+from benchmarks.bench import copy_repository
 from pipeline.tracking import records, store
 from tests.mlflow_server import running_mlflow_server
 
@@ -117,7 +117,7 @@ def test_stopped_server_keeps_the_outputs_and_a_later_track_logs_them_once(tmp_p
 
 def _identity(work: Path, uri: str) -> str:
     """The run identity ``thermal track`` computes for the outputs in ``work``."""
-    code = ("import json, pathlib, pipeline.track as t; "
+    code = ("import json, pathlib, pipeline.tracking.pipeline_run as t; "
             "print(t.prepare(pathlib.Path('params.yaml')).identity.value)")  # fmt: skip
     done = _run([sys.executable, "-c", code], work, uri)
     assert done.returncode == 0, done.stderr

@@ -17,18 +17,11 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from pipeline.champion import choose_champion, eligible
-from pipeline.comparison_report import AxisContext, AxisFigures, axis_section, twin_section
-from pipeline.evaluate import evaluate_axis
-from pipeline.ingest import ingest
-from pipeline.scoring import candidate_summary, metrics_tree
-from pipeline.spindle_separation import SeparationSettings, spindle_thermal_error
-from pipeline.training_units import series_by_axis, training_units
-from pipeline.twin.campaigns import SpindlePlan, simulate_spindle_campaign
-from pipeline.twin.params import SpindleParams
-from pipeline.twin.program import Program, Segment
-from pipeline.twin.writer import write_campaign
-from pipeline.twin_candidate import (
+from pipeline.io.tables import ingest
+from pipeline.protocol.champion import choose_champion, eligible
+from pipeline.protocol.evaluation import evaluate_axis
+from pipeline.protocol.scoring import candidate_summary, metrics_tree
+from pipeline.protocol.twin_candidate import (
     TWIN_MODEL,
     TWIN_SELECTION,
     TwinSetup,
@@ -39,7 +32,14 @@ from pipeline.twin_candidate import (
     split_twin,
     twin_campaigns,
 )
-from pipeline.validate import validate_tables
+from pipeline.protocol.units import series_by_axis, training_units
+from pipeline.reporting.comparison import AxisContext, AxisFigures, axis_section, twin_section
+from pipeline.separation.spindle import SeparationSettings, spindle_thermal_error
+from pipeline.twin.campaigns import SpindlePlan, simulate_spindle_campaign
+from pipeline.twin.params import SpindleParams
+from pipeline.twin.program import Program, Segment
+from pipeline.twin.writer import write_campaign
+from pipeline.validation.checks import validate_tables
 from pipeline.validation.limits import limits_from_params
 from pipeline.validation.tables import select_valid
 

@@ -13,7 +13,7 @@ import pytest
 import yaml
 
 from pipeline.config import load_section
-from pipeline.ingest import ingest
+from pipeline.io.tables import ingest
 from pipeline.twin import SpindleParams, cli
 from pipeline.twin.ambient import SEASON_OF_MONTH, AmbientProfile, draw_weather
 from pipeline.twin.instruments import EddyCurrentProbe, PlacedSensor, first_order_lag
@@ -27,7 +27,7 @@ from pipeline.twin.workshop import (
     simulate_workshop,
     workshop_plan,
 )
-from pipeline.validate import validate_tables
+from pipeline.validation.checks import validate_tables
 from pipeline.validation.limits import limits_from_params
 
 REPO = Path(__file__).resolve().parents[1]

@@ -19,8 +19,9 @@ from pandera.errors import SchemaErrors
 
 import schemas
 from pipeline import paths
-from pipeline import validate as v
 from pipeline.config import load_section
+from pipeline.stages import validate as v
+from pipeline.validation.checks import validate_tables
 from pipeline.validation.limits import limits_from_params
 from pipeline.validation.problems import NoValidCampaignError
 from pipeline.validation.report import require_valid
@@ -152,7 +153,7 @@ def make_tables():
 
 
 def run(tables, limits=LIMITS):
-    return v.validate_tables(
+    return validate_tables(
         tables["campaigns"], tables["samples"], tables["laser"], tables["problems"], limits
     )
 

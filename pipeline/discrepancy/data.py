@@ -3,8 +3,8 @@
 A :class:`MeasuredCampaign` holds what was measured and nothing else: the sample instants, the
 spindle speed, the temperature readings with each sensor's contract role, and the Z drift at
 the spindle nose. It is built from the validated ingest tables
-(``data/validated/spindle/{campaigns,samples}.parquet``, see :mod:`pipeline.ingest` and
-:mod:`pipeline.validate`), so the workflow runs on any raw folder in the contract.
+(``data/validated/spindle/{campaigns,samples}.parquet``, see :mod:`pipeline.stages.ingest` and
+:mod:`pipeline.stages.validate`), so the workflow runs on any raw folder in the contract.
 """
 
 from __future__ import annotations

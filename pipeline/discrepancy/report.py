@@ -3,8 +3,8 @@
 The report states, in an engineer's words, where the calibrated baseline twin disagrees with the
 measurements (:mod:`pipeline.discrepancy.localise`), which effects the forward search named
 (:mod:`pipeline.discrepancy.search`), with what evidence, and how far the held-out displacement
-residual shrinks. Figures are built and saved with the helpers of :mod:`pipeline.plots` (Agg
-canvas, no pyplot); mlflow is imported only when a run is logged.
+residual shrinks. Figures are built and saved with the helpers of :mod:`pipeline.plots`
+(Agg canvas, no pyplot); mlflow is imported only when a run is logged.
 """
 
 from __future__ import annotations
@@ -511,7 +511,11 @@ def log_mlflow(files: Sequence[Path], doc: Mapping[str, Any], settings: Mapping[
     str
         The run id.
     """
-    from pipeline.track import absolute_store_uri, local_artifact_location, resolve_tracking_uri
+    from pipeline.tracking.location import (
+        absolute_store_uri,
+        local_artifact_location,
+        resolve_tracking_uri,
+    )
     from pipeline.tracking.store import ensure_experiment, make_client
 
     uri = absolute_store_uri(resolve_tracking_uri(settings))

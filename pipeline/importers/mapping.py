@@ -23,7 +23,7 @@ import pandas as pd
 import yaml
 
 from pipeline.importers.cutting import RULES, CutRule
-from pipeline.raw_reader import RESERVED_COLUMNS
+from pipeline.io.reader import RESERVED_COLUMNS
 from schemas.vocabulary import (
     AMBIENT_ROLE,
     CAMPAIGN_ID_RE,

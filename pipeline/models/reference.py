@@ -4,7 +4,7 @@ A compensation is only worth applying if it leaves less error than applying none
 ``none`` predicts a thermal error of zero everywhere, so its residual is the uncompensated error
 itself; it runs through the same protocol, scores and champion choice as every model, and the
 compensation ratio of a candidate, eta = 1 - RMS(residual) / RMS(uncompensated error), is
-measured against it (:mod:`pipeline.scoring`). When no model beats it by the margin of
+measured against it (:mod:`pipeline.protocol.scoring`). When no model beats it by the margin of
 ``params.yaml`` ``evaluate.champion.min_improvement``, it is the champion: do not compensate.
 """
 

@@ -5,9 +5,9 @@ takes a table as the machine logs it -- one column per input sensor in degC, row
 ``rpm`` and ``elapsed_s`` when the model uses speed responses (``elapsed_s`` also lets a fast
 logger's rows be averaged into the training windows), optional ``campaign_id`` for several runs
 (each group is a run from its own first row) -- and returns the predicted thermal error (um) per
-row, NaN where an input is missing. The inputs are prepared by :mod:`pipeline.serving` from the
-card's ``input_spec``, the same code that prepared them in training: rises from each run's first
-row (or the mean of its first rows), the speed responses from rest at each run's start. The
+row, NaN where an input is missing. The inputs are prepared by :mod:`pipeline.protocol.serving`
+from the card's ``input_spec``, the same code that prepared them in training: rises from each run's
+first row (or the mean of its first rows), the speed responses from rest at each run's start. The
 signature says which columns are required (``rpm`` and ``elapsed_s`` only when the model needs
 the speed log). The estimator is the candidate's fit on all training campaigns; models on the
 error's own history predict in free run; the champion ``none`` predicts zero (do not
@@ -29,8 +29,8 @@ from mlflow.tracking import MlflowClient
 from mlflow.types.schema import ColSpec, Schema
 
 from pipeline import paths
-from pipeline.features import InputSpec
-from pipeline.serving import predict_table
+from pipeline.protocol.serving import predict_table
+from pipeline.separation.features import InputSpec
 
 logger = logging.getLogger(__name__)
 

@@ -3,8 +3,8 @@
 MLflow shows the experiment tag ``mlflow.note.content`` as the experiment's description and a
 run's tag of the same name as the run's description (markdown). The experiment description is
 the vocabulary of every score name the pipeline logs; ``tests/test_track.py`` checks that every
-column of :func:`pipeline.scoring.candidate_summary` and every per-group name of
-:func:`pipeline.scoring.group_scores` is explained here.
+column of :func:`pipeline.protocol.scoring.candidate_summary` and every per-group name of
+:func:`pipeline.protocol.scoring.group_scores` is explained here.
 """
 
 from __future__ import annotations
@@ -12,7 +12,7 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from typing import Any, Protocol
 
-from pipeline.scoring import SCHEME_PREFIX
+from pipeline.protocol.scoring import SCHEME_PREFIX
 
 STATISTICS = {
     "S_um": "fit accuracy: the residual standard deviation on the campaign(s) the model was "

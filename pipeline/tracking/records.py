@@ -3,14 +3,15 @@
 One parent record per pipeline execution and one child record per candidate (axis, model,
 selection, mode), so that the MLflow UI lists the candidates side by side and Compare shows
 their evidence. Every score has one name everywhere (``model_scores.csv``,
-``metrics/cross_season.json``, MLflow): the :func:`pipeline.scoring.candidate_summary` column,
-e.g. ``loso_Mn_rms_um`` (see :mod:`pipeline.tracking.guide` for the vocabulary).
+``metrics/cross_season.json``, MLflow): the :func:`pipeline.protocol.scoring.candidate_summary`
+column, e.g. ``loso_Mn_rms_um`` (see :mod:`pipeline.tracking.guide` for the vocabulary).
 
 A child carries
 
 - metrics: its headline scores (at most :data:`MAX_CHILD_METRICS`): the summary of every scheme
   and the score per held-out season (or campaign) and validation season
-  (:func:`pipeline.scoring.group_scores`, e.g. ``loso_winter_rms_um``, ``loso_winter_eta``);
+  (:func:`pipeline.protocol.scoring.group_scores`, e.g. ``loso_winter_rms_um``,
+  ``loso_winter_eta``);
 - tags: ``axis``, ``model``, ``selection``, ``mode``, ``eligible`` (``ineligible_reason`` when
   not), ``rank`` (on the axis' selection score, eligible candidates only), ``champion``,
   ``ranked_by``, and a run description (``mlflow.note.content``);

@@ -1,4 +1,4 @@
-"""Building blocks of the ``validate`` stage (:mod:`pipeline.validate` runs them).
+"""Building blocks of the ``validate`` stage (:mod:`pipeline.stages.validate` runs them).
 
 - :mod:`~pipeline.validation.problems`: the report entry :class:`Problem`, the stage outcome
   :class:`ValidationResult`, :class:`NoValidCampaignError` and the raw file names problems name;

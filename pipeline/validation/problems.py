@@ -59,7 +59,7 @@ class Problem:
 
 @dataclass(frozen=True)
 class ValidationResult:
-    """Outcome of :func:`pipeline.validate.validate_tables`.
+    """Outcome of :func:`pipeline.validation.checks.validate_tables`.
 
     Attributes
     ----------

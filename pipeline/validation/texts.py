@@ -343,7 +343,7 @@ PROBLEM_TEXTS: dict[str, ProblemText] = {
         row_level=False,
         collapse=True,
     ),
-    # ---- ingest: reading the raw files (pipeline.raw_files, pipeline.raw_reader)
+    # ---- ingest: reading the raw files (pipeline.io.files, pipeline.io.reader)
     "missing_file": ProblemText(
         "{campaign}/{file} is missing; a {kind} campaign needs it",
         "add {campaign}/{file} in the raw contract format (" + CONTRACT + "), or correct kind: "

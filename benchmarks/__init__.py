@@ -1,0 +1,1 @@
+"""Benchmarks and experiment drivers: run by `make bench`, `make trials`, `make demo-check`."""

@@ -1,0 +1,235 @@
+"""The discrepancy workflow on campaigns already read: search, localise, report.
+
+:func:`run` calibrates the baseline twin (:mod:`pipeline.discrepancy.model`), names the missing
+effects by forward selection with cross-validation across campaigns
+(:mod:`pipeline.discrepancy.search`), localises the residuals before and after by phase, speed
+level and ambient trend (:mod:`pipeline.discrepancy.localise`) and writes the report
+(:mod:`pipeline.discrepancy.report`); :func:`run_untestable` writes the report of campaigns the
+twin cannot be compared with (:func:`untestable_reason`). The campaigns come from the validated
+spindle tables (:func:`spindle_campaigns`): those of the ``validate`` stage, or those of any raw
+folder read and validated in memory by the same ingest and validation code (:func:`read_raw`).
+"""
+
+from __future__ import annotations
+
+import logging
+from pathlib import Path
+
+import pandas as pd
+
+from pipeline.discrepancy.data import MeasuredCampaign, campaigns_from_tables
+from pipeline.discrepancy.localise import LocaliseSettings, localise
+from pipeline.discrepancy.model import ROLE_NODES
+from pipeline.discrepancy.report import (
+    build_document,
+    log_mlflow,
+    untestable_document,
+    write_outputs,
+    write_untestable,
+)
+from pipeline.discrepancy.search import SearchResult, SearchSettings, campaign_roles, search_twin
+from pipeline.io.tables import ingest
+from pipeline.validation.checks import validate_tables
+from pipeline.validation.limits import limits_from_params
+from pipeline.validation.report import quarantine_summary
+from pipeline.validation.tables import select_valid
+
+logger = logging.getLogger(__name__)
+
+
+def read_raw(
+    raw_dir: Path, max_alignment_gap_s: float, validate_params: dict
+) -> tuple[list[MeasuredCampaign], list[str], bool]:
+    """Ingest and validate a raw folder; return its valid spindle campaigns.
+
+    Parameters
+    ----------
+    raw_dir : Path
+        One sub-folder per campaign (docs/data-contract.md).
+    max_alignment_gap_s : float
+        As ``params.yaml`` ``ingest.max_alignment_gap_s``.
+    validate_params : dict
+        The ``validate`` section.
+
+    Returns
+    -------
+    campaigns : list of MeasuredCampaign
+        Valid spindle-drift campaigns with a Z displacement.
+    quarantined : list of str
+        Campaigns left out, each logged with its problems.
+    synthetic : bool
+        True if any kept campaign is flagged ``synthetic`` in its campaign.yaml.
+    """
+    tables = ingest(Path(raw_dir), max_alignment_gap_s)
+    limits = limits_from_params(validate_params)
+    result = validate_tables(
+        tables["campaigns"], tables["samples"], tables["laser"], tables["problems"], limits
+    )
+    for campaign_id in result.quarantined:
+        logger.warning(
+            "campaign %s quarantined: %s; run `thermal ingest --raw %s` and `thermal validate` "
+            "for the full report",
+            campaign_id,
+            quarantine_summary(result, campaign_id),
+            raw_dir,
+        )
+    spindle = select_valid(tables["campaigns"], tables["samples"], tables["laser"], result.valid)[
+        "spindle"
+    ]
+    campaigns, synthetic = spindle_campaigns(spindle["campaigns"], spindle["samples"])
+    return campaigns, list(result.quarantined), synthetic
+
+
+def spindle_campaigns(
+    campaigns: pd.DataFrame, samples: pd.DataFrame
+) -> tuple[list[MeasuredCampaign], bool]:
+    """Return the valid spindle-drift campaigns with a Z displacement of the validated tables.
+
+    Parameters
+    ----------
+    campaigns, samples : DataFrame
+        ``data/validated/spindle/{campaigns,samples}.parquet`` (or the same tables in memory).
+
+    Returns
+    -------
+    campaigns : list of MeasuredCampaign
+    synthetic : bool
+        True if any campaign is flagged ``synthetic`` in its campaign.yaml.
+    """
+    measured = campaigns_from_tables(campaigns, samples)
+    synthetic = bool(
+        "synthetic" in campaigns and pd.Series(campaigns["synthetic"]).fillna(False).any()
+    )
+    return measured, synthetic
+
+
+STRUCTURE_ROLES = tuple(ROLE_NODES)
+"""Sensor roles that are nodes of the twin's thermal network (at least one is needed)."""
+
+
+MIN_CAMPAIGNS = 2
+
+
+def untestable_reason(campaigns: list[MeasuredCampaign]) -> str | None:
+    """Why the twin cannot be compared with these campaigns, or None when it can.
+
+    Parameters
+    ----------
+    campaigns : list of MeasuredCampaign
+        The valid spindle-drift campaigns with a Z displacement.
+
+    Returns
+    -------
+    str or None
+        In words, with what to add: too few campaigns (the search holds campaigns out), or no
+        sensor whose role is a node of the twin's network.
+    """
+    if len(campaigns) < MIN_CAMPAIGNS:
+        return (
+            f"{len(campaigns)} valid spindle-drift campaign(s) with a Z displacement; the "
+            f"comparison needs at least {MIN_CAMPAIGNS} (campaigns are held out to test each "
+            "effect): add campaigns with a Z probe or fix the quarantined ones"
+        )
+    roles = campaign_roles(campaigns)
+    if not roles & set(STRUCTURE_ROLES):
+        return (
+            f"no sensor has a structure role (roles present: {', '.join(sorted(roles))}): the "
+            "twin's thermal network is built from the places of the sensors; give the sensors "
+            "on the machine their role in campaign.yaml (at least one of "
+            f"{', '.join(STRUCTURE_ROLES)})"
+        )
+    return None
+
+
+def run(
+    campaigns: list[MeasuredCampaign],
+    section: dict,
+    out_dir: Path,
+    *,
+    quarantined: list[str] | None = None,
+    synthetic: bool = False,
+    mlflow: bool = True,
+) -> tuple[SearchResult, dict]:
+    """Search, localise and write the outputs for already-read campaigns.
+
+    Returns
+    -------
+    result : SearchResult
+    doc : dict
+        The ``discrepancy.json`` content.
+    """
+    settings = SearchSettings.from_params(section)
+    loc_settings = LocaliseSettings(**dict(section.get("localise") or {}))
+    result = search_twin(campaigns, settings)
+    before = localise(
+        campaigns,
+        result.baseline.full.z_residual_um,
+        result.baseline.full.t_residual_k,
+        loc_settings,
+        label="the baseline twin",
+    )
+    after = localise(
+        campaigns,
+        result.final.full.z_residual_um,
+        result.final.full.t_residual_k,
+        loc_settings,
+        label="the augmented twin",
+    )
+    doc = build_document(
+        result,
+        before,
+        after,
+        settings,
+        synthetic=synthetic,
+        campaign_ids=[c.campaign_id for c in campaigns],
+        quarantined=quarantined or [],
+    )
+    files = write_outputs(out_dir, doc, campaigns, result, before)
+    logger.info(
+        "discrepancy: named %s; held-out Z RMS %.2f -> %.2f um (%.0f s)",
+        ", ".join(result.named_effects) or "nothing",
+        result.rmse_um_before,
+        result.rmse_um_after,
+        result.seconds,
+    )
+    if mlflow and section.get("mlflow", True):
+        try:
+            doc["mlflow_run_id"] = log_mlflow(files, doc, section)
+        except Exception as err:  # the report stands without the tracking record
+            logger.warning("MLflow logging failed (%s); the report files are written", err)
+    return result, doc
+
+
+def run_untestable(
+    campaigns: list[MeasuredCampaign],
+    reason: str,
+    section: dict,
+    out_dir: Path,
+    *,
+    quarantined: list[str] | None = None,
+    synthetic: bool = False,
+    mlflow: bool = True,
+) -> dict:
+    """Write the report of campaigns the twin cannot be compared with (status untestable).
+
+    Returns
+    -------
+    dict
+        The ``discrepancy.json`` content.
+    """
+    doc = untestable_document(
+        reason,
+        needed_roles=list(STRUCTURE_ROLES),
+        roles_present=sorted(campaign_roles(campaigns)),
+        campaign_ids=[c.campaign_id for c in campaigns],
+        quarantined=quarantined or [],
+        synthetic=synthetic,
+    )
+    files = write_untestable(out_dir, doc)
+    logger.warning("discrepancy: untestable: %s", reason)
+    if mlflow and section.get("mlflow", True):
+        try:
+            doc["mlflow_run_id"] = log_mlflow(files, doc, section)
+        except Exception as err:  # the report stands without the tracking record
+            logger.warning("MLflow logging failed (%s); the report files are written", err)
+    return doc

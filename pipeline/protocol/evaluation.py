@@ -1,0 +1,376 @@
+"""Every candidate of an axis built on each training unit, scored, and the champion chosen.
+
+:func:`evaluate_axis` runs each candidate (model x selection, see
+:mod:`pipeline.protocol.candidates`; ``none``, no compensation, is one of them; the physical twin
+``twin``, :mod:`pipeline.protocol.twin_candidate`) on each training unit
+(:mod:`pipeline.protocol.units`) and scores it on every campaign
+(:mod:`pipeline.protocol.cross_season`); :func:`decide` chooses the axis' champion on the
+selection protocol (:mod:`pipeline.protocol.champion`) and :func:`champion_of` gives it with its
+card and input example. The ``evaluate`` stage reads the inputs and writes what these return.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+import pandas as pd
+
+from pipeline.protocol.candidates import candidate_list, run_all
+from pipeline.protocol.champion import (
+    Decision,
+    champion_card,
+    choose_champion,
+    standing,
+)
+from pipeline.protocol.cross_season import UnitResult
+from pipeline.protocol.scoring import metrics_tree
+from pipeline.protocol.twin_candidate import (
+    TWIN_MODEL,
+    TWIN_SELECTION,
+    TwinSetup,
+    run_twin,
+    split_twin,
+)
+from pipeline.protocol.units import (
+    POOLED_UNIT,
+    CampaignSeries,
+    TrainingUnit,
+    protocol_scheme,
+    training_units,
+)
+from pipeline.separation.features import InputSpec, SpeedResponses
+from schemas import CrossSeasonScoresModel
+
+LOGGER = logging.getLogger(__name__)
+
+
+CANDIDATE = ["model", "selection", "mode"]
+
+
+PLAIN_BASELINES = (("mlr", "all"), ("ridge", "all"))
+"""Every temperature, no lag, no speed: the references a model must clearly beat."""
+
+
+DEFAULT_MARGIN = 0.1
+
+
+DEFAULT_COVERAGE = 0.95
+
+
+EXAMPLE_ROWS = 10
+
+
+def label(row) -> str:
+    """Short name of a candidate, e.g. ``dl/fc_grd/static``."""
+    return "/".join(str(row[key]) for key in CANDIDATE)
+
+
+@dataclass
+class AxisEvaluation:
+    """Everything ``evaluate`` computed for one displacement axis.
+
+    Attributes
+    ----------
+    axis : str
+    series : list of CampaignSeries
+    units : list of TrainingUnit
+    scores : DataFrame
+        Long score rows (``schemas.CrossSeasonScoresModel``).
+    results : list of UnitResult
+    skipped : dict of str to str
+        Candidate (``model/selection``) -> why it was not scored.
+    decision : Decision or None
+        Set once the champion is chosen.
+    """
+
+    axis: str
+    series: list[CampaignSeries]
+    units: list[TrainingUnit]
+    scores: pd.DataFrame
+    results: list[UnitResult]
+    skipped: dict[str, str] = field(default_factory=dict)
+    decision: Decision | None = None
+
+    @property
+    def protocol(self) -> str | None:
+        """``loso``, ``loco`` or None."""
+        return protocol_scheme(self.units)
+
+
+def evaluate_axis(
+    axis: str,
+    series: list[CampaignSeries],
+    selected: dict,
+    params: dict,
+    twin: TwinSetup | None = None,
+    twin_skipped: str | None = None,
+) -> AxisEvaluation:
+    """Score every candidate of one axis on every training unit.
+
+    Parameters
+    ----------
+    axis : str
+    series : list of CampaignSeries
+        The axis' valid spindle campaigns.
+    selected : dict
+        ``selected.json`` ``axes[axis]``: ``{method: {unit: {"inputs": [...], ...}}}``.
+    params : dict
+        The ``evaluate`` section: ``candidates``, ``full_grid``, ``model_params``, ``n_jobs``.
+    twin : TwinSetup, optional
+        Needed when ``candidates`` has ``twin: roles`` and ``twin_skipped`` is None.
+    twin_skipped : str, optional
+        Why the twin is not scored on this axis.
+
+    Returns
+    -------
+    AxisEvaluation
+
+    Raises
+    ------
+    ValueError
+        If the twin is a candidate, not skipped, and ``twin`` is not given.
+    """
+    units = training_units(series)
+    pairs, with_twin = split_twin(params["candidates"])
+    candidates = candidate_list(pairs, selected, bool(params.get("full_grid")))
+    model_params = params.get("model_params") or {}
+    n_jobs = int(params.get("n_jobs", 1))
+    results = run_all(candidates, units, series, selected, model_params, n_jobs)
+    skipped = {}
+    if with_twin and twin_skipped is not None:
+        skipped[f"{TWIN_MODEL}/{TWIN_SELECTION}"] = twin_skipped
+        LOGGER.info("axis %s: twin candidate skipped: %s", axis, twin_skipped)
+    elif with_twin:
+        if twin is None:
+            raise ValueError(
+                f"params.yaml evaluate.candidates has '{TWIN_MODEL}' but no TwinSetup was given; "
+                "build one with pipeline.stages.evaluate.read_twin_setup"
+            )
+        settings = dict(model_params.get(TWIN_MODEL) or {})
+        setup = replace(twin, calibration={**twin.calibration, **settings})
+        results = results + run_twin(units, series, setup, n_jobs)
+    scores = pd.concat([r.scores for r in results], ignore_index=True)
+    scores = CrossSeasonScoresModel.validate(scores, lazy=True)
+    return AxisEvaluation(axis, series, units, scores, results, skipped)
+
+
+def decide(
+    evaluations: list[AxisEvaluation], summary: pd.DataFrame, settings: dict | None = None
+) -> None:
+    """Choose every axis' champion (sets ``decision``); ``settings``: ``evaluate.champion``."""
+    settings = settings or {}
+    margin = float(settings.get("min_improvement", DEFAULT_MARGIN))
+    min_coverage = float(settings.get("min_coverage", DEFAULT_COVERAGE))
+    for item in evaluations:
+        item.decision = choose_champion(summary, item.axis, item.protocol, margin, min_coverage)
+        LOGGER.info("axis %s: champion %s: %s", item.axis, item.decision.label,
+                    item.decision.reason)  # fmt: skip
+
+
+def fitted_record(evaluations: list[AxisEvaluation]) -> dict:
+    """JSON-ready record of every fit: inputs and what it decided, per axis, candidate, unit."""
+    return {
+        f"{e.axis}/{r.candidate.model}/{r.candidate.selection}/{r.unit.name}": {
+            "axis": e.axis,
+            "model": r.candidate.model,
+            "selection": r.candidate.selection,
+            "train_unit": r.unit.name,
+            "scheme": r.unit.scheme,
+            "inputs": r.sensors,
+            "chosen_params": {k: _plain(v) for k, v in r.chosen_params.items()},
+        }
+        for e in evaluations
+        for r in e.results
+    }
+
+
+def _plain(value):
+    if hasattr(value, "tolist"):
+        return value.tolist()
+    return value
+
+
+def find_result(item: AxisEvaluation, model: str, selection: str, unit: str) -> UnitResult:
+    """Return the candidate's fit on ``unit``."""
+    return next(
+        r for r in item.results
+        if r.unit.name == unit and (r.candidate.model, r.candidate.selection) == (model, selection)
+    )  # fmt: skip
+
+
+def held_out_prediction(
+    item: AxisEvaluation, row: pd.Series, campaign: CampaignSeries
+) -> np.ndarray | None:
+    """Return a candidate's prediction of ``campaign`` (um) by a fit that did not see it.
+
+    Validation campaigns: the fit on all training campaigns; training campaigns: the fit of the
+    protocol unit that left the campaign out; None without one.
+    """
+    for result in item.results:
+        if (result.candidate.model, result.candidate.selection) != (row["model"], row["selection"]):
+            continue
+        unit = result.unit
+        held_out = campaign.campaign_id not in unit.campaigns
+        if (campaign.split == "validation" and unit.name == POOLED_UNIT) or (
+            campaign.split == "train" and unit.scheme == item.protocol and held_out
+        ):
+            return result.predictions.get((row["mode"], campaign.campaign_id))
+    return None
+
+
+def best_plain_baseline(summary: pd.DataFrame, column: str | None) -> pd.Series | None:
+    """Return the better plain all-temperature regression on the protocol, if scored."""
+    if column is None or column not in summary:
+        return None
+    plain = summary[
+        summary[["model", "selection"]].apply(tuple, axis=1).isin(PLAIN_BASELINES)
+        & summary[column].notna()
+    ]
+    return None if plain.empty else plain.sort_values(column).iloc[0]
+
+
+def input_spec(inputs: list[str], features: str, separation: dict) -> InputSpec:
+    """How the champion's inputs are prepared: reference, speed responses, window (separation)."""
+    settings = separation.get("settings") or {}
+    window = settings.get("resample_s")
+    return InputSpec(
+        tuple(inputs),
+        features,
+        str(settings.get("cold_reference", "first_sample")),
+        int(settings.get("cold_n", 1)),
+        SpeedResponses.from_dict(settings.get("speed_responses")),
+        None if window is None else float(window),
+    )
+
+
+def input_example(table: pd.DataFrame, spec: InputSpec, campaign_id: str) -> pd.DataFrame:
+    """Return the first rows of a training campaign as the registered model takes them."""
+    rows = table[table["campaign_id"] == campaign_id].sort_values("elapsed_s").head(EXAMPLE_ROWS)
+    columns = ["campaign_id", "elapsed_s", *(["rpm"] if spec.needs_speed else []), *spec.sensors]
+    return rows[columns].reset_index(drop=True)
+
+
+def all_scores(evaluations: list[AxisEvaluation]) -> pd.DataFrame:
+    """Return the long score table of every axis (its columns even when there is none)."""
+    return pd.concat([empty_scores(), *(e.scores for e in evaluations)], ignore_index=True)
+
+
+def ranked_summary(summary: pd.DataFrame, decisions: list[Decision]) -> pd.DataFrame:
+    """Add each candidate's standing (:func:`pipeline.protocol.champion.standing`) to the summary.
+
+    Returns
+    -------
+    DataFrame
+        ``summary`` plus ``eligible``, ``ineligible_reason``, ``rank``, ``champion``
+        (``reports/model_scores.csv``); the key columns alone when there is no candidate.
+    """
+    if not len(summary.columns):
+        return pd.DataFrame(columns=["axis", *CANDIDATE])
+    if not decisions:
+        return summary
+    standings = pd.concat([standing(summary, decision) for decision in decisions])
+    return summary.merge(standings, on=["axis", *CANDIDATE], how="left")
+
+
+def empty_scores() -> pd.DataFrame:
+    """Return the long score table with its columns and no row."""
+    columns = CrossSeasonScoresModel.to_schema().columns
+    return pd.DataFrame({name: pd.Series(dtype=str(col.dtype)) for name, col in columns.items()})
+
+
+def champion_metrics(card: dict) -> dict:
+    """Return an axis' champion entry of ``metrics/cross_season.json``.
+
+    The champion's held-out and validation scores under their one name (``loso_Mn_rms_um``,
+    ``loso_eta``, ``pooled_Mn_val_rms_um``, ``pooled_eta_val``; ``loco_`` for
+    leave-one-campaign-out), ``compensate``, and under ``none`` what no compensation leaves on
+    the same held-out samples.
+    """
+    scores = card["scores"]
+    protocol = card["protocol"]
+    names = [f"{protocol}_Mn_rms_um", f"{protocol}_eta"] if protocol else []
+    entry = {name: scores.get(name) for name in [*names, "pooled_Mn_val_rms_um", "pooled_eta_val"]}
+    if protocol:
+        entry["none"] = {f"{protocol}_Mn_rms_um": card["none_score_um"]}
+    return {"compensate": card["compensate"], **entry}
+
+
+def _round(tree):
+    if isinstance(tree, dict):
+        return {k: _round(v) for k, v in tree.items()}
+    if isinstance(tree, bool | str) or tree is None:
+        return tree
+    return None if not np.isfinite(tree) else round(float(tree), 4)
+
+
+@dataclass(frozen=True)
+class Champion:
+    """An axis' champion as it is saved and registered.
+
+    Attributes
+    ----------
+    card : dict
+        :func:`pipeline.protocol.champion.champion_card`: what it is, its scores, its inputs.
+    result : UnitResult
+        Its fit on all training campaigns (the estimator that is saved).
+    example : DataFrame
+        The first rows of a training campaign as the registered model takes them.
+    """
+
+    card: dict
+    result: UnitResult
+    example: pd.DataFrame
+
+
+def champion_of(
+    item: AxisEvaluation, table: pd.DataFrame, features: str, separation: dict
+) -> Champion:
+    """Return the champion of an axis whose decision is made, fitted on all training campaigns.
+
+    Parameters
+    ----------
+    item : AxisEvaluation
+        With ``decision`` set (:func:`decide`).
+    table : DataFrame
+        The separated thermal error (``data/separated/spindle_thermal_error.parquet``).
+    features : str
+        ``temperature_rise`` or ``absolute``.
+    separation : dict
+        ``data/separated/spindle_runs.json`` (reference, speed responses, window).
+    """
+    best = item.decision.champion
+    result = find_result(item, best["model"], best["selection"], POOLED_UNIT)
+    spec = input_spec(result.sensors, features, separation)
+    training = [s for s in item.series if s.split == "train"]
+    times = [np.diff(s.features.index.get_level_values("elapsed_s")) for s in training]
+    interval = float(np.median(np.concatenate(times))) if times else float("nan")
+    card = champion_card(item.decision, result, spec, interval)
+    rows = table[table["axis"] == item.axis]
+    return Champion(card, result, input_example(rows, spec, training[0].campaign_id))
+
+
+def evaluation_metrics(
+    evaluations: list[AxisEvaluation],
+    scores: pd.DataFrame,
+    cards: dict[str, dict],
+    skipped_axes: dict[str, str],
+) -> dict:
+    """Return ``metrics/cross_season.json``'s content, rounded to 4 decimals (um, ratios).
+
+    Per axis: every candidate's scores (:func:`pipeline.protocol.scoring.metrics_tree`), the
+    champion's (:func:`champion_metrics`) and why candidates were skipped; axes without a model
+    with their reason.
+    """
+    tree = metrics_tree(scores)
+    metrics = {
+        e.axis: {
+            "candidates": tree[e.axis],
+            "champion": champion_metrics(cards[e.axis]),
+            "skipped": dict(e.skipped),
+        }
+        for e in evaluations
+    }
+    metrics |= {axis: {"skipped": {"axis": why}} for axis, why in skipped_axes.items()}
+    return _round(metrics)

@@ -1,0 +1,166 @@
+"""The figures and report sections of the ``evaluate`` stage.
+
+One heat-map per candidate of its cross-campaign scores (``reports/matrices``), the held-out
+predictions of the best model and the best plain baseline against the measurement
+(``reports/comparison``), each axis' section of ``reports/model_comparison.md`` and its rows of
+the DVC plot tables.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+
+from pipeline import paths, plots
+from pipeline.protocol.champion import (
+    NO_COMPENSATION,
+)
+from pipeline.protocol.evaluation import (
+    CANDIDATE,
+    AxisEvaluation,
+    best_plain_baseline,
+    held_out_prediction,
+    label,
+)
+from pipeline.protocol.scoring import group_scores, score_matrix
+from pipeline.reporting import comparison as comparison_report
+
+
+def prediction_panels(item: AxisEvaluation, first: pd.Series, second: pd.Series | None) -> dict:
+    """Measured and predicted error of held-out campaigns, per campaign (um).
+
+    The validation campaigns when there are any, else the training campaigns, each predicted by
+    the protocol fit that left it out.
+    """
+    validation = [s for s in item.series if s.split == "validation"]
+    shown = validation or [s for s in item.series if s.split == "train"]
+    panels = {}
+    for campaign in shown:
+        one = held_out_prediction(item, first, campaign)
+        if one is None:
+            continue
+        two = None if second is None else held_out_prediction(item, second, campaign)
+        minutes = campaign.features.index.get_level_values("elapsed_s").to_numpy() / 60.0
+        panels[campaign.campaign_id] = pd.DataFrame({
+            "elapsed_min": minutes, "measured_um": campaign.target, "first_um": one,
+            "second_um": np.full(len(minutes), np.nan) if two is None else two,
+        })  # fmt: skip
+    return panels
+
+
+def write_matrices(scores: pd.DataFrame, title_suffix: str) -> list[str]:
+    """Matrices CSV (every axis and candidate, both scores) and one heat-map per candidate.
+
+    Each heat-map shows the RMS of the residual (um) of the candidate built on each training
+    unit (rows) and applied to each campaign (columns, labelled with their season; training
+    campaigns, then the validation ones), the fits on a unit's own campaigns outlined.
+
+    Parameters
+    ----------
+    scores : DataFrame
+        The long score table (``reports/cross_season_scores.csv``): ``axis``, ``model``,
+        ``selection``, ``mode``, ``scheme``, ``train_unit``, ``test_campaign``, ``test_split``,
+        ``test_season``, ``role``, ``resid_std_um`` and ``rmse_um`` (um).
+    title_suffix : str
+        Says whether the data are synthetic; ends the heat-maps' titles.
+
+    Returns
+    -------
+    list of str
+        Heat-map paths relative to ``reports/``.
+    """
+    cross = scores[scores["scheme"] != "pooled"]
+    frames, figures = [], []
+    paths.MATRICES.mkdir(parents=True, exist_ok=True)
+    for path in paths.MATRICES.glob("*.png"):
+        path.unlink()
+    keys_all = ["axis", *CANDIDATE]
+    for keys, group in cross.groupby(keys_all, sort=True):
+        for column in ("resid_std_um", "rmse_um"):
+            matrix = score_matrix(group, column)
+            matrix.index = pd.MultiIndex.from_tuples(
+                [(*keys, column, unit) for unit in matrix.index],
+                names=[*keys_all, "score", "train_unit"],
+            )
+            frames.append(matrix)
+        out = paths.MATRICES / f"{'__'.join(keys)}.png"
+        campaigns = group.drop_duplicates("test_campaign")
+        in_sample = group.assign(fit=(group["role"] == "fit").astype(float))
+        plots.score_heatmaps(
+            {"RMS of the residual (um)": score_matrix(group, "rmse_um")},
+            f"Axis {keys[0]}, candidate {' / '.join(keys[1:])}: built on each training unit, "
+            f"applied to every campaign ({title_suffix})",
+            out,
+            seasons=dict(zip(campaigns["test_campaign"], campaigns["test_season"], strict=True)),
+            validation=set(campaigns.loc[campaigns["test_split"] == "validation", "test_campaign"]),
+            in_sample=score_matrix(in_sample, "fit") > 0,
+        )
+        figures.append(out.relative_to(paths.REPORTS).as_posix())
+    matrix = pd.concat(frames) if frames else pd.DataFrame(columns=[*keys_all, "score"])
+    matrix.to_csv(paths.MATRIX_CSV, float_format="%.4f")
+    return figures
+
+
+@dataclass(frozen=True)
+class AxisReport:
+    """What one axis adds to the report and the DVC plot tables."""
+
+    section: str
+    plot_rows: list[dict]
+    predictions: list[pd.DataFrame]
+
+
+def report_axis(
+    item: AxisEvaluation,
+    summary: pd.DataFrame,
+    card: dict,
+    selected: dict,
+    separation: dict,
+    heatmaps: list[str],
+    origin: str,
+    twin_text: str,
+) -> AxisReport:
+    """One axis' report section, its held-out figure and its rows of the DVC plot tables."""
+    rows = summary[summary["axis"] == item.axis]
+    decision = item.decision
+    models = decision.ranked[decision.ranked["model"] != NO_COMPENSATION]
+    first = models.iloc[0] if len(models) else decision.champion
+    second = best_plain_baseline(rows, decision.column)
+    panels = prediction_panels(item, first, second)
+    figure = paths.COMPARISON_FIGURES / f"heldout_{item.axis}.png"
+    labels = (f"best model: {label(first)}",
+              "no plain baseline" if second is None else f"plain: {label(second)}")  # fmt: skip
+    where = (
+        "validation campaigns, built on all training campaigns"
+        if any(s.split == "validation" for s in item.series)
+        else "each training campaign, predicted by the fit that left it out"
+    )
+    seasons = {s.campaign_id: s.season for s in item.series}
+    title = f"Axis {item.axis}: {where} ({origin})"
+    plots.predicted_vs_measured(panels, labels, title, figure, seasons=seasons)
+    groups = group_scores(item.scores)
+    context = comparison_report.AxisContext(
+        item.axis, rows, decision, card, selected["axes"][item.axis], item.series,
+        item.skipped, second, groups,
+    )  # fmt: skip
+    figures = comparison_report.AxisFigures(
+        figure.relative_to(paths.REPORTS).as_posix(), labels,
+        [h for h in heatmaps if h.startswith(f"matrices/{item.axis}__")],
+    )  # fmt: skip
+    plot_rows = [
+        {
+            "axis": item.axis, "candidate": f"{item.axis}: {label(row)}",
+            "heldout_rms_um": row.get(decision.column) if decision.column else np.nan,
+            "eta": row.get(f"{item.protocol}_eta") if item.protocol else np.nan,
+        }
+        for _, row in rows.iterrows()
+    ]  # fmt: skip
+    predictions = [
+        frame.rename(columns={"first_um": "predicted_um"}).drop(columns="second_um")
+        .assign(axis=item.axis, campaign_id=campaign)
+        for campaign, frame in panels.items()
+    ]  # fmt: skip
+    section = comparison_report.axis_section(context, separation, figures, twin_text)
+    return AxisReport(section, plot_rows, predictions)

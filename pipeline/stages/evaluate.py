@@ -1,0 +1,233 @@
+"""DVC stage ``evaluate``: every candidate of every axis, built on each training unit, scored.
+
+Reads ``data/separated/spindle_thermal_error.parquet`` (one block of rows per displacement axis),
+``data/separated/spindle_runs.json`` (runs, references, speed responses) and the inputs chosen
+in ``reports/selection/selected.json``. For each axis, runs each candidate (model x selection,
+see :mod:`pipeline.protocol.candidates`; ``none``, no compensation, is one of them; the physical
+twin ``twin``, see :mod:`pipeline.protocol.twin_candidate`, which also reads
+``data/validated/spindle/campaigns.parquet`` and ``reports/discrepancy/discrepancy.json``, or
+is skipped with the reason) on each training unit (:mod:`pipeline.protocol.units`) and scores
+it on every campaign (:mod:`pipeline.protocol.cross_season`, :mod:`pipeline.protocol.scoring`),
+then chooses the axis' champion on the selection protocol (:mod:`pipeline.protocol.champion`).
+Writes the long score table, one row of scores per candidate, ``metrics/cross_season.json`` (a DVC
+metric), the fitted-model record read by ``track``, the matrices (CSV, one heat-map per candidate),
+``reports/model_comparison.md`` with its figures, each axis' champion
+(``data/models/champion/<axis>/``) and two DVC plot tables.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import logging
+
+import joblib
+import pandas as pd
+
+from pipeline import paths
+from pipeline.config import load_section
+from pipeline.errors import MissingInputError
+from pipeline.protocol.evaluation import (
+    AxisEvaluation,
+    Champion,
+    all_scores,
+    champion_of,
+    decide,
+    evaluate_axis,
+    evaluation_metrics,
+    fitted_record,
+    ranked_summary,
+)
+from pipeline.protocol.scoring import candidate_summary, group_scores
+from pipeline.protocol.twin_candidate import (
+    TwinSetup,
+    named_effects,
+    skip_reason,
+    split_twin,
+    twin_campaigns,
+)
+from pipeline.protocol.units import (
+    CampaignSeries,
+    series_by_axis,
+)
+from pipeline.reporting import comparison as comparison_report
+from pipeline.reporting.evaluation import report_axis, write_matrices
+from pipeline.separation.features import check_feature_kind
+
+LOGGER = logging.getLogger(__name__)
+
+
+def write_champions(champions: dict[str, Champion]) -> None:
+    """Save each axis' champion: estimator (joblib), card (JSON), input example (CSV).
+
+    Folders of axes that no longer have a champion are removed.
+    """
+    for stale in paths.CHAMPION.glob("*") if paths.CHAMPION.is_dir() else []:
+        if stale.is_dir() and stale.name not in champions:
+            for file in stale.iterdir():
+                file.unlink()
+            stale.rmdir()
+    for axis, champion in champions.items():
+        folder = paths.CHAMPION / axis
+        folder.mkdir(parents=True, exist_ok=True)
+        joblib.dump(champion.result.estimator, folder / paths.CHAMPION_ESTIMATOR_FILE)
+        card_text = json.dumps(champion.card, indent=2, sort_keys=True) + "\n"
+        (folder / paths.CHAMPION_CARD_FILE).write_text(card_text)
+        champion.example.to_csv(folder / paths.CHAMPION_EXAMPLE_FILE, index=False)
+
+
+def write_tables(
+    evaluations: list[AxisEvaluation],
+    scores: pd.DataFrame,
+    summary: pd.DataFrame,
+    champions: dict[str, Champion],
+    skipped_axes: dict[str, str],
+) -> None:
+    """Write scores, summary, metrics, fitted record and champions."""
+    for path in (
+        paths.SCORES_LONG,
+        paths.CROSS_SEASON_METRICS,
+        paths.PLOT_MODEL_SCORES,
+        paths.COMPARISON_FIGURES / "x",
+        paths.CHAMPION / "x",
+    ):
+        path.parent.mkdir(parents=True, exist_ok=True)
+    scores.to_csv(paths.SCORES_LONG, index=False, float_format="%.6g")
+    ranked = ranked_summary(summary, [e.decision for e in evaluations])
+    ranked.to_csv(paths.CANDIDATE_SCORES, index=False, float_format="%.4f")
+    group_scores(scores).to_csv(paths.GROUP_SCORES, index=False, float_format="%.4f")
+    write_champions(champions)
+    cards = {axis: champion.card for axis, champion in champions.items()}
+    metrics = evaluation_metrics(evaluations, scores, cards, skipped_axes)
+    paths.CROSS_SEASON_METRICS.write_text(json.dumps(metrics, indent=2, sort_keys=True))
+    paths.FITTED_MODELS.write_text(json.dumps(fitted_record(evaluations), indent=2, sort_keys=True))
+
+
+def write_outputs(
+    evaluations: list[AxisEvaluation],
+    summary: pd.DataFrame,
+    champions: dict[str, Champion],
+    table: pd.DataFrame,
+    selected: dict,
+    separation: dict,
+    twin_text: str = "",
+    skipped_axes: dict[str, str] | None = None,
+) -> None:
+    """Write every output declared for the stage in ``dvc.yaml``.
+
+    Axes of ``skipped_axes`` (axis -> why it has no model) are named in the report and the
+    metrics; with no axis at all every output is still written, empty, and the report says why.
+    ``twin_text``: the report's paragraph on the twin candidate
+    (:func:`pipeline.reporting.comparison.twin_section`); ``summary``:
+    :func:`pipeline.protocol.scoring.candidate_summary` of the scores; ``champions``: each
+    axis' champion, chosen before (:func:`pipeline.protocol.evaluation.champion_of`).
+    """
+    skipped_axes = dict(skipped_axes or {})
+    scores = all_scores(evaluations)
+    write_tables(evaluations, scores, summary, champions, skipped_axes)
+    synthetic = bool(table["synthetic"].any())
+    origin = "SYNTHETIC data from the physical twin" if synthetic else "measured data"
+    heatmaps = write_matrices(scores, origin)
+    parts = [
+        report_axis(
+            e, summary, champions[e.axis].card, selected, separation, heatmaps, origin, twin_text
+        )
+        for e in evaluations
+    ]
+    sections = [part.section for part in parts]
+    sections += [f"## Axis {axis}\n\nNo model: {why}.\n" for axis, why in skipped_axes.items()]
+    paths.MODEL_COMPARISON.write_text(
+        comparison_report.render(sections, separation, synthetic, [e.axis for e in evaluations])
+    )
+    plot_rows = [row for part in parts for row in part.plot_rows]
+    pd.DataFrame(plot_rows).to_csv(paths.PLOT_MODEL_SCORES, index=False, float_format="%.4f")
+    frames = [frame for part in parts for frame in part.predictions]
+    predictions = (
+        pd.concat(frames, ignore_index=True)
+        if frames
+        else pd.DataFrame(
+            columns=["elapsed_min", "measured_um", "predicted_um", "axis", "campaign_id"]
+        )
+    )
+    predictions.round(4).to_csv(paths.PLOT_PREDICTIONS, index=False)
+
+
+def read_twin_setup(table: pd.DataFrame, series: list[CampaignSeries]) -> TwinSetup:
+    """Everything the ``twin`` candidate reads besides the separated table (axis Z rows).
+
+    The sensor roles and spindle programs from ``data/validated/spindle/campaigns.parquet``; the
+    effects from ``reports/discrepancy/discrepancy.json`` (absent: the baseline twin, with a
+    warning); the cold reference from ``params.yaml`` ``separate`` (``cold_reference``,
+    ``cold_n``), so that the twin's drift is referenced as the separation stage references the
+    measured one.
+    """
+    meta = pd.read_parquet(paths.VALIDATED_SPINDLE / paths.CAMPAIGNS_FILE)
+    effects, source = named_effects(read_discrepancy())
+    separate = load_section("separate")
+    return TwinSetup(
+        campaigns=twin_campaigns(table, meta, series),
+        effects=effects,
+        effects_source=source,
+        cold_reference=str(separate["cold_reference"]),
+        cold_n=int(separate["cold_n"]),
+    )
+
+
+def read_discrepancy() -> dict | None:
+    """``reports/discrepancy/discrepancy.json``, or None (with a warning) when absent."""
+    if not paths.DISCREPANCY_DOCUMENT.is_file():
+        LOGGER.warning("%s not found: the twin candidate is the baseline twin",
+                       paths.DISCREPANCY_DOCUMENT)  # fmt: skip
+        return None
+    return json.loads(paths.DISCREPANCY_DOCUMENT.read_text(encoding="utf-8"))
+
+
+def sensor_roles() -> frozenset[str]:
+    """Every sensor role of the valid spindle campaigns."""
+    meta = pd.read_parquet(paths.VALIDATED_SPINDLE / paths.CAMPAIGNS_FILE)
+    return frozenset(
+        str((spec or {}).get("role", "other"))
+        for text in meta["sensors_json"]
+        for spec in json.loads(text).values()
+    )
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the stage with the ``evaluate`` section of ``params.yaml``."""
+    parser = argparse.ArgumentParser(prog="thermal evaluate", description=__doc__.splitlines()[0])
+    parser.parse_args(argv)
+    params = load_section("evaluate")
+    table = pd.read_parquet(paths.SPINDLE_THERMAL_ERROR)
+    if not paths.SELECTED.is_file():
+        raise MissingInputError(
+            f"{paths.SELECTED} not found: run the select stage first (dvc repro select)"
+        )
+    document = json.loads(paths.SELECTED.read_text())
+    features, selected = check_feature_kind(str(document["features"])), document["axes"]
+    separation = json.loads(paths.SPINDLE_RUNS.read_text())
+    with_twin = split_twin(params["candidates"])[1]
+    discrepancy = read_discrepancy() if with_twin else None
+    held_back = discrepancy is None or discrepancy.get("validation") is not None
+    roles = sensor_roles() if with_twin else frozenset()
+    evaluations, twin_source = [], None
+    skipped_axes = dict(document.get("skipped_axes") or {})
+    for axis, series in series_by_axis(table, features).items():
+        if axis not in selected:
+            continue
+        skipped, twin = None, None
+        if with_twin:
+            skipped = skip_reason(axis, discrepancy, series, roles)
+            if skipped is None:
+                twin = read_twin_setup(table[table["axis"] == axis], series)
+                twin_source = twin.effects_source
+        evaluations.append(evaluate_axis(axis, series, selected[axis], params, twin, skipped))
+    summary = candidate_summary(all_scores(evaluations))
+    decide(evaluations, summary, params.get("champion"))
+    champions = {e.axis: champion_of(e, table, features, separation) for e in evaluations}
+    twin_text = (
+        "" if twin_source is None else comparison_report.twin_section(twin_source, held_back)
+    )
+    write_outputs(
+        evaluations, summary, champions, table, document, separation, twin_text, skipped_axes
+    )
+    return 0

@@ -1,0 +1,278 @@
+"""One pipeline execution logged to MLflow: records built, runs logged or reused, champions.
+
+:func:`prepare` reads the evaluate outputs and provenance (:mod:`pipeline.tracking.stage_outputs`,
+:mod:`pipeline.tracking.identity`) and builds the parent and child run records
+(:mod:`pipeline.tracking.records`) before MLflow is imported; :func:`log_pipeline_run` logs them
+(:mod:`pipeline.tracking.store`) unless a finished parent of the same run identity is there,
+registers each axis' champion from its child run, shares the experiment's views and links the
+discrepancy run. The ``track`` stage writes the record it returns.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import logging
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from pipeline.paths import (
+    AXIS_MODEL_METRICS,
+    CHAMPION,
+    CHAMPION_CARD_FILE,
+    CROSS_SEASON_METRICS,
+    RAW,
+    SELECTED,
+    TRACKING_RECORD,
+)
+from pipeline.tracking import guide, records, store, views
+from pipeline.tracking import identity as ident
+from pipeline.tracking.location import (
+    DEFAULT_ARTIFACT_DIR,
+    absolute_store_uri,
+    local_artifact_location,
+)
+from pipeline.tracking.stage_outputs import (
+    SCORE_FILES,
+    artifact_files,
+    champion_cards,
+    child_inputs,
+    discrepancy_run_id,
+    read_json,
+)
+
+logger = logging.getLogger(__name__)
+
+
+DVC_LOCK = Path("dvc.lock")
+
+
+DEFAULT_REGISTERED_MODEL = "thermal-error-spindle"
+
+
+def _package_dir(name: str) -> Path:
+    spec = importlib.util.find_spec(name)
+    return Path(next(iter(spec.submodule_search_locations)))
+
+
+def _load_params(path: Path) -> dict[str, Any]:
+    with path.open(encoding="utf-8") as handle:
+        return yaml.safe_load(handle) or {}
+
+
+@dataclass(frozen=True)
+class Prepared:
+    """Everything to log, computed before MLflow is imported."""
+
+    identity: ident.RunIdentity
+    synthetic: str
+    git_commit: str
+    parent: records.RunRecord
+    children: list[records.RunRecord]
+    champions: dict[str, dict]
+
+
+def prepare(params_path: Path) -> Prepared:
+    """Read the evaluate outputs and provenance, compute the identity, build the run records."""
+    all_params = _load_params(params_path)
+    cross_season = read_json(CROSS_SEASON_METRICS)
+    selected = read_json(SELECTED)["axes"]
+    axis_model = read_json(AXIS_MODEL_METRICS) if AXIS_MODEL_METRICS.is_file() else {}
+
+    code_dirs = [_package_dir("pipeline"), _package_dir("schemas")]
+    cards = champion_cards()
+    card_files = [CHAMPION / axis / CHAMPION_CARD_FILE for axis in cards]
+    run_identity = ident.compute_identity(code_dirs, all_params, RAW, [*SCORE_FILES, *card_files])
+    synthetic = ident.synthetic_flag(RAW)
+    commit = ident.git_commit()
+    dvc_hashes = ident.dvc_lock_hashes(ident.read_dvc_lock(DVC_LOCK), RAW.as_posix())
+    own = f":{TRACKING_RECORD.as_posix()}"  # the previous run's record: stale, not data
+    dvc_hashes = {key: md5 for key, md5 in dvc_hashes.items() if not key.endswith(own)}
+    tags = records.provenance_tags(
+        run_identity.value, run_identity.parts, commit, dvc_hashes, synthetic
+    )
+    tags[records.NOTE_TAG] = guide.parent_description(commit, synthetic, run_identity.value, cards)
+    for axis, card in cards.items():
+        tags[records.safe_key(records.RANKED_BY_TAG, axis)] = str(card.get("chosen_on") or "-")
+        label = "/".join(str(card[k]) for k in records.KEY_COLUMNS[1:])
+        tags[records.safe_key(records.CHAMPION_TAG, axis)] = f"{axis}/{label}"
+    children = records.child_records(child_inputs(cards), {"synthetic": synthetic})
+    parent = records.parent_record(
+        f"pipeline-{run_identity.value[:12]}",
+        cross_season,
+        all_params,
+        tags,
+        selected,
+        axis_model,
+    )
+    return Prepared(run_identity, synthetic, commit, parent, children, cards)
+
+
+def registered_name(prefix: str, axis: str) -> str:
+    """Return the registered model name of an axis' champion, e.g. ``thermal-error-spindle-Z``."""
+    return f"{prefix}-{axis}"
+
+
+def champion_hook(tracking_uri: str, prefix: str, cards: dict[str, dict]):
+    """Return a callback that logs and registers each axis' champion from its child run.
+
+    ``None`` (with a warning) when evaluate wrote no champion.
+    """
+    if not cards:
+        logger.warning("%s/<axis>/ not found: no champion model to register", CHAMPION)
+        return None
+
+    def register(record: records.RunRecord, run_id: str) -> None:
+        axis = record.tags.get("axis")
+        if record.tags.get(records.CHAMPION_TAG) != "true" or axis not in cards:
+            return
+        from pipeline.tracking.champion_model import log_and_register
+
+        log_and_register(tracking_uri, run_id, registered_name(prefix, axis), CHAMPION / axis)
+
+    return register
+
+
+def log_pipeline_run(
+    prepared: Prepared,
+    settings: Mapping[str, Any],
+    uri: str,
+    experiment: str,
+    batch_size: int,
+    n_metrics: int,
+) -> dict[str, Any]:
+    """Log ``prepared`` to the store at ``uri`` unless it is there; return the run record.
+
+    Parameters
+    ----------
+    prepared : Prepared
+        The records of :func:`prepare`.
+    settings : Mapping
+        The ``track`` section of ``params.yaml``.
+    uri : str
+        Tracking URI (:func:`pipeline.tracking.location.resolve_tracking_uri`).
+    experiment : str
+        Experiment name.
+    batch_size : int
+        Metrics per ``log_batch`` call (1 to 1000).
+    n_metrics : int
+        Metrics in the records, for the log line.
+
+    Returns
+    -------
+    dict
+        ``reports/mlflow_run.json``: store, experiment, parent run, identity, champions, views.
+    """
+    client = store.make_client(absolute_store_uri(uri))
+    artifact_dir = str(settings.get("local_artifact_dir") or DEFAULT_ARTIFACT_DIR)
+    experiment_id = store.ensure_experiment(
+        client, experiment, local_artifact_location(uri, artifact_dir, experiment)
+    )
+    prefix = str(settings.get("registered_model") or DEFAULT_REGISTERED_MODEL)
+    target = _Target(client, experiment_id, experiment, uri, prefix)
+    parent_id, reused = _log_parent(target, prepared, batch_size, n_metrics)
+    store.describe_experiment(client, experiment_id, guide.experiment_description(experiment))
+    ranked_by = {
+        axis: str(card.get("chosen_on") or "") for axis, card in prepared.champions.items()
+    }
+    shared = views.shared_views(parent_id, prepared.children, ranked_by)
+    store.share_views(client, experiment_id, shared)
+    discrepancy = discrepancy_run_id()
+    linked = discrepancy is not None and store.link_runs(
+        client, parent_id, discrepancy, "discrepancy"
+    )
+    return {
+        "tracking_uri": store.public_uri(uri),
+        "experiment": experiment,
+        "experiment_id": experiment_id,
+        "parent_run_id": parent_id,
+        "run_identity": prepared.identity.value,
+        "identity_parts": prepared.identity.parts,
+        "reused": reused,
+        "child_runs": len(prepared.children),
+        "champions": _registered_champions(target, prepared.champions),
+        "git_commit": prepared.git_commit,
+        "synthetic": prepared.synthetic,
+        "discrepancy_run_id": discrepancy if linked else None,
+        "views": {key: views.view_path(experiment_id, key) for key in shared},
+    }
+
+
+@dataclass(frozen=True)
+class _Target:
+    """Where a pipeline run goes: client, experiment, store URI, registered-model prefix."""
+
+    client: Any
+    experiment_id: str
+    experiment: str
+    uri: str
+    prefix: str
+
+
+def _log_parent(
+    target: _Target, prepared: Prepared, batch_size: int, n_metrics: int
+) -> tuple[str, bool]:
+    """Log the parent and child runs, or reuse a finished parent of the same identity.
+
+    Returns
+    -------
+    parent_id : str
+    reused : bool
+        True when the store already held this run identity (nothing logged; the champion
+        aliases restored).
+    """
+    client, experiment_id, uri = target.client, target.experiment_id, target.uri
+    for deleted in store.discard_incomplete(client, experiment_id, prepared.identity.value):
+        logger.info("deleted the incomplete earlier attempt %s (same run identity)", deleted)
+    existing = store.find_parent(client, experiment_id, prepared.identity.value)
+    if existing is not None:
+        parent_id = existing.info.run_id
+        logger.info(
+            "run identity %s already logged as parent run %s in experiment '%s' (%s): "
+            "code, params, raw data and scores unchanged, nothing logged",
+            prepared.identity.value[:12],
+            parent_id,
+            target.experiment,
+            store.public_uri(uri),
+        )
+        names = [registered_name(target.prefix, axis) for axis in prepared.champions]
+        store.restore_champions(client, experiment_id, parent_id, names, "champion")
+        return parent_id, True
+    hook = champion_hook(absolute_store_uri(uri), target.prefix, prepared.champions)
+    parent_id = store.log_pipeline(
+        client,
+        experiment_id,
+        prepared.parent,
+        prepared.children,
+        artifact_files(),
+        batch_size,
+        hook,
+    )
+    logger.info(
+        "logged parent run %s with %d child runs and %d metrics to experiment '%s' (%s)",
+        parent_id,
+        len(prepared.children),
+        n_metrics,
+        target.experiment,
+        store.public_uri(uri),
+    )
+    return parent_id, False
+
+
+def _registered_champions(target: _Target, champions: dict[str, dict]) -> dict[str, dict]:
+    """Each axis' registered champion: model name, version, URI, candidate, compensate."""
+    entries = {}
+    for axis, card in champions.items():
+        name = registered_name(target.prefix, axis)
+        version = store.champion_version(target.client, name, "champion")
+        entries[axis] = {
+            "registered_model": name,
+            "version": version,
+            "uri": f"models:/{name}@champion" if version else None,
+            "model": "/".join(str(card[k]) for k in records.KEY_COLUMNS[1:]),
+            "compensate": card["compensate"],
+        }
+    return entries
