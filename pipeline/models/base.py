@@ -25,8 +25,8 @@ from pipeline.models.series import check_features, check_xy
 class ThermalErrorModel(RegressorMixin, BaseEstimator, metaclass=ABCMeta):
     """Base of the candidate models: ``fit`` checks its inputs, ``_fit`` models them.
 
-    Subclasses set ``min_columns`` and implement ``_fit``; they override ``_check_params``
-    when a hyper-parameter can be out of range.
+    Subclasses implement ``_fit``; they override ``_check_params`` when a hyper-parameter can
+    be out of range, and set ``min_columns = 0`` when they use only X's index.
     """
 
     #: Whether the model predicts from the measured error's own history (then it is scored
