@@ -57,51 +57,115 @@ class Key:
 
 
 CAMPAIGN_KEYS: tuple[Key, ...] = (
-    Key("campaign_id", ALWAYS, "letters, digits, `-`, `_`",
-        "must equal the folder name", "campaign_id"),
-    Key("kind", ALWAYS, _one_of(KINDS),
-        "which files the campaign has and which stages use it", "kind"),
-    Key("machine", OPTIONAL, "free text",
+    Key(
+        "campaign_id",
+        ALWAYS,
+        "letters, digits, `-`, `_`",
+        "must equal the folder name",
+        "campaign_id",
+    ),
+    Key(
+        "kind",
+        ALWAYS,
+        _one_of(KINDS),
+        "which files the campaign has and which stages use it",
+        "kind",
+    ),
+    Key(
+        "machine",
+        OPTIONAL,
+        "free text",
         "campaigns of one machine that follow each other without a break form a run",
-        "machine"),
-    Key("start", ALWAYS, "ISO 8601 date-time, e.g. `2015-01-12T08:30:00`",
+        "machine",
+    ),
+    Key(
+        "start",
+        ALWAYS,
+        "ISO 8601 date-time, e.g. `2015-01-12T08:30:00`",
         "local time of the first sample (a UTC offset, if written, is dropped: the wall clock "
-        "is kept)", "start"),
-    Key("season", OPTIONAL, _one_of(SEASONS),
+        "is kept)",
+        "start",
+    ),
+    Key(
+        "season",
+        OPTIONAL,
+        _one_of(SEASONS),
         "the season of leave-one-season-out; when absent, from the month of `start` "
         "(December-February winter, March-May spring, June-August summer, "
-        "September-November autumn)", "season"),
-    Key("synthetic", OPTIONAL, "`true` \\| `false` (default `false`)",
-        "generated data; shown in every report", "synthetic"),
-    Key("split", OPTIONAL, f"{_one_of(SPLITS)} (default `train`)",
-        "validation campaigns only report the chosen models, they never choose", "split"),
-    Key("start_state", OPTIONAL, _one_of(START_STATES),
+        "September-November autumn)",
+        "season",
+    ),
+    Key(
+        "synthetic",
+        OPTIONAL,
+        "`true` \\| `false` (default `false`)",
+        "generated data; shown in every report",
+        "synthetic",
+    ),
+    Key(
+        "split",
+        OPTIONAL,
+        f"{_one_of(SPLITS)} (default `train`)",
+        "validation campaigns only report the chosen models, they never choose",
+        "split",
+    ),
+    Key(
+        "start_state",
+        OPTIONAL,
+        _one_of(START_STATES),
         "`cold`: at rest at the air temperature at the first sample, never linked to an "
         "earlier campaign; `warm` on a run's first campaign: the cold state is not in the data",
-        "start_state"),
-    Key("follows", OPTIONAL, "a campaign id",
+        "start_state",
+    ),
+    Key(
+        "follows",
+        OPTIONAL,
+        "a campaign id",
         "this campaign continues that one without a break (one run, one cold reference)",
-        "follows"),
-    Key("spindle_program", OPTIONAL,
+        "follows",
+    ),
+    Key(
+        "spindle_program",
+        OPTIONAL,
         "list of `{from_min, to_min, rpm}`, minutes from `start`; the last `to_min` may be "
         "omitted (open-ended)",
-        "the spindle speed when there is no `spindle.csv`", "spindle_program_json"),
-    Key("sensors", ALWAYS, "mapping: temperature.csv column -> `{role, location, type}`",
-        "one entry per temperature column, in degC", "sensors_json"),
-    Key("sensors.<name>.role", ALWAYS, "a sensor role (below)",
+        "the spindle speed when there is no `spindle.csv`",
+        "spindle_program_json",
+    ),
+    Key(
+        "sensors",
+        ALWAYS,
+        "mapping: temperature.csv column -> `{role, location, type}`",
+        "one entry per temperature column, in degC",
+        "sensors_json",
+    ),
+    Key(
+        "sensors.<name>.role",
+        ALWAYS,
+        "a sensor role (below)",
         "where the sensor is; the physical twin needs the roles, the regressions do not",
-        "sensors_json"),
+        "sensors_json",
+    ),
     Key("sensors.<name>.location", OPTIONAL, "free text", "shown in reports", "sensors_json"),
-    Key("sensors.<name>.type", OPTIONAL, f"free text, e.g. `{DS18B20_TYPE}`, `PT100`",
+    Key(
+        "sensors.<name>.type",
+        OPTIONAL,
+        f"free text, e.g. `{DS18B20_TYPE}`, `PT100`",
         f"the {DS18B20_TYPE} fault codes (85.0, -127) are checked on `{DS18B20_TYPE}` sensors "
-        "and on sensors without a type", "sensors_json"),
-    Key("displacement", SPINDLE_KIND,
+        "and on sensors without a type",
+        "sensors_json",
+    ),
+    Key(
+        "displacement",
+        SPINDLE_KIND,
         "mapping: displacement.csv column -> `{probe}`; names `X`, `Y`, `Z` or letters and "
         "digits starting with a letter (e.g. `Z2`)",
-        "every probe axis is modelled", "displacement_json"),
+        "every probe axis is modelled",
+        "displacement_json",
+    ),
     Key("axis.name", AXIS_KIND, "`X`, `Y`, `Z`", "the axis the laser measured", "axis_name"),
     Key("axis.stroke_mm", OPTIONAL, "mm, positive", "the travel of the axis", "stroke_mm"),
-)  # fmt: skip
+)
 """Every key of ``campaign.yaml``; keys not listed here are read as comments (ignored)."""
 
 DERIVED_COLUMNS = {
@@ -137,31 +201,60 @@ class ContractFile:
 
 FILES: tuple[ContractFile, ...] = (
     ContractFile("campaign.yaml", ALWAYS, ()),
-    ContractFile("temperature.csv", ALWAYS, (
-        ("elapsed_s", "s since `start`, strictly increasing"),
-        ("<sensor>", "degC, one column per entry of `sensors:`; an empty cell is a missing "
-                     "reading"),
-    )),
-    ContractFile("displacement.csv", SPINDLE_KIND, (
-        ("elapsed_s", "s since `start`, strictly increasing; may differ from temperature.csv's "
-                      "instants (interpolated onto them)"),
-        ("<axis>", "um, one column per entry of `displacement:`; positive = tool away from the "
-                   "table / workpiece"),
-    )),
-    ContractFile("spindle.csv", OPTIONAL, (
-        ("elapsed_s", "s since `start`"),
-        ("rpm", "measured spindle speed, 1/min; wins over `spindle_program`"),
-    )),
-    ContractFile("laser.csv", AXIS_KIND, (
-        ("elapsed_min", "min since `start`: the time of the run; the run at 0 (cold) carries "
-                        "the geometric error"),
-        ("run", "integer numbering the runs; a bidirectional pass is two runs"),
-        ("direction", f"{_one_of(DIRECTIONS)}: the direction of the run"),
-        ("target_mm", "mm, the target position"),
-        ("deviation_um", "um, the positioning deviation at the target as the laser software "
-                         "reports it"),
-    )),
-)  # fmt: skip
+    ContractFile(
+        "temperature.csv",
+        ALWAYS,
+        (
+            ("elapsed_s", "s since `start`, strictly increasing"),
+            (
+                "<sensor>",
+                "degC, one column per entry of `sensors:`; an empty cell is a missing reading",
+            ),
+        ),
+    ),
+    ContractFile(
+        "displacement.csv",
+        SPINDLE_KIND,
+        (
+            (
+                "elapsed_s",
+                "s since `start`, strictly increasing; may differ from temperature.csv's "
+                "instants (interpolated onto them)",
+            ),
+            (
+                "<axis>",
+                "um, one column per entry of `displacement:`; positive = tool away from the "
+                "table / workpiece",
+            ),
+        ),
+    ),
+    ContractFile(
+        "spindle.csv",
+        OPTIONAL,
+        (
+            ("elapsed_s", "s since `start`"),
+            ("rpm", "measured spindle speed, 1/min; wins over `spindle_program`"),
+        ),
+    ),
+    ContractFile(
+        "laser.csv",
+        AXIS_KIND,
+        (
+            (
+                "elapsed_min",
+                "min since `start`: the time of the run; the run at 0 (cold) carries "
+                "the geometric error",
+            ),
+            ("run", "integer numbering the runs; a bidirectional pass is two runs"),
+            ("direction", f"{_one_of(DIRECTIONS)}: the direction of the run"),
+            ("target_mm", "mm, the target position"),
+            (
+                "deviation_um",
+                "um, the positioning deviation at the target as the laser software reports it",
+            ),
+        ),
+    ),
+)
 """The files of a campaign folder, in the order the document lists them."""
 
 FILE_NAMES = tuple(f.name for f in FILES)

@@ -13,6 +13,7 @@ import pandas as pd
 import pandera.pandas as pa
 from pandera.typing import Series
 
+from schemas.strict import StrictModel
 from schemas.vocabulary import SPLITS
 
 SCORE_ROLES = ("fit", "prediction", "validation")
@@ -26,7 +27,7 @@ SCHEMES = ("campaign", "loso", "loco", "pooled")
 all but one campaign (leave-one-campaign-out, when there is one season); all of them."""
 
 
-class CrossSeasonScoresModel(pa.DataFrameModel):
+class CrossSeasonScoresModel(StrictModel):
     """Long table of cross-season scores (um).
 
     ``rmse_um`` is the RMS of the residual e = measured - predicted; ``resid_std_um`` its
@@ -51,11 +52,6 @@ class CrossSeasonScoresModel(pa.DataFrameModel):
     resid_std_um: Series[float] = pa.Field(ge=0, nullable=True)
     uncompensated_rms_um: Series[float] = pa.Field(ge=0)
     eta: Series[float] = pa.Field(le=1, nullable=True)
-
-    class Config:
-        """Exactly these columns."""
-
-        strict = True
 
     @pa.dataframe_check
     @classmethod

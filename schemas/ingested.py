@@ -20,6 +20,7 @@ import pandera.pandas as pa
 from pandera.typing import Series
 
 from schemas import checks
+from schemas.strict import StrictModel
 from schemas.vocabulary import (
     AMBIENT_ROLE,
     AXIS_KIND,
@@ -143,7 +144,7 @@ def _is_valid_json(text: object) -> bool:
     return True
 
 
-class CampaignsModel(pa.DataFrameModel):
+class CampaignsModel(StrictModel):
     """``campaigns.parquet``: one row per campaign (its campaign.yaml).
 
     Nullable text columns are coerced to ``str`` (an all-null column is read back as
@@ -169,11 +170,6 @@ class CampaignsModel(pa.DataFrameModel):
     spindle_program_json: Series[str]
     has_spindle_log: Series[bool]
     source_dir: Series[str]
-
-    class Config:
-        """Exactly these columns."""
-
-        strict = True
 
     @pa.check("campaign_id")
     @classmethod
@@ -334,7 +330,7 @@ class AxisSamplesModel(SamplesModel):
     """Samples of axis_positioning campaigns: temperatures only (degC)."""
 
 
-class LaserModel(pa.DataFrameModel):
+class LaserModel(StrictModel):
     """``laser.parquet``: one row per laser.csv data row (a target of a run).
 
     Units: ``elapsed_min`` min since start, ``target_mm`` mm, ``deviation_um`` um.
@@ -347,11 +343,6 @@ class LaserModel(pa.DataFrameModel):
     direction: Series[str]
     target_mm: Series[float]
     deviation_um: Series[float]
-
-    class Config:
-        """Exactly these columns."""
-
-        strict = True
 
     @pa.check("direction")
     @classmethod
@@ -399,7 +390,7 @@ class LaserModel(pa.DataFrameModel):
         return plus & minus
 
 
-class ProblemsModel(pa.DataFrameModel):
+class ProblemsModel(StrictModel):
     """``problems.parquet``: problems ``ingest`` found while reading a campaign's files."""
 
     campaign_id: Series[str]
@@ -409,11 +400,6 @@ class ProblemsModel(pa.DataFrameModel):
     check: Series[str]
     problem: Series[str]
     action: Series[str]
-
-    class Config:
-        """Exactly these columns."""
-
-        strict = True
 
 
 def _with(schema: pa.DataFrameSchema, *, strict: bool, extra_checks: Sequence[pa.Check]):

@@ -48,7 +48,12 @@ def running_mlflow_server(tmp_path: Path, timeout_s: float = 120.0) -> Iterator[
     """
     folder = Path(tmp_path) / "mlflow-server"
     folder.mkdir(parents=True, exist_ok=True)
-    arguments = ["server", "--backend-store-uri", f"sqlite:///{folder / 'mlflow.db'}",
-                 "--artifacts-destination", str(folder / "artifacts")]  # fmt: skip
+    arguments = [
+        "server",
+        "--backend-store-uri",
+        f"sqlite:///{folder / 'mlflow.db'}",
+        "--artifacts-destination",
+        str(folder / "artifacts"),
+    ]
     with running_mlflow(arguments, folder, timeout_s) as uri:
         yield uri

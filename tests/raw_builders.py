@@ -106,8 +106,14 @@ def write_axis_campaign(
     rise = rng.uniform(3, 8, 3) * (1 - np.exp(-t[:, None] / rng.uniform(2000, 5000, 3)))
     temps = np.column_stack([21.0 + rise, 21.0 + t / t[-1]])
     header = "elapsed_s," + ",".join(sensors)
-    np.savetxt(folder / "temperature.csv", np.column_stack([t, temps]), delimiter=",",
-               header=header, comments="", fmt="%.4f")  # fmt: skip
+    np.savetxt(
+        folder / "temperature.csv",
+        np.column_stack([t, temps]),
+        delimiter=",",
+        header=header,
+        comments="",
+        fmt="%.4f",
+    )
     lines = ["elapsed_min,run,direction,target_mm,deviation_um"]
     for k, minute in enumerate(passes_min):
         for run, direction in ((2 * k + 1, "+"), (2 * k + 2, "-")):

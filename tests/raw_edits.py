@@ -39,8 +39,11 @@ def drop_column(path: Path, column: str) -> None:
     """Delete ``column`` (header and cells)."""
     header, rows = read_table(path)
     index = header.index(column)
-    write_table(path, header[:index] + header[index + 1 :],
-                [cells[:index] + cells[index + 1 :] for cells in rows])  # fmt: skip
+    write_table(
+        path,
+        header[:index] + header[index + 1 :],
+        [cells[:index] + cells[index + 1 :] for cells in rows],
+    )
 
 
 def edit_rows(path: Path, function: Callable[[list[list[str]]], list[list[str]]]) -> None:

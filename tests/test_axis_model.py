@@ -71,20 +71,32 @@ def _planted_campaign(campaign_id, split, minutes, time_constants, ambient, seed
         ignore_index=True,
     ).assign(campaign_id=campaign_id)
     samples = temperatures.assign(campaign_id=campaign_id, elapsed_s=t * 60.0)
-    campaigns = pd.DataFrame({
-        "campaign_id": [campaign_id], "split": [split], "season": ["spring"],
-        "axis_name": ["Y"], "synthetic": [True],
-        "sensors_json": [json.dumps(dict.fromkeys(SENSORS, {}))],
-    })  # fmt: skip
+    campaigns = pd.DataFrame(
+        {
+            "campaign_id": [campaign_id],
+            "split": [split],
+            "season": ["spring"],
+            "axis_name": ["Y"],
+            "synthetic": [True],
+            "sensors_json": [json.dumps(dict.fromkeys(SENSORS, {}))],
+        }
+    )
     return campaigns, samples, laser
 
 
 @pytest.fixture(scope="module")
 def planted():
-    train = _planted_campaign("A01", "train", [0, 15, 30, 50, 75, 100, 140, 190, 250, 320, 390],
-                              [30, 60, 120, 200, 400], 20.0, 1)  # fmt: skip
-    valid = _planted_campaign("A02", "validation", [0, 40, 100, 160, 220, 280],
-                              [50, 40, 150, 120, 300], 14.0, 2)  # fmt: skip
+    train = _planted_campaign(
+        "A01",
+        "train",
+        [0, 15, 30, 50, 75, 100, 140, 190, 250, 320, 390],
+        [30, 60, 120, 200, 400],
+        20.0,
+        1,
+    )
+    valid = _planted_campaign(
+        "A02", "validation", [0, 40, 100, 160, 220, 280], [50, 40, 150, 120, 300], 14.0, 2
+    )
     tables = [separate_axis(*parts, order=4) for parts in (train, valid)]
     return {name: pd.concat([t[name] for t in tables], ignore_index=True) for name in tables[0]}
 
@@ -116,8 +128,13 @@ def test_planted_validation_band_is_near_the_noise(planted):
     assert metrics["rmse_um"] < 2 * NOISE_UM
     assert metrics["residual_min_um"] < 0 < metrics["residual_max_um"]
     assert set(validation["by_campaign"]["A02"]["by_pass_min"]) == {
-        "0", "40", "100", "160", "220", "280"
-    }  # fmt: skip
+        "0",
+        "40",
+        "100",
+        "160",
+        "220",
+        "280",
+    }
     assert report["within_patent_band"] is True
     assert set(points["role"]) == {"fit", "validation"}
 
@@ -201,15 +218,21 @@ def test_parameter_errors_name_the_setting(planted):
 
 
 def test_bands_per_campaign_and_pass():
-    points = pd.DataFrame({
-        "campaign_id": ["X"] * 4, "elapsed_min": [0.0, 0.0, 40.0, 40.0],
-        "residual_um": [-1.0, 0.5, 2.0, -3.0],
-    })  # fmt: skip
+    points = pd.DataFrame(
+        {
+            "campaign_id": ["X"] * 4,
+            "elapsed_min": [0.0, 0.0, 40.0, 40.0],
+            "residual_um": [-1.0, 0.5, 2.0, -3.0],
+        }
+    )
     result = bands(points)
     assert result["overall"] == {
-        "n_points": 4, "residual_min_um": -3.0, "residual_max_um": 2.0,
-        "residual_max_abs_um": 3.0, "rmse_um": pytest.approx(np.sqrt(14.25 / 4)),
-    }  # fmt: skip
+        "n_points": 4,
+        "residual_min_um": -3.0,
+        "residual_max_um": 2.0,
+        "residual_max_abs_um": 3.0,
+        "rmse_um": pytest.approx(np.sqrt(14.25 / 4)),
+    }
     assert result["by_campaign"]["X"]["by_pass_min"]["40"]["residual_min_um"] == -3.0
 
 

@@ -17,10 +17,16 @@ def _inputs(campaign):
     laser = campaign.laser.assign(campaign_id="Y01")
     samples = campaign.temperature.assign(campaign_id="Y01")
     sensors = [c for c in campaign.temperature.columns if c != "elapsed_s"]
-    campaigns = pd.DataFrame({
-        "campaign_id": ["Y01"], "split": ["train"], "season": ["spring"], "axis_name": ["Y"],
-        "synthetic": [True], "sensors_json": [pd.Series({s: {} for s in sensors}).to_json()],
-    })  # fmt: skip
+    campaigns = pd.DataFrame(
+        {
+            "campaign_id": ["Y01"],
+            "split": ["train"],
+            "season": ["spring"],
+            "axis_name": ["Y"],
+            "synthetic": [True],
+            "sensors_json": [pd.Series({s: {} for s in sensors}).to_json()],
+        }
+    )
     return campaigns, samples, laser
 
 

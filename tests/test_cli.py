@@ -9,8 +9,9 @@ from pipeline.cli import COMMANDS, main
 
 
 def test_python_m_pipeline_lists_every_command():
-    result = subprocess.run([sys.executable, "-m", "pipeline", "--help"],
-                            capture_output=True, text=True)  # fmt: skip
+    result = subprocess.run(
+        [sys.executable, "-m", "pipeline", "--help"], capture_output=True, text=True
+    )
     assert result.returncode == 0
     for name in COMMANDS:
         assert f"  {name} " in result.stdout
@@ -35,8 +36,12 @@ def test_summary_points_at_the_mlflow_ui(tmp_path, capsys):
 
 
 def test_summary_says_what_the_twin_comparison_named(tmp_path, capsys):
-    doc = {"named_effects": ["motor_heat"], "rmse_um_before": 3.641, "rmse_um_after": 3.65,
-           "validation": {"rmse_um_before": 5.37, "rmse_um_after": 4.81}}  # fmt: skip
+    doc = {
+        "named_effects": ["motor_heat"],
+        "rmse_um_before": 3.641,
+        "rmse_um_after": 3.65,
+        "validation": {"rmse_um_before": 5.37, "rmse_um_after": 4.81},
+    }
     (tmp_path / "reports" / "discrepancy").mkdir(parents=True)
     (tmp_path / "reports" / "discrepancy" / "discrepancy.json").write_text(json.dumps(doc))
     assert main(["summary", "--root", str(tmp_path)]) == 0
@@ -54,8 +59,10 @@ def test_import_lists_its_sources_and_refuses_an_unknown_one(capsys):
 
 def test_import_hands_its_arguments_to_the_importer(tmp_path, capsys):
     missing = tmp_path / "nothing.rtl"
-    assert main(["import", "rtl", str(missing), "--out", str(tmp_path / "A01"),
-                 "--warmup-min", "0"]) == 2  # fmt: skip
+    assert (
+        main(["import", "rtl", str(missing), "--out", str(tmp_path / "A01"), "--warmup-min", "0"])
+        == 2
+    )
     assert "nothing.rtl" in capsys.readouterr().err
     assert not (tmp_path / "A01" / "laser.csv").exists()
 
@@ -88,8 +95,13 @@ def test_an_internal_error_keeps_its_traceback(monkeypatch):
 
 
 def test_summary_links_the_run_list_not_the_genai_overview(tmp_path, capsys):
-    record = {"tracking_uri": "sqlite:///mlflow.db", "experiment": "thermal-error",
-              "experiment_id": "7", "parent_run_id": "abc", "champions": {}}  # fmt: skip
+    record = {
+        "tracking_uri": "sqlite:///mlflow.db",
+        "experiment": "thermal-error",
+        "experiment_id": "7",
+        "parent_run_id": "abc",
+        "champions": {},
+    }
     (tmp_path / "reports").mkdir()
     (tmp_path / "reports" / "mlflow_run.json").write_text(json.dumps(record))
     assert main(["summary", "--root", str(tmp_path)]) == 0

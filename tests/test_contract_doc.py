@@ -77,8 +77,10 @@ def test_the_documented_example_is_a_campaign_the_reader_accepts(tmp_path):
     folder.mkdir()
     (folder / "campaign.yaml").write_text(yaml.safe_dump(example), encoding="utf-8")
     sensors = list(example["sensors"])
-    rows = [f"{60 * i}," + ",".join(f"{20 + 0.1 * i + j:.2f}" for j in range(len(sensors)))
-            for i in range(5)]  # fmt: skip
+    rows = [
+        f"{60 * i}," + ",".join(f"{20 + 0.1 * i + j:.2f}" for j in range(len(sensors)))
+        for i in range(5)
+    ]
     (folder / "temperature.csv").write_text(
         "elapsed_s," + ",".join(sensors) + "\n" + "\n".join(rows) + "\n", encoding="utf-8"
     )

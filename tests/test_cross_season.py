@@ -28,10 +28,19 @@ def _table(campaigns, seed=0, noisy=()):
         y = rise @ GAINS
         if campaign in noisy:
             y = y + noise.normal(0, 2.0, len(y))
-        frames.append(pd.DataFrame({
-            "campaign_id": campaign, "split": split, "season": season, "elapsed_s": t,
-            "rise_T1": rise[:, 0], "rise_T2": rise[:, 1], "thermal_error_um": y,
-        }))  # fmt: skip
+        frames.append(
+            pd.DataFrame(
+                {
+                    "campaign_id": campaign,
+                    "split": split,
+                    "season": season,
+                    "elapsed_s": t,
+                    "rise_T1": rise[:, 0],
+                    "rise_T2": rise[:, 1],
+                    "thermal_error_um": y,
+                }
+            )
+        )
     return pd.concat(frames, ignore_index=True)
 
 

@@ -53,8 +53,15 @@ def test_speed_steps_keep_the_state_and_change_the_program(demo_variants):
 
 
 def _doc(named):
-    candidates = [{"effect": "sensor_lag", "delta_bic": 3.0, "heldout_reduction": -0.01,
-                   "heldout_T_reduction": 0.0, "passes": False}]  # fmt: skip
+    candidates = [
+        {
+            "effect": "sensor_lag",
+            "delta_bic": 3.0,
+            "heldout_reduction": -0.01,
+            "heldout_T_reduction": 0.0,
+            "passes": False,
+        }
+    ]
     return {
         "named_effects": named,
         "rmse_um_before": 4.0,
@@ -70,7 +77,7 @@ def _doc(named):
                     "heldout_reduction": 0.3,
                     "heldout_T_reduction": 0.1,
                 },
-            }  # fmt: skip
+            }
             for e in named
         ],
         "candidates_by_step": [{"step": 1, "candidates": candidates}],

@@ -35,20 +35,10 @@ from pipeline.twin.writer import write_campaign
 from pipeline.validation.checks import validate_tables
 from pipeline.validation.limits import limits_from_params
 from pipeline.validation.tables import select_valid
+from schemas.vocabulary import SENSOR_ROLES
 
 REPO = Path(__file__).resolve().parents[1]
-ALL_ROLES = {
-    "spindle_front_bearing",
-    "spindle_rear_bearing",
-    "spindle_motor",
-    "headstock",
-    "column_front",
-    "column_rear",
-    "bed",
-    "ambient",
-    "ball_screw",
-    "other",
-}
+ALL_ROLES = set(SENSOR_ROLES) - {"nut", "coolant"}
 # no campaign-to-campaign heat scatter: the data are exactly the twin's baseline plus noise
 NO_SCATTER = replace(SpindleParams(), heat_scatter_rel=0.0)
 # DS18B20: white noise plus 0.0625 degC quantisation
@@ -73,9 +63,13 @@ def _plan(i: int) -> StepPlan:
     lo, hi = SPEEDS[i % len(SPEEDS)]
     steps = ((0.0, 120.0, lo), (120.0, 240.0, hi), (240.0, None, 0.0))
     return StepPlan(
-        f"S{i:02d}", datetime(2024, 3 + i, 12, 8, 30), lo, run_min=240.0, cooldown_min=90.0,
+        f"S{i:02d}",
+        datetime(2024, 3 + i, 12, 8, 30),
+        lo,
+        run_min=240.0,
+        cooldown_min=90.0,
         steps=steps,
-    )  # fmt: skip
+    )
 
 
 def _twin_campaign(i: int, effects: frozenset[str] = frozenset(), seed: int = 7):
@@ -163,8 +157,10 @@ def test_an_effect_adds_its_parameters_with_units_and_bounds():
     assert (exponent.lower, exponent.upper) == (0.5, 3.0)
     # baseline: no effect parameter, every name carries its unit
     assert all(p.effect is None for p in base.param_specs)
-    assert all(p.name.endswith(("_J_per_K", "_W_per_K", "_W_per_krpm", "_um_per_K", "_to_shaft"))
-               for p in base.param_specs)  # fmt: skip
+    assert all(
+        p.name.endswith(("_J_per_K", "_W_per_K", "_W_per_krpm", "_um_per_K", "_to_shaft"))
+        for p in base.param_specs
+    )
 
 
 def test_missing_roles_names_what_an_effect_needs():
@@ -201,8 +197,9 @@ def test_errors_are_clear():
     with pytest.raises(ValueError, match="at least one campaign"):
         calibrate(model, [])
     with pytest.raises(ValueError, match="strictly increasing"):
-        MeasuredCampaign("X", np.array([0.0, 0.0, 1.0]), np.zeros(3), _frame(3), {"T1": "bed"},
-                         np.zeros(3))  # fmt: skip
+        MeasuredCampaign(
+            "X", np.array([0.0, 0.0, 1.0]), np.zeros(3), _frame(3), {"T1": "bed"}, np.zeros(3)
+        )
     with pytest.raises(ValueError, match="have no role"):
         MeasuredCampaign("X", np.arange(3.0), np.zeros(3), _frame(3), {}, np.zeros(3))
 
@@ -262,8 +259,9 @@ def _all_effects_and_mixed_grids(campaigns):
     model = build_model(_roles(mixed), frozenset(EFFECTS))
     lo, hi = model.bounds()
     rng = np.random.default_rng(5)
-    thetas = np.array([np.clip(model.initial() * rng.uniform(0.5, 2.0, lo.size), lo, hi)
-                       for _ in range(3)])  # fmt: skip
+    thetas = np.array(
+        [np.clip(model.initial() * rng.uniform(0.5, 2.0, lo.size), lo, hi) for _ in range(3)]
+    )
     thetas[:, model.names.index("sensor_lag_s")] = [300.0, 900.0, 2400.0]
     return model, thetas, mixed
 
@@ -298,8 +296,9 @@ def replace_program(c: MeasuredCampaign, delay_s: float) -> MeasuredCampaign:
 def test_from_tables_reads_the_ingest_and_validate_outputs(tmp_path):
     twin = _twin_campaign(2)
     write_campaign(twin, tmp_path / "raw")
-    tables = ingest(tmp_path / "raw", float(load_section("ingest", REPO / "params.yaml")[
-        "max_alignment_gap_s"]))  # fmt: skip
+    tables = ingest(
+        tmp_path / "raw", float(load_section("ingest", REPO / "params.yaml")["max_alignment_gap_s"])
+    )
     limits = limits_from_params(load_section("validate", REPO / "params.yaml"))
     result = validate_tables(
         tables["campaigns"], tables["samples"], tables["laser"], tables["problems"], limits

@@ -245,8 +245,15 @@ def test_parallel_and_serial_searches_agree():
 
 def test_validation_campaigns_are_held_back_from_the_search():
     def campaign(cid, split):
-        return _Campaign(cid, np.arange(3.0), np.zeros(3), pd.DataFrame({"T1": [20.0] * 3}),
-                         {"T1": "headstock"}, np.zeros(3), split=split)  # fmt: skip
+        return _Campaign(
+            cid,
+            np.arange(3.0),
+            np.zeros(3),
+            pd.DataFrame({"T1": [20.0] * 3}),
+            {"T1": "headstock"},
+            np.zeros(3),
+            split=split,
+        )
 
     train = [campaign(f"K{i}", "training") for i in range(3)]
     val = [campaign("V1", "validation"), campaign("V2", "validation")]
@@ -393,7 +400,7 @@ def _fake_report(tmp_path):
             pd.DataFrame({"T1": np.full(t.size, 20.0)}),
             {"T1": "headstock"},
             -10 * (1 - np.exp(-t / 5000)),
-        )  # fmt: skip
+        )
         for c in ids
     ]
 
@@ -401,14 +408,17 @@ def _fake_report(tmp_path):
         def __call__(self, effects, train, test, start=None):
             fit = super().__call__(effects, train, test, start)
             fit.z_residual_um = {c: v[0] * np.sin(t / 3000) for c, v in fit.z_residual_um.items()}
-            fit.t_residual_k = {c: v.iloc[: t.size].reindex(range(t.size), fill_value=0.1)
-                                for c, v in fit.t_residual_k.items()}  # fmt: skip
+            fit.t_residual_k = {
+                c: v.iloc[: t.size].reindex(range(t.size), fill_value=0.1)
+                for c, v in fit.t_residual_k.items()
+            }
             return fit
 
     result = forward_search(Evaluator({"motor_heat"}), ids, SETTINGS, {"sensor_lag": ["x"]})
     settings = LocaliseSettings()
-    before = localise(campaigns, result.baseline.full.z_residual_um,
-                      result.baseline.full.t_residual_k, settings)  # fmt: skip
+    before = localise(
+        campaigns, result.baseline.full.z_residual_um, result.baseline.full.t_residual_k, settings
+    )
     doc = build_document(result, before, None, SETTINGS, synthetic=True, campaign_ids=ids)
     files = write_outputs(tmp_path / "out", doc, campaigns, result, before)
     return doc, files

@@ -35,8 +35,14 @@ def folder(tmp_path, monkeypatch):
 def _stages(folder: Path, *campaigns: str) -> dict:
     for campaign in campaigns:
         shutil.copytree(ROOT / "data" / "raw" / campaign, folder / "data" / "raw" / campaign)
-    for stage, argv in ((ingest, []), (validate, []), (separate_spindle, []), (select, []),
-                        (evaluate, []), (track, [])):  # fmt: skip
+    for stage, argv in (
+        (ingest, []),
+        (validate, []),
+        (separate_spindle, []),
+        (select, []),
+        (evaluate, []),
+        (track, []),
+    ):
         assert stage.main(argv) == 0, stage.__name__
     return json.loads((folder / "metrics" / "cross_season.json").read_text())
 

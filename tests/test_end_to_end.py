@@ -26,8 +26,11 @@ KEYS = ["axis", "model", "selection", "mode"]
 
 
 def _env(uri: str) -> dict[str, str]:
-    return {**os.environ, "PATH": f"{BIN}{os.pathsep}{os.environ['PATH']}",
-            "MLFLOW_TRACKING_URI": uri}  # fmt: skip
+    return {
+        **os.environ,
+        "PATH": f"{BIN}{os.pathsep}{os.environ['PATH']}",
+        "MLFLOW_TRACKING_URI": uri,
+    }
 
 
 def _run(command: list[str], cwd: Path, env: dict[str, str]) -> str:
@@ -59,15 +62,16 @@ def _fewer_candidates(work: Path, candidates: dict[str, str]) -> None:
 
 def test_new_campaign_is_scored_old_scores_kept_unrelated_stages_skipped(tmp_path):
     work = copy_repository(ROOT, tmp_path / "repo")
-    _fewer_candidates(work, {"none": "none", "mlr": "best_subset", "dl": "fc_grd",
-                             "arma": "none"})  # fmt: skip
+    _fewer_candidates(work, {"none": "none", "mlr": "best_subset", "dl": "fc_grd", "arma": "none"})
     env = _env(f"sqlite:///{work / 'mlflow.db'}")
     _repro(work, env)
     before = _scores(work)
     assert "K13" not in set(before["test_campaign"])
 
-    _run([str(BIN / "thermal"), "simulate", "--preset", "single", "--id", "K13", "--season",
-          "summer", "--rpm", "4000", "--seed", "13", "--out", "data/raw"], work, env)  # fmt: skip
+    simulate = (
+        "simulate --preset single --id K13 --season summer --rpm 4000 --seed 13 --out data/raw"
+    )
+    _run([str(BIN / "thermal"), *simulate.split()], work, env)
     output = _repro(work, env)
 
     assert "Stage 'separate_axis' didn't change, skipping" in output

@@ -599,8 +599,15 @@ def test_a_cut_never_leaves_fewer_samples_than_validate_needs():
 
 
 def test_cold_after_stop_with_the_stops_rule_is_refused(tmp_path, capsys):
-    code = run_import(write_comma_csv(tmp_path), write_mapping(tmp_path), tmp_path / "o",
-                      "--cut", "stops", "--cold-after-stop-h", "1")  # fmt: skip
+    code = run_import(
+        write_comma_csv(tmp_path),
+        write_mapping(tmp_path),
+        tmp_path / "o",
+        "--cut",
+        "stops",
+        "--cold-after-stop-h",
+        "1",
+    )
     assert code == 2
     assert "cannot be used with the stops rule" in capsys.readouterr().err
     assert not (tmp_path / "o").exists()

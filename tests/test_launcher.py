@@ -24,8 +24,14 @@ def _repository(tmp_path: Path) -> Path:
 
 
 def _run(launcher: Path, path: str, cwd: Path) -> subprocess.CompletedProcess:
-    return subprocess.run([str(launcher), "ingest", "--x"], env={"PATH": path}, cwd=cwd,
-                          capture_output=True, text=True, timeout=20)  # fmt: skip
+    return subprocess.run(
+        [str(launcher), "ingest", "--x"],
+        env={"PATH": path},
+        cwd=cwd,
+        capture_output=True,
+        text=True,
+        timeout=20,
+    )
 
 
 def test_the_repositorys_venv_wins_over_path(tmp_path):

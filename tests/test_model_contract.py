@@ -14,9 +14,9 @@ SENSORS = ["T1", "T2", "T3"]
 def _campaign(name, seed, n=90):
     rng = np.random.default_rng(seed)
     t = np.arange(n) * 180.0
-    rise = np.column_stack([
-        6 * (1 - np.exp(-t / 2500)), 3 * (1 - np.exp(-t / 7000)), 2 * (1 - np.exp(-t / 4000))
-    ])  # fmt: skip
+    rise = np.column_stack(
+        [6 * (1 - np.exp(-t / 2500)), 3 * (1 - np.exp(-t / 7000)), 2 * (1 - np.exp(-t / 4000))]
+    )
     rise = rise + rng.normal(0, 0.05, rise.shape)
     y = 2.0 * rise[:, 0] - 1.0 * rise[:, 1] + 0.5 * np.roll(rise[:, 2], 1) + rng.normal(0, 0.2, n)
     y[0] = 0.0
@@ -70,8 +70,7 @@ def test_same_seed_same_predictions(fitted):
     name, model = fitted
     again = clone(model).fit(*BOTH)
     np.testing.assert_allclose(_predict(again, *A), _predict(model, *A), rtol=1e-10, atol=1e-10)
-    np.testing.assert_allclose(_predict(again, A[0]), _predict(model, A[0]), rtol=1e-10,
-                               atol=1e-10)  # fmt: skip
+    np.testing.assert_allclose(_predict(again, A[0]), _predict(model, A[0]), rtol=1e-10, atol=1e-10)
 
 
 def test_no_leakage_across_campaigns_in_prediction(fitted):

@@ -143,13 +143,22 @@ def test_write_matrices_passes_seasons_split_and_fits(tmp_path, monkeypatch):
     monkeypatch.setattr(paths, "MATRIX_CSV", tmp_path / "matrix.csv")
     campaigns = [*TRAIN[:3], VALIDATION[0]]
     rows = [
-        {"axis": "Z", "model": "mlr", "selection": "all", "mode": "static", "scheme": "campaign",
-         "train_unit": unit, "test_campaign": test, "test_season": SEASON_OF[test],
-         "test_split": "validation" if test in VALIDATION else "train",
-         "role": "fit" if unit == test else "validation" if test in VALIDATION else "prediction",
-         "rmse_um": 1.0 + i, "resid_std_um": 0.5}
+        {
+            "axis": "Z",
+            "model": "mlr",
+            "selection": "all",
+            "mode": "static",
+            "scheme": "campaign",
+            "train_unit": unit,
+            "test_campaign": test,
+            "test_season": SEASON_OF[test],
+            "test_split": "validation" if test in VALIDATION else "train",
+            "role": "fit" if unit == test else "validation" if test in VALIDATION else "prediction",
+            "rmse_um": 1.0 + i,
+            "resid_std_um": 0.5,
+        }
         for i, (unit, test) in enumerate((u, t) for u in TRAIN[:3] for t in campaigns)
-    ]  # fmt: skip
+    ]
     drawn = {}
     real = plots.score_heatmap_figure
 
@@ -174,9 +183,16 @@ def passes_table():
     for minute in (0, 20, 50, 110, 190, 340, 390):
         for target in range(0, 290, 10):
             thermal = 0.07 * minute**0.5 * target / 10
-            rows.append({"elapsed_min": minute, "target_mm": target, "thermal_um": thermal,
-                         "measured_um": thermal + np.sin(target / 40), "geometric_um": 0.0,
-                         "thermal_fit_um": thermal})  # fmt: skip
+            rows.append(
+                {
+                    "elapsed_min": minute,
+                    "target_mm": target,
+                    "thermal_um": thermal,
+                    "measured_um": thermal + np.sin(target / 40),
+                    "geometric_um": 0.0,
+                    "thermal_fit_um": thermal,
+                }
+            )
     return pd.DataFrame(rows)
 
 
@@ -199,10 +215,18 @@ def test_selection_stability_labels_rotated_inputs_and_fits(tmp_path):
     rng = np.random.default_rng(1)
     chosen = rng.integers(0, 13, (len(methods), len(inputs)))
     stability = pd.DataFrame(
-        [{"method": m, "sensor": s, "times_chosen": int(chosen[i, j]), "n_campaigns": 12,
-          "frequency": chosen[i, j] / 12}
-         for i, m in enumerate(methods) for j, s in enumerate(inputs)]
-    )  # fmt: skip
+        [
+            {
+                "method": m,
+                "sensor": s,
+                "times_chosen": int(chosen[i, j]),
+                "n_campaigns": 12,
+                "frequency": chosen[i, j] / 12,
+            }
+            for i, m in enumerate(methods)
+            for j, s in enumerate(inputs)
+        ]
+    )
     title = (
         "Axis Z: how often each input is chosen, across the training campaigns (SYNTHETIC data "
         "from the physical twin)"
@@ -221,10 +245,16 @@ def test_selection_stability_labels_rotated_inputs_and_fits(tmp_path):
 def test_predicted_vs_measured_labels_and_fits(tmp_path, n_panels):
     minutes = np.arange(0, 330, 3.0)
     panels = {
-        c: pd.DataFrame({"elapsed_min": minutes, "measured_um": -np.sqrt(minutes),
-                         "first_um": -np.sqrt(minutes) + 1, "second_um": -np.sqrt(minutes) - 1})
+        c: pd.DataFrame(
+            {
+                "elapsed_min": minutes,
+                "measured_um": -np.sqrt(minutes),
+                "first_um": -np.sqrt(minutes) + 1,
+                "second_um": -np.sqrt(minutes) - 1,
+            }
+        )
         for c in VALIDATION[:n_panels]
-    }  # fmt: skip
+    }
     labels = ("best model: pls_dl/gra_top_k/static", "plain: ridge/all/static")
     title = (
         "Axis Z: validation campaigns, built on all training campaigns (SYNTHETIC data from "
@@ -245,10 +275,18 @@ def discrepancy_inputs(n=12):
     rpm = np.where(t_s < 270 * 60, 2000.0, 0.0)
     ids = TRAIN[:n]
     campaigns = [
-        MeasuredCampaign(cid, t_s, rpm, pd.DataFrame({"T1": 20.0 + t_s / 3600}), {"T1": "other"},
-                         -np.sqrt(t_s / 60) * (1 + k / 10), season=SEASON_OF[cid], split="train")
+        MeasuredCampaign(
+            cid,
+            t_s,
+            rpm,
+            pd.DataFrame({"T1": 20.0 + t_s / 3600}),
+            {"T1": "other"},
+            -np.sqrt(t_s / 60) * (1 + k / 10),
+            season=SEASON_OF[cid],
+            split="train",
+        )
         for k, cid in enumerate(ids)
-    ]  # fmt: skip
+    ]
     rng = np.random.default_rng(2)
     before = {c: rng.normal(0, 1 + k / 4, t_s.size) for k, c in enumerate(ids)}
     after = {c: 0.5 * r for c, r in before.items()}
@@ -276,10 +314,11 @@ def test_discrepancy_residuals_labels_seasons_and_fits(tmp_path, n_campaigns):
     campaigns, result = discrepancy_inputs(min(n_campaigns, 12))
     if n_campaigns > 12:  # more campaigns than the demo: the tick labels must still fit
         extra = [
-            MeasuredCampaign(f"X{k:02d}", c.t_s, c.rpm, c.temperatures, c.roles, c.z_um,
-                             season=c.season)
+            MeasuredCampaign(
+                f"X{k:02d}", c.t_s, c.rpm, c.temperatures, c.roles, c.z_um, season=c.season
+            )
             for k, c in enumerate(campaigns)
-        ]  # fmt: skip
+        ]
         campaigns = [*campaigns, *extra]
         for c in extra:
             result.baseline.heldout.z_residual_um[c.campaign_id] = np.ones(c.t_s.size)

@@ -30,18 +30,36 @@ def test_residual_std_matches_eq_8_and_ignores_nan():
 
 def _rows(train, values, scheme="campaign", mode="static"):
     return [
-        {"axis": "Z", "model": "mlr", "selection": "all", "mode": mode, "scheme": scheme,
-         "train_unit": train, "test_campaign": test, "test_split": split, "role": role,
-         "resid_std_um": v, "rmse_um": 2 * v, "uncompensated_rms_um": 10.0 * v}
+        {
+            "axis": "Z",
+            "model": "mlr",
+            "selection": "all",
+            "mode": mode,
+            "scheme": scheme,
+            "train_unit": train,
+            "test_campaign": test,
+            "test_split": split,
+            "role": role,
+            "resid_std_um": v,
+            "rmse_um": 2 * v,
+            "uncompensated_rms_um": 10.0 * v,
+        }
         for test, split, role, v in values
-    ]  # fmt: skip
+    ]
 
 
 def test_summary_uses_other_training_campaigns_for_mn_and_validation_separately():
     scores = pd.DataFrame(
-        _rows("K1", [("K1", "train", "fit", 1.0), ("K2", "train", "prediction", 3.0),
-                     ("K3", "train", "prediction", 5.0), ("V1", "validation", "validation", 8.0)])
-    )  # fmt: skip
+        _rows(
+            "K1",
+            [
+                ("K1", "train", "fit", 1.0),
+                ("K2", "train", "prediction", 3.0),
+                ("K3", "train", "prediction", 5.0),
+                ("V1", "validation", "validation", 8.0),
+            ],
+        )
+    )
     summary = summarise(scores)
     assert summary["S_um"] == 1.0
     assert summary["Mn_um"] == 4.0
@@ -60,13 +78,32 @@ def test_eta_is_one_minus_rms_over_the_uncompensated_rms():
 
 def _two_campaigns_and_a_season():
     return pd.DataFrame(
-        _rows("K1", [("K1", "train", "fit", 1.0), ("K2", "train", "prediction", 3.0),
-                     ("V1", "validation", "validation", 6.0)])
-        + _rows("K2", [("K1", "train", "prediction", 2.0), ("K2", "train", "fit", 0.5),
-                       ("V1", "validation", "validation", 4.0)])
-        + _rows("not_winter", [("K1", "train", "prediction", 7.0), ("K2", "train", "fit", 0.2),
-                               ("V1", "validation", "validation", 5.0)], scheme="loso")
-    )  # fmt: skip
+        _rows(
+            "K1",
+            [
+                ("K1", "train", "fit", 1.0),
+                ("K2", "train", "prediction", 3.0),
+                ("V1", "validation", "validation", 6.0),
+            ],
+        )
+        + _rows(
+            "K2",
+            [
+                ("K1", "train", "prediction", 2.0),
+                ("K2", "train", "fit", 0.5),
+                ("V1", "validation", "validation", 4.0),
+            ],
+        )
+        + _rows(
+            "not_winter",
+            [
+                ("K1", "train", "prediction", 7.0),
+                ("K2", "train", "fit", 0.2),
+                ("V1", "validation", "validation", 5.0),
+            ],
+            scheme="loso",
+        )
+    )
 
 
 def test_metrics_tree_and_matrix_layout():
@@ -102,9 +139,10 @@ def test_candidate_summary_has_one_row_per_candidate_with_scheme_prefixes():
 
 def test_group_scores_per_held_out_season_and_validation_season():
     scores = _two_campaigns_and_a_season().assign(
-        test_season=lambda t: t["test_campaign"].map({"K1": "winter", "K2": "summer",
-                                                      "V1": "spring"}),
-    )  # fmt: skip
+        test_season=lambda t: t["test_campaign"].map(
+            {"K1": "winter", "K2": "summer", "V1": "spring"}
+        ),
+    )
     groups = group_scores(scores).set_index("name")
     # the fit that left winter out, scored on winter's campaign K1: RMS 14 um of 70 um
     assert groups.loc["loso_winter_rms_um", "rms_um"] == pytest.approx(14.0)

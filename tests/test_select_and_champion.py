@@ -29,13 +29,24 @@ def _table(n=40):
     ]:
         t = np.arange(n) * 180.0
         heat = 1 - np.exp(-t / 3000)
-        rises = {f"rise_T{j}": g * heat + rng.normal(0, 0.05, n)
-                 for j, g in zip((1, 2, 10), (5.0, 2.0, 1.0), strict=True)}  # fmt: skip
-        frames.append(pd.DataFrame({
-            "axis": "Z", "campaign_id": campaign, "split": split, "season": season,
-            "elapsed_s": t, **rises, "speed_lag_30min": 4 * heat,
-            "thermal_error_um": 3 * rises["rise_T1"] + rng.normal(0, 0.1, n),
-        }))  # fmt: skip
+        rises = {
+            f"rise_T{j}": g * heat + rng.normal(0, 0.05, n)
+            for j, g in zip((1, 2, 10), (5.0, 2.0, 1.0), strict=True)
+        }
+        frames.append(
+            pd.DataFrame(
+                {
+                    "axis": "Z",
+                    "campaign_id": campaign,
+                    "split": split,
+                    "season": season,
+                    "elapsed_s": t,
+                    **rises,
+                    "speed_lag_30min": 4 * heat,
+                    "thermal_error_um": 3 * rises["rise_T1"] + rng.normal(0, 0.1, n),
+                }
+            )
+        )
     return pd.concat(frames, ignore_index=True)
 
 
@@ -44,10 +55,13 @@ def test_select_runs_every_method_on_every_unit_and_counts_stability():
     inputs = list(series[0].features.columns)
     assert inputs == ["T1", "T2", "T10", "speed_lag_30min"]
     units = training_units(series)
-    entries = method_entries({
-        "all": {"inputs": "temperatures"}, "all_speed": {"method": "all"},
-        "gra_top_k": {"k": 1},
-    })  # fmt: skip
+    entries = method_entries(
+        {
+            "all": {"inputs": "temperatures"},
+            "all_speed": {"method": "all"},
+            "gra_top_k": {"k": 1},
+        }
+    )
     selections = {"Z": select_axis(series, units, entries)}
     record = selected_record("temperature_rise", selections)
     assert set(record["axes"]["Z"]["gra_top_k"]) == {u.name for u in units}
@@ -65,15 +79,19 @@ def test_select_runs_every_method_on_every_unit_and_counts_stability():
 
 def _summary(best_model_rms=2.0):
     rms = np.array([0.5, 9.8, best_model_rms, best_model_rms + 0.1, 10.0, 0.1])
-    return pd.DataFrame({
-        "axis": "Z",
-        "model": ["arma", "arma", "mlr", "dl", "none", "twin"],
-        "selection": ["none", "none", "all", "all", "none", "roles"],
-        "mode": ["one_step", "free_run", "static", "static", "static", "static"],
-        "loco_Mn_rms_um": rms, "loco_eta": 1 - rms / 10.0, "loco_coverage": 1.0,
-        "Mn_rms_um": [0.5, 9.0, 2.0, 2.5, 10.0, 0.1],
-        "pooled_Mn_val_rms_um": [0.4, 8.0, 1.9, 1.7, 9.0, 0.1],
-    })  # fmt: skip
+    return pd.DataFrame(
+        {
+            "axis": "Z",
+            "model": ["arma", "arma", "mlr", "dl", "none", "twin"],
+            "selection": ["none", "none", "all", "all", "none", "roles"],
+            "mode": ["one_step", "free_run", "static", "static", "static", "static"],
+            "loco_Mn_rms_um": rms,
+            "loco_eta": 1 - rms / 10.0,
+            "loco_coverage": 1.0,
+            "Mn_rms_um": [0.5, 9.0, 2.0, 2.5, 10.0, 0.1],
+            "pooled_Mn_val_rms_um": [0.4, 8.0, 1.9, 1.7, 9.0, 0.1],
+        }
+    )
 
 
 def test_champion_is_chosen_on_the_held_out_protocol_never_on_one_step_or_the_twin():
@@ -105,8 +123,12 @@ def test_a_model_that_skips_held_out_campaigns_cannot_be_champion():
 
 def test_coverage_counts_the_held_out_samples_a_candidate_predicted():
     pair = {"axis": "Z", "scheme": "loco", "role": "prediction"}
-    none = pd.DataFrame([{**pair, "train_unit": f"not_K{i}", "test_campaign": f"K{i}",
-                          "n_samples": 100} for i in (1, 2, 3)])  # fmt: skip
+    none = pd.DataFrame(
+        [
+            {**pair, "train_unit": f"not_K{i}", "test_campaign": f"K{i}", "n_samples": 100}
+            for i in (1, 2, 3)
+        ]
+    )
     partial = none.iloc[:2].assign(n_samples=[100, 50])  # K3 not predicted, K2 half
     assert coverage(partial, none) == pytest.approx(150 / 300)
     assert coverage(none, none) == 1.0
@@ -133,13 +155,17 @@ def test_report_table_puts_candidates_never_chosen_last_and_the_champion_in_bold
 
 def test_model_inputs_are_rises_from_each_runs_first_row_and_speed_responses():
     speed = SpeedResponses((30.0,), (1.0,))
-    spec = InputSpec(("T2", "T1", "speed_lag_30min"), "temperature_rise", "first_sample", 1,
-                     speed)  # fmt: skip
-    table = pd.DataFrame({
-        "campaign_id": ["a", "a", "b", "b"], "elapsed_s": [0.0, 60.0, 0.0, 60.0],
-        "rpm": [3000.0, 3000.0, 0.0, 0.0], "T1": [20.0, 21.0, 18.0, 18.5],
-        "T2": [19.0, 19.5, 17.0, 19.0], "T9": 0.0,
-    })  # fmt: skip
+    spec = InputSpec(("T2", "T1", "speed_lag_30min"), "temperature_rise", "first_sample", 1, speed)
+    table = pd.DataFrame(
+        {
+            "campaign_id": ["a", "a", "b", "b"],
+            "elapsed_s": [0.0, 60.0, 0.0, 60.0],
+            "rpm": [3000.0, 3000.0, 0.0, 0.0],
+            "T1": [20.0, 21.0, 18.0, 18.5],
+            "T2": [19.0, 19.5, 17.0, 19.0],
+            "T9": 0.0,
+        }
+    )
     X = model_inputs(table, spec)
     assert list(X.columns) == ["T2", "T1", "speed_lag_30min"]
     lag = speed_responses(np.array([0.0, 60.0]), np.array([3000.0, 3000.0]), speed).iloc[1, 0]
@@ -184,8 +210,10 @@ def test_standing_ranks_the_eligible_and_says_why_the_others_are_not():
     decision = choose_champion(summary, "Z", "loco", 0.1)
     table = standing(summary, decision).set_index(["model", "mode"])
     assert table.loc[("mlr", "static"), ["eligible", "rank", "champion"]].tolist() == [
-        True, 1, True,
-    ]  # fmt: skip
+        True,
+        1,
+        True,
+    ]
     assert table.loc[("arma", "free_run"), "rank"] == 2
     assert table.loc[("none", "static"), "rank"] == 3 and table["champion"].sum() == 1
     reasons = table.loc[~table["eligible"], "ineligible_reason"]

@@ -19,20 +19,37 @@ def _logger_table(n=360, interval_s=10.0):
     t = np.arange(n) * interval_s
     rpm = np.where(t >= 600.0, 4000.0, 0.0)
     heat = np.clip(t - 600.0, 0.0, None) / 3600.0
-    return pd.DataFrame({
-        "campaign_id": "R1", "source_row": np.arange(1, n + 1), "elapsed_s": t, "rpm": rpm,
-        "T1": 20.0 + 3.0 * heat, "T2": 21.0 + 0.5 * heat, "disp_Z": -8.0 * heat,
-    })  # fmt: skip
+    return pd.DataFrame(
+        {
+            "campaign_id": "R1",
+            "source_row": np.arange(1, n + 1),
+            "elapsed_s": t,
+            "rpm": rpm,
+            "T1": 20.0 + 3.0 * heat,
+            "T2": 21.0 + 0.5 * heat,
+            "disp_Z": -8.0 * heat,
+        }
+    )
 
 
 def test_a_fast_table_is_served_in_the_training_windows():
     table = _logger_table()
-    campaigns = pd.DataFrame([{
-        "campaign_id": "R1", "machine": "m", "start": pd.Timestamp("2025-01-01T08:00"),
-        "split": "train", "season": "winter", "synthetic": True, "start_state": None,
-        "follows": None, "sensors_json": json.dumps({"T1": {}, "T2": {}}),
-        "displacement_json": json.dumps({"Z": {}}),
-    }])  # fmt: skip
+    campaigns = pd.DataFrame(
+        [
+            {
+                "campaign_id": "R1",
+                "machine": "m",
+                "start": pd.Timestamp("2025-01-01T08:00"),
+                "split": "train",
+                "season": "winter",
+                "synthetic": True,
+                "start_state": None,
+                "follows": None,
+                "sensors_json": json.dumps({"T1": {}, "T2": {}}),
+                "displacement_json": json.dumps({"Z": {}}),
+            }
+        ]
+    )
     settings = SeparationSettings(resample_s=60.0, speed=SPEED)
     separated, _ = spindle_thermal_error(campaigns, table, settings)
     inputs = ["T1", "speed_lag_30min"]

@@ -14,19 +14,30 @@ START = pd.Timestamp("2025-03-03T08:00:00")
 
 def _campaign(cid, start=START, axes=("Z",), follows=None, start_state=None):
     return {
-        "campaign_id": cid, "machine": "m1", "start": start, "split": "train",
-        "season": "spring", "synthetic": True, "start_state": start_state, "follows": follows,
+        "campaign_id": cid,
+        "machine": "m1",
+        "start": start,
+        "split": "train",
+        "season": "spring",
+        "synthetic": True,
+        "start_state": start_state,
+        "follows": follows,
         "sensors_json": json.dumps({"T1": {"role": "other"}}),
         "displacement_json": json.dumps({a: {"probe": "eddy_current"} for a in axes}),
-    }  # fmt: skip
+    }
 
 
 def _samples(cid, temperature, interval_s=180.0, rpm=4000.0, **displacement):
     n = len(temperature)
-    frame = pd.DataFrame({
-        "campaign_id": cid, "source_row": np.arange(1, n + 1),
-        "elapsed_s": interval_s * np.arange(n), "rpm": rpm, "T1": temperature,
-    })  # fmt: skip
+    frame = pd.DataFrame(
+        {
+            "campaign_id": cid,
+            "source_row": np.arange(1, n + 1),
+            "elapsed_s": interval_s * np.arange(n),
+            "rpm": rpm,
+            "T1": temperature,
+        }
+    )
     for axis, values in displacement.items():
         frame[f"disp_{axis}"] = values
     return frame
@@ -34,9 +45,17 @@ def _samples(cid, temperature, interval_s=180.0, rpm=4000.0, **displacement):
 
 def _separate(campaigns, samples, **settings):
     return spindle_thermal_error(
-        pd.DataFrame(campaigns), pd.concat(samples, ignore_index=True),
+        pd.DataFrame(campaigns),
+        pd.concat(samples, ignore_index=True),
         SeparationSettings(**settings),
-    )  # fmt: skip
+    )
+
+
+def _back_to_back(k01_samples, k02_samples, **settings):
+    """Separate K01 and a K02 that starts one interval after K01's fourth sample."""
+    k02_start = START + pd.Timedelta(seconds=4 * 180)
+    campaigns = [_campaign("K01"), _campaign("K02", start=k02_start)]
+    return _separate(campaigns, [k01_samples, k02_samples], **settings)
 
 
 def test_first_sample_reference():
@@ -51,9 +70,11 @@ def test_first_sample_reference():
 
 def test_mean_of_first_n_reference():
     table, _ = _separate(
-        [_campaign("K01")], [_samples("K01", [20.0, 20.0, 21.0, 23.0], Z=[10, 11, 12, 20])],
-        reference="mean_first_n", n=3,
-    )  # fmt: skip
+        [_campaign("K01")],
+        [_samples("K01", [20.0, 20.0, 21.0, 23.0], Z=[10, 11, 12, 20])],
+        reference="mean_first_n",
+        n=3,
+    )
     np.testing.assert_allclose(table["thermal_error_um"], [-1.0, 0.0, 1.0, 9.0])
     assert table["rise_T1"].iloc[-1] == pytest.approx(23.0 - 61.0 / 3)
 
@@ -68,7 +89,7 @@ def test_every_declared_axis_gets_its_rows_unless_the_params_list_fewer():
     second, record = _separate(
         [_campaign("K01", axes=("Z2", "Z"))],
         [_samples("K01", [20, 21, 22], Z=[5.0, 7.0, 9.0], Z2=[1.0, 1.5, 2.0])],
-    )  # fmt: skip
+    )
     assert record["axes"] == ["Z", "Z2"]
     np.testing.assert_allclose(second.query("axis == 'Z2'")["thermal_error_um"], [0, 0.5, 1])
     only_z, _ = _separate(campaigns, samples, axes=("Z",))
@@ -80,12 +101,10 @@ def test_every_declared_axis_gets_its_rows_unless_the_params_list_fewer():
 
 def test_back_to_back_campaigns_form_a_run_referenced_at_its_cold_start():
     """K02 starts one interval after K01 ends: warm, counted from K01's first sample."""
-    k02_start = START + pd.Timedelta(seconds=4 * 180)
-    table, record = _separate(
-        [_campaign("K01"), _campaign("K02", start=k02_start)],
-        [_samples("K01", [20.0, 21.0, 22.0, 23.0], Z=[0.0, 2.0, 4.0, 6.0]),
-         _samples("K02", [23.5, 23.0, 22.5], Z=[7.0, 6.0, 5.0])],
-    )  # fmt: skip
+    table, record = _back_to_back(
+        _samples("K01", [20.0, 21.0, 22.0, 23.0], Z=[0.0, 2.0, 4.0, 6.0]),
+        _samples("K02", [23.5, 23.0, 22.5], Z=[7.0, 6.0, 5.0]),
+    )
     k02 = table[table["campaign_id"] == "K02"]
     np.testing.assert_allclose(k02["thermal_error_um"], [7.0, 6.0, 5.0])
     np.testing.assert_allclose(k02["rise_T1"], [3.5, 3.0, 2.5])
@@ -97,12 +116,10 @@ def test_back_to_back_campaigns_form_a_run_referenced_at_its_cold_start():
 
 
 def test_a_re_zeroed_probe_is_stitched_across_a_contiguous_cut():
-    k02_start = START + pd.Timedelta(seconds=4 * 180)
-    table, record = _separate(
-        [_campaign("K01"), _campaign("K02", start=k02_start)],
-        [_samples("K01", [20.0, 21.0, 22.0, 23.0], Z=[0.0, 2.0, 4.0, 6.0]),
-         _samples("K02", [24.0, 25.0, 26.0], Z=[0.0, 2.0, 4.0])],
-    )  # fmt: skip
+    table, record = _back_to_back(
+        _samples("K01", [20.0, 21.0, 22.0, 23.0], Z=[0.0, 2.0, 4.0, 6.0]),
+        _samples("K02", [24.0, 25.0, 26.0], Z=[0.0, 2.0, 4.0]),
+    )
     np.testing.assert_allclose(
         table.query("campaign_id == 'K02'")["thermal_error_um"], [8.0, 10.0, 12.0]
     )
@@ -112,12 +129,10 @@ def test_a_re_zeroed_probe_is_stitched_across_a_contiguous_cut():
 
 def test_a_real_jump_at_the_cut_is_kept():
     """The spindle starts at the cut: Z shifts at once (centrifugal), the probe was not zeroed."""
-    k02_start = START + pd.Timedelta(seconds=4 * 180)
-    table, record = _separate(
-        [_campaign("K01"), _campaign("K02", start=k02_start)],
-        [_samples("K01", [20.0, 20.0, 20.0, 20.0], Z=[9.0, 9.0, 9.0, 9.0]),
-         _samples("K02", [20.1, 20.5, 21.0], Z=[4.0, 3.5, 3.0])],
-    )  # fmt: skip
+    table, record = _back_to_back(
+        _samples("K01", [20.0, 20.0, 20.0, 20.0], Z=[9.0, 9.0, 9.0, 9.0]),
+        _samples("K02", [20.1, 20.5, 21.0], Z=[4.0, 3.5, 3.0]),
+    )
     np.testing.assert_allclose(
         table.query("campaign_id == 'K02'")["thermal_error_um"], [-5.0, -5.5, -6.0]
     )
@@ -136,9 +151,11 @@ def test_no_run_across_a_long_gap_a_temperature_jump_or_a_declared_cold_start():
     for campaign, temperature in cases:
         table, record = _separate(
             [_campaign("K01"), campaign],
-            [_samples("K01", [20, 21, 22, 23], Z=[0, 1, 2, 3]),
-             _samples("K02", temperature, Z=[9.0, 10.0])],
-        )  # fmt: skip
+            [
+                _samples("K01", [20, 21, 22, 23], Z=[0, 1, 2, 3]),
+                _samples("K02", temperature, Z=[9.0, 10.0]),
+            ],
+        )
         assert set(table["run_id"]) == {"K01", "K02"}
         np.testing.assert_allclose(table.query("campaign_id == 'K02'")["thermal_error_um"], [0, 1])
 
@@ -146,11 +163,17 @@ def test_no_run_across_a_long_gap_a_temperature_jump_or_a_declared_cold_start():
 def test_declared_follows_links_across_any_gap_and_declared_warm_start_is_said():
     later = START + pd.Timedelta(days=1)
     table, record = _separate(
-        [_campaign("K01"), _campaign("K02", start=later, follows="K01"),
-         _campaign("K03", start=later + pd.Timedelta(days=1), start_state="warm")],
-        [_samples("K01", [20, 21, 22, 23], Z=[0, 1, 2, 3]),
-         _samples("K02", [22.0, 21.5], Z=[2.5, 2.0]), _samples("K03", [25.0, 24.0], Z=[4, 3])],
-    )  # fmt: skip
+        [
+            _campaign("K01"),
+            _campaign("K02", start=later, follows="K01"),
+            _campaign("K03", start=later + pd.Timedelta(days=1), start_state="warm"),
+        ],
+        [
+            _samples("K01", [20, 21, 22, 23], Z=[0, 1, 2, 3]),
+            _samples("K02", [22.0, 21.5], Z=[2.5, 2.0]),
+            _samples("K03", [25.0, 24.0], Z=[4, 3]),
+        ],
+    )
     assert record["runs"][0]["links"][0]["how"] == "declared"
     np.testing.assert_allclose(table.query("campaign_id == 'K02'")["thermal_error_um"], [2.5, 2])
     assert "declared warm start" in record["campaigns"]["K03"]["reference"]
@@ -158,14 +181,11 @@ def test_declared_follows_links_across_any_gap_and_declared_warm_start_is_said()
 
 
 def test_speed_responses_carry_across_the_cut_and_start_from_rest():
-    k02_start = START + pd.Timedelta(seconds=4 * 180)
-    speed = SpeedResponses((30.0,), (1.0,))
-    table, _ = _separate(
-        [_campaign("K01"), _campaign("K02", start=k02_start)],
-        [_samples("K01", [20, 21, 22, 23], Z=[0, 1, 2, 3], rpm=3000.0),
-         _samples("K02", [23, 23, 23], Z=[3, 3, 3], rpm=0.0)],
-        speed=speed,
-    )  # fmt: skip
+    table, _ = _back_to_back(
+        _samples("K01", [20, 21, 22, 23], Z=[0, 1, 2, 3], rpm=3000.0),
+        _samples("K02", [23, 23, 23], Z=[3, 3, 3], rpm=0.0),
+        speed=SpeedResponses((30.0,), (1.0,)),
+    )
     response = table["speed_lag_30min"].to_numpy()
     decay = np.exp(-180.0 / 1800.0)
     expected = [0.0]
@@ -203,7 +223,7 @@ def test_inputs_a_run_cannot_reference_at_its_cold_start_are_left_out_or_said():
         [_campaign("K01"), k02],
         [_samples("K01", [20, 21, 22, 23], Z=[0, 1, 2, 3]), samples.assign(T2=30.0)],
         speed=SpeedResponses((30.0,), (1.0,)),
-    )  # fmt: skip
+    )
     k02_rows = table.query("campaign_id == 'K02'")
     assert k02_rows["rise_T2"].isna().all() and k02_rows["rise_T1"].notna().all()
     assert table["speed_lag_30min"].isna().all()
@@ -233,7 +253,7 @@ def test_a_declared_follows_that_overlaps_its_predecessor_is_refused():
     table, record = _separate(
         [_campaign("K01"), overlapping],
         [_samples("K01", [20, 21, 22, 23], Z=[0, 1, 2, 3]), _samples("K02", [23, 23], Z=[3, 3])],
-    )  # fmt: skip
+    )
     assert set(table["run_id"]) == {"K01", "K02"}
     notes = " ".join(n for r in record["runs"] for n in r["notes"])
     assert "starts before it ends" in notes

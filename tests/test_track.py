@@ -221,7 +221,10 @@ def build_outputs() -> EvaluateOutputs:
     results = {
         axis: [
             fit_and_score(
-                Candidate(model, selection), unit, series, estimator,
+                Candidate(model, selection),
+                unit,
+                series,
+                estimator,
                 unit_sensors(selection, unit.name),
             )
             for model, selection, estimator in CANDIDATES
@@ -229,7 +232,7 @@ def build_outputs() -> EvaluateOutputs:
         ]
         for axis in AXES
         for series in [synthetic_series(axis)]
-    }  # fmt: skip
+    }
     assert {r.unit.name for r in results["Z"]} == set(UNITS)
     scores = pd.concat([r.scores for by in results.values() for r in by], ignore_index=True)
     scores = CrossSeasonScoresModel.validate(scores, lazy=True)
@@ -260,9 +263,10 @@ def build_outputs() -> EvaluateOutputs:
         decision = choose_champion(summary, axis, "loso", 0.1)
         assert decision.label == "mlr/pair/static" and decision.compensate
         (pooled,) = [
-            r for r in results[axis]
+            r
+            for r in results[axis]
             if r.unit.name == POOLED_UNIT and r.candidate == Candidate("mlr", "pair")
-        ]  # fmt: skip
+        ]
         cards[axis] = champion_card(decision, pooled, SPEC, SAMPLE_S)
         estimators[axis] = pooled.estimator
     return EvaluateOutputs(scores, fitted, selected, cards, estimators)
@@ -501,9 +505,16 @@ def test_child_metrics_are_the_headline_scores_and_the_rest_is_in_its_tables(
         assert run.data.metrics == pytest.approx(expected_child_metrics(workdir, key))
         assert len(run.data.metrics) <= records.MAX_CHILD_METRICS
     metrics = by_key[("Z", "mlr", "pair", "static")].data.metrics
-    assert {"S_um", "Mn_val_um", "loso_Mn_rms_um", "pooled_Mn_val_um", "loso_eta",
-            "loso_winter_rms_um", "loso_summer_eta",
-            "pooled_val_spring_rms_um"} <= set(metrics)  # fmt: skip
+    assert {
+        "S_um",
+        "Mn_val_um",
+        "loso_Mn_rms_um",
+        "pooled_Mn_val_um",
+        "loso_eta",
+        "loso_winter_rms_um",
+        "loso_summer_eta",
+        "pooled_val_spring_rms_um",
+    } <= set(metrics)
     assert "pooled_Mn_um" not in metrics  # no prediction role when built on all campaigns: null
     assert by_key[("Z", "none", "none", "static")].data.metrics["loso_eta"] == 0.0
     # every (training unit, test campaign) score of the CSV is in the child's table artifact
@@ -528,8 +539,13 @@ def test_child_metrics_are_the_headline_scores_and_the_rest_is_in_its_tables(
             if value is not None:
                 assert units.loc[unit, name] == pytest.approx(value)
     listed = {f.path for f in client.list_artifacts(run.info.run_id)}
-    assert {records.SCORES_TABLE, records.UNITS_TABLE, records.GROUPS_TABLE,
-            records.FITS_TABLE, records.HEATMAP} <= listed  # fmt: skip
+    assert {
+        records.SCORES_TABLE,
+        records.UNITS_TABLE,
+        records.GROUPS_TABLE,
+        records.FITS_TABLE,
+        records.HEATMAP,
+    } <= listed
 
 
 def test_child_tags_say_eligible_rank_champion_and_why_not(workdir, client):
@@ -567,8 +583,13 @@ def test_child_params_hold_the_registered_fit_and_the_fits_table_every_unit(
     for (axis, model, selection, mode), run in by_key.items():
         params = run.data.params
         fit = outputs.fitted[f"{axis}/{model}/{selection}/{POOLED_UNIT}"]
-        expected = {"axis": axis, "model": model, "selection": selection, "mode": mode,
-                    "inputs": ",".join(fit["inputs"]) or "-"}  # fmt: skip
+        expected = {
+            "axis": axis,
+            "model": model,
+            "selection": selection,
+            "mode": mode,
+            "inputs": ",".join(fit["inputs"]) or "-",
+        }
         for name, value in fit["chosen_params"].items():
             assert json.loads(params[f"chosen.{name}"]) == value
             expected[f"chosen.{name}"] = params[f"chosen.{name}"]
@@ -592,19 +613,27 @@ def test_child_params_hold_the_registered_fit_and_the_fits_table_every_unit(
 
 def test_parent_has_champion_scores_selected_sensors_tags_and_artifacts(workdir, client, outputs):
     (workdir / "dvc.lock").write_text(
-        yaml.safe_dump({
-            "schema": "2.0",
-            "stages": {
-                "ingest": {"cmd": "thermal ingest",
-                           "deps": [{"path": "data/raw", "hash": "md5", "md5": "abc.dir"}],
-                           "outs": [{"path": "data/ingested", "hash": "md5", "md5": "def.dir"}]},
-                "evaluate": {"cmd": "thermal evaluate",
-                             "outs": [{"path": "reports/cross_season_scores.csv", "md5": "123"}]},
-                "track": {"cmd": "thermal track",
-                          "outs": [{"path": "reports/mlflow_run.json", "md5": "456"}]},
-            },
-        })
-    )  # fmt: skip
+        yaml.safe_dump(
+            {
+                "schema": "2.0",
+                "stages": {
+                    "ingest": {
+                        "cmd": "thermal ingest",
+                        "deps": [{"path": "data/raw", "hash": "md5", "md5": "abc.dir"}],
+                        "outs": [{"path": "data/ingested", "hash": "md5", "md5": "def.dir"}],
+                    },
+                    "evaluate": {
+                        "cmd": "thermal evaluate",
+                        "outs": [{"path": "reports/cross_season_scores.csv", "md5": "123"}],
+                    },
+                    "track": {
+                        "cmd": "thermal track",
+                        "outs": [{"path": "reports/mlflow_run.json", "md5": "456"}],
+                    },
+                },
+            }
+        )
+    )
     track.main([])
     (parent,), children = split_runs(all_runs(client))
     info = record(workdir)
@@ -638,11 +667,19 @@ def test_parent_has_champion_scores_selected_sensors_tags_and_artifacts(workdir,
     assert params["evaluate.candidates.mlr"] == "pair"
     assert params["track.registered_model"] == REGISTERED
     listed = {f.path for f in client.list_artifacts(parent.info.run_id, "reports")}
-    assert {"reports/model_comparison.md", "reports/cross_season_matrix.csv",
-            "reports/cross_season_scores.csv", "reports/model_scores.csv",
-            "reports/fitted_models.json", "reports/validation.json", "reports/matrices",
-            "reports/comparison", "reports/selection", "reports/separation",
-            "reports/axis_model.json"} <= listed  # fmt: skip
+    assert {
+        "reports/model_comparison.md",
+        "reports/cross_season_matrix.csv",
+        "reports/cross_season_scores.csv",
+        "reports/model_scores.csv",
+        "reports/fitted_models.json",
+        "reports/validation.json",
+        "reports/matrices",
+        "reports/comparison",
+        "reports/selection",
+        "reports/separation",
+        "reports/axis_model.json",
+    } <= listed
     selection = {f.path for f in client.list_artifacts(parent.info.run_id, "reports/selection")}
     assert selection == {"reports/selection/selected.json", "reports/selection/pair_evidence.csv"}
     assert {f.path for f in client.list_artifacts(parent.info.run_id, "metrics")} == {
@@ -763,8 +800,9 @@ def test_second_run_on_unchanged_inputs_logs_and_registers_nothing(workdir, clie
 
 
 def _change_scores(root: Path, outputs: EvaluateOutputs) -> None:
-    write_scores(root, outputs.scores.assign(rmse_um=outputs.scores["rmse_um"] + 0.5),
-                 outputs.cards)  # fmt: skip
+    write_scores(
+        root, outputs.scores.assign(rmse_um=outputs.scores["rmse_um"] + 0.5), outputs.cards
+    )
 
 
 def _change_params(root: Path, outputs: EvaluateOutputs) -> None:
@@ -830,8 +868,13 @@ def test_identity_is_stable_and_sees_renamed_files(tmp_path, outputs):
 def test_git_commit_is_tagged_when_in_a_repository(workdir, client):
     git = shutil.which("git")  # DVC needs git too: the project requires it
     assert git is not None, "git is required (dvc repro runs in a git repository)"
-    env = {**os.environ, "GIT_AUTHOR_NAME": "t", "GIT_AUTHOR_EMAIL": "t@example.org",
-           "GIT_COMMITTER_NAME": "t", "GIT_COMMITTER_EMAIL": "t@example.org"}  # fmt: skip
+    env = {
+        **os.environ,
+        "GIT_AUTHOR_NAME": "t",
+        "GIT_AUTHOR_EMAIL": "t@example.org",
+        "GIT_COMMITTER_NAME": "t",
+        "GIT_COMMITTER_EMAIL": "t@example.org",
+    }
     for command in (["init", "-q"], ["add", "params.yaml"], ["commit", "-q", "-m", "x"]):
         subprocess.run([git, *command], cwd=workdir, env=env, check=True)
     head = subprocess.run([git, "rev-parse", "HEAD"], cwd=workdir, capture_output=True, text=True)
@@ -1089,10 +1132,16 @@ def test_incomplete_attempts_of_the_same_execution_are_deleted_live_and_others_k
     version = client.create_model_version("m", f"runs:/{child}/model", run_id=child)
 
     assert store.discard_incomplete(client, experiment_id, "same") == [failed]
-    stage = {r: client.get_run(r).info.lifecycle_stage for r in (failed, child, finished,
-                                                                   running, other)}  # fmt: skip
-    assert stage == {failed: "deleted", child: "deleted", finished: "active",
-                     running: "active", other: "active"}  # fmt: skip
+    stage = {
+        r: client.get_run(r).info.lifecycle_stage for r in (failed, child, finished, running, other)
+    }
+    assert stage == {
+        failed: "deleted",
+        child: "deleted",
+        finished: "active",
+        running: "active",
+        other: "active",
+    }
     assert version.version not in {v.version for v in client.search_model_versions("name = 'm'")}
     # a RUNNING parent counts as abandoned once it is older than stale_after_s
     assert store.discard_incomplete(client, experiment_id, "same", stale_after_s=0.0) == [running]

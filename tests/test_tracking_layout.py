@@ -26,10 +26,8 @@ def test_the_experiment_description_explains_every_score_name():
     scores = _two_campaigns_and_a_season()
     columns = [c for c in candidate_summary(scores).columns if c not in records.KEY_COLUMNS]
     assert {_statistic(c) for c in columns} <= set(guide.STATISTICS)
-    assert set(summarise(scores)) - {"eta", "eta_val"} <= {
-        f"{s}_um" for s in ("S", "Mn", "Sd", "Mn_val", "Sd_val", "S_rms", "Mn_rms", "Sd_rms",
-                            "Mn_val_rms", "Sd_val_rms")
-    }  # fmt: skip
+    statistics = "S Mn Sd Mn_val Sd_val S_rms Mn_rms Sd_rms Mn_val_rms Sd_val_rms".split()
+    assert set(summarise(scores)) - {"eta", "eta_val"} <= {f"{s}_um" for s in statistics}
     text = guide.experiment_description("thermal-error")
     for statistic in guide.STATISTICS:
         assert f"`{statistic}`" in text
@@ -39,27 +37,49 @@ def test_the_experiment_description_explains_every_score_name():
         assert f"`{mode}`" in text
     for pattern in guide.GROUPS:  # the per-group names follow the documented patterns
         assert f"`{pattern}`" in text
-    names = [group_score_name("loso", "train", "winter", "rms_um"),
-             group_score_name("loco", "train", "K07", "rms_um"),
-             group_score_name("pooled", "validation", "winter", "rms_um")]  # fmt: skip
-    patterns = [re.escape(p).replace(re.escape("<season>"), "[a-z]+").replace(
-        re.escape("<campaign>"), "K[0-9]+") for p in guide.GROUPS]  # fmt: skip
+    names = [
+        group_score_name("loso", "train", "winter", "rms_um"),
+        group_score_name("loco", "train", "K07", "rms_um"),
+        group_score_name("pooled", "validation", "winter", "rms_um"),
+    ]
+    patterns = [
+        re.escape(p)
+        .replace(re.escape("<season>"), "[a-z]+")
+        .replace(re.escape("<campaign>"), "K[0-9]+")
+        for p in guide.GROUPS
+    ]
     assert all(any(re.fullmatch(p, name) for p in patterns) for name in names)
 
 
 def _inputs(n_groups: int) -> records.ChildInputs:
     key = ("Z", "mlr", "all", "static")
     groups = [
-        {"scheme": "loco", "split": "train", "held_out": f"K{i:03d}", "n_campaigns": 1,
-         "rms_um": 1.0 + i, "uncompensated_rms_um": 50.0, "eta": 1 - (1.0 + i) / 50.0,
-         "name": group_score_name("loco", "train", f"K{i:03d}", "rms_um")}
+        {
+            "scheme": "loco",
+            "split": "train",
+            "held_out": f"K{i:03d}",
+            "n_campaigns": 1,
+            "rms_um": 1.0 + i,
+            "uncompensated_rms_um": 50.0,
+            "eta": 1 - (1.0 + i) / 50.0,
+            "name": group_score_name("loco", "train", f"K{i:03d}", "rms_um"),
+        }
         for i in range(n_groups)
-    ]  # fmt: skip
+    ]
     summary = {"loco_Mn_rms_um": 3.0, "loco_eta": 0.9, "S_um": 0.2}
     standing = records.Standing(True, "", 1, True)
     return records.ChildInputs(
-        scores={key: [{"train_unit": "not_K000", "test_campaign": "K000", "rmse_um": 1.0,
-                       "resid_std_um": 0.5, "eta": 0.98}]},
+        scores={
+            key: [
+                {
+                    "train_unit": "not_K000",
+                    "test_campaign": "K000",
+                    "rmse_um": 1.0,
+                    "resid_std_um": 0.5,
+                    "eta": 0.98,
+                }
+            ]
+        },
         summaries={key: (summary, standing)},
         groups={key: groups},
         units={key: []},
@@ -67,7 +87,7 @@ def _inputs(n_groups: int) -> records.ChildInputs:
         ranked_by={"Z": "loco_Mn_rms_um"},
         heatmaps={},
         champions=frozenset({key}),
-    )  # fmt: skip
+    )
 
 
 def test_a_child_carries_at_most_100_metrics_and_the_rest_in_its_tables(caplog):
@@ -92,8 +112,12 @@ def test_group_scores_read_back_from_csv_give_the_same_child_metrics(tmp_path):
     rows.assign(model="mlr", selection="all", mode="static").to_csv(path, index=False)
     read = pd.read_csv(path, keep_default_na=False).to_dict("records")
     metrics = records.group_metrics(records.groups_by_child(read)[("Z", "mlr", "all", "static")])
-    assert metrics == {"loco_K000_rms_um": 1.0, "loco_K000_eta": 0.98,
-                       "loco_K001_rms_um": 2.0, "loco_K001_eta": 0.96}  # fmt: skip
+    assert metrics == {
+        "loco_K000_rms_um": 1.0,
+        "loco_K000_eta": 0.98,
+        "loco_K001_rms_um": 2.0,
+        "loco_K001_eta": 0.96,
+    }
 
 
 def test_the_shared_views_list_an_axis_children_ranked_with_their_scores_as_columns():
@@ -107,9 +131,14 @@ def test_the_shared_views_list_an_axis_children_ranked_with_their_scores_as_colu
     )
     assert (ranked["orderByKey"], ranked["orderByAsc"]) == ("metrics.`loco_Mn_rms_um`", True)
     assert ranked["selectedColumns"] == [
-        "tags.`rank`", "tags.`champion`", "metrics.`loco_Mn_rms_um`", "metrics.`loco_eta`",
-        "metrics.`loco_K000_rms_um`", "metrics.`loco_K001_rms_um`", "metrics.`loco_K002_rms_um`",
-    ]  # fmt: skip
+        "tags.`rank`",
+        "tags.`champion`",
+        "metrics.`loco_Mn_rms_um`",
+        "metrics.`loco_eta`",
+        "metrics.`loco_K000_rms_um`",
+        "metrics.`loco_K001_rms_um`",
+        "metrics.`loco_K002_rms_um`",
+    ]
     assert "eligible" not in json.loads(shared["all-Z"])["searchFilter"]
     assert views.view_path("4", "ranked-Z") == (
         "/#/experiments/4/runs?workflowType=machine_learning&viewStateShareKey=ranked-Z"

@@ -29,8 +29,12 @@ pytestmark = pytest.mark.slow
 
 ROOT = Path(__file__).resolve().parents[1]
 BIN = Path(sys.executable).parent
-OUTPUTS = ("reports/cross_season_scores.csv", "metrics/cross_season.json",
-           "reports/model_comparison.md", "data/models/champion")  # fmt: skip
+OUTPUTS = (
+    "reports/cross_season_scores.csv",
+    "metrics/cross_season.json",
+    "reports/model_comparison.md",
+    "data/models/champion",
+)
 
 
 def _small_repository(tmp_path: Path) -> Path:
@@ -49,8 +53,11 @@ def _small_repository(tmp_path: Path) -> Path:
 
 
 def _run(command: list[str], work: Path, uri: str) -> subprocess.CompletedProcess:
-    env = {**os.environ, "PATH": f"{BIN}{os.pathsep}{os.environ['PATH']}",
-           "MLFLOW_TRACKING_URI": uri}  # fmt: skip
+    env = {
+        **os.environ,
+        "PATH": f"{BIN}{os.pathsep}{os.environ['PATH']}",
+        "MLFLOW_TRACKING_URI": uri,
+    }
     return subprocess.run(command, cwd=work, env=env, capture_output=True, text=True)
 
 
@@ -117,8 +124,10 @@ def test_stopped_server_keeps_the_outputs_and_a_later_track_logs_them_once(tmp_p
 
 def _identity(work: Path, uri: str) -> str:
     """The run identity ``thermal track`` computes for the outputs in ``work``."""
-    code = ("import json, pathlib, pipeline.tracking.pipeline_run as t; "
-            "print(t.prepare(pathlib.Path('params.yaml')).identity.value)")  # fmt: skip
+    code = (
+        "import json, pathlib, pipeline.tracking.pipeline_run as t; "
+        "print(t.prepare(pathlib.Path('params.yaml')).identity.value)"
+    )
     done = _run([sys.executable, "-c", code], work, uri)
     assert done.returncode == 0, done.stderr
     return done.stdout.strip().splitlines()[-1]

@@ -245,8 +245,12 @@ def test_sensor_lag_delays_readings_only(baseline):
         lag_s = (baseline[sensor.name] - on[sensor.name]).to_numpy()
         assert lag_s[k] == pytest.approx(sensor.tau_s * slope[k], rel=0.2), sensor.name
     # converges at steady state
-    long = run(effects={"sensor_lag"}, program=4000.0, ambient=AmbientProfile(20.0),
-               times=np.array([0.0, 3.0e6]))  # fmt: skip
+    long = run(
+        effects={"sensor_lag"},
+        program=4000.0,
+        ambient=AmbientProfile(20.0),
+        times=np.array([0.0, 3.0e6]),
+    )
     node_of = {s.name: f"node_{s.node}" for s in PARAMS.sensors if s.node != "ambient"}
     for sensor, node in node_of.items():
         assert long[sensor].iloc[-1] == pytest.approx(long[node].iloc[-1], abs=1e-6)
@@ -434,8 +438,11 @@ def test_demo_states_vary_within_physical_limits(demo):
     warm = [s.warm_start for s in states]
     assert 0 < sum(warm) < len(warm)
     summer = [c.state.convection_gain for c in demo.values() if c.info.season == "summer"]
-    winter = [c.state.convection_gain for c in demo.values()
-              if c.info.season == "winter" and isinstance(c, SpindleCampaign)]  # fmt: skip
+    winter = [
+        c.state.convection_gain
+        for c in demo.values()
+        if c.info.season == "winter" and isinstance(c, SpindleCampaign)
+    ]
     assert min(summer) > max(winter)
 
 

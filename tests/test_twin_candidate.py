@@ -114,9 +114,15 @@ def hidden(tmp_path_factory):
     start = datetime(2024, 1, 10, 8, 30)
     for i, (cid, split, season, steps) in enumerate(CAMPAIGNS):
         plan = SteppedPlan(
-            cid, start + timedelta(days=30 * i), rpm=0.0, split=split, season=season,
-            run_min=180.0, cooldown_min=30.0, steps=steps,
-        )  # fmt: skip
+            cid,
+            start + timedelta(days=30 * i),
+            rpm=0.0,
+            split=split,
+            season=season,
+            run_min=180.0,
+            cooldown_min=30.0,
+            steps=steps,
+        )
         campaign = simulate_spindle_campaign(
             plan, seed=5, params=params, effects=HIDDEN, preset="twin candidate test"
         )
@@ -135,8 +141,7 @@ def baseline_scores(hidden):
     _, _, series = hidden
     units = training_units(series)
     selected = {"all": {u.name: {"inputs": sensor_columns_of(series)} for u in units}}
-    params = {"candidates": {"none": "none", "mlr": "all", TWIN_MODEL: TWIN_SELECTION},
-              "n_jobs": 1}  # fmt: skip
+    params = {"candidates": {"none": "none", "mlr": "all", TWIN_MODEL: TWIN_SELECTION}, "n_jobs": 1}
     item = evaluate_axis("Z", series, selected, params, _twin_setup(hidden, frozenset()))
     return item.scores, item.results
 
@@ -235,13 +240,15 @@ def test_a_units_calibration_uses_only_its_campaigns_and_no_test_campaign_z(hidd
     changed = replace(setup, campaigns={**setup.campaigns, **others})
     moved = [s if s.campaign_id == "H01" else replace(s, target=s.target + 50.0) for s in series]
     second = fit_and_score_twin(unit, moved, changed)
-    np.testing.assert_array_equal(first.estimator.calibration.theta,
-                                  second.estimator.calibration.theta)  # fmt: skip
+    np.testing.assert_array_equal(
+        first.estimator.calibration.theta, second.estimator.calibration.theta
+    )
     own = [r.scores.query("test_campaign == 'H01'") for r in (first, second)]
     pd.testing.assert_frame_equal(own[0].reset_index(drop=True), own[1].reset_index(drop=True))
     # a campaign's prediction does not read its own Z: only the Z changes, the prediction stays
-    z_only = {cid: replace(c, z_um=c.z_um + 7.0) for cid, c in setup.campaigns.items()
-              if cid != "H01"}  # fmt: skip
+    z_only = {
+        cid: replace(c, z_um=c.z_um + 7.0) for cid, c in setup.campaigns.items() if cid != "H01"
+    }
     z_changed = replace(setup, campaigns={**setup.campaigns, **z_only})
     third = fit_and_score_twin(unit, series, z_changed)
     for key, predicted in first.predictions.items():

@@ -37,9 +37,17 @@ SENSORS = [f"T{k}" for k in range(1, 17)]
 AXES = ["X", "Y", "Z"]
 INTERVAL_S = 20.0
 KEYS = {
-    "campaign_id", "kind", "machine", "start", "season", "synthetic", "notes",
-    "spindle_program", "sensors", "displacement",
-}  # fmt: skip
+    "campaign_id",
+    "kind",
+    "machine",
+    "start",
+    "season",
+    "synthetic",
+    "notes",
+    "spindle_program",
+    "sensors",
+    "displacement",
+}
 PROBE_NOISE_UM = EddyCurrentProbe().noise_sd_um
 
 
@@ -354,8 +362,14 @@ def test_logger_table_holds_the_campaigns_readings_on_one_time_base(tmp_path, ra
     path = tmp_path / "logger.csv"
     assert cli.main(["--preset", "workshop", "--logger-table", str(path), "--hours", "16"]) == 0
     table = pd.read_csv(path, parse_dates=["timestamp"])
-    assert list(table.columns) == ["timestamp", "rpm", "ch1", "ch2", "ch3",
-                                   *[f"t{i}" for i in range(1, 17)]]  # fmt: skip
+    assert list(table.columns) == [
+        "timestamp",
+        "rpm",
+        "ch1",
+        "ch2",
+        "ch3",
+        *[f"t{i}" for i in range(1, 17)],
+    ]
     assert len(table) == 16 * 3600 // 20
     assert (table["timestamp"].diff().dropna() == pd.Timedelta(seconds=20)).all()
     second = yaml.safe_load((raw / "W02" / "campaign.yaml").read_text())

@@ -39,9 +39,14 @@ THERMAL = (
     [str(BIN / "thermal")] if (BIN / "thermal").exists() else [sys.executable, "-m", "pipeline"]
 )
 PARENT = "p" * 32
-SCREENSHOTS = ("01_experiment.png", "02_runs_ranked_Z.png", "03_compare_Z.png",
-               "04_champion_model_Z.png", "05_ranking_metric_Z.png",
-               "06_champion_heatmap_Z.png")  # fmt: skip
+SCREENSHOTS = (
+    "01_experiment.png",
+    "02_runs_ranked_Z.png",
+    "03_compare_Z.png",
+    "04_champion_model_Z.png",
+    "05_ranking_metric_Z.png",
+    "06_champion_heatmap_Z.png",
+)
 
 
 # --- reading a rendered page ------------------------------------------------------------------
@@ -133,8 +138,13 @@ def _child(name, rank, metric, *, eligible=True, champion=False, layout=True):
 
 def _view(children, *, layout=True, version_run=None):
     champion = next(c for c in children if c.tags.get("champion") == "true")
-    version = Version("thermal-error-spindle-Z", "3", "Axis Z: pls_dl", ("champion",),
-                      version_run or champion.run_id)  # fmt: skip
+    version = Version(
+        "thermal-error-spindle-Z",
+        "3",
+        "Axis Z: pls_dl",
+        ("champion",),
+        version_run or champion.run_id,
+    )
     return StoreView(
         "2",
         "thermal-error",
@@ -148,9 +158,18 @@ def _view(children, *, layout=True, version_run=None):
     )
 
 
-RECORD = {"experiment": "thermal-error", "experiment_id": "2", "parent_run_id": PARENT,
-          "champions": {"Z": {"registered_model": "thermal-error-spindle-Z", "version": "3",
-                              "model": "pls_dl/gra_top_k/static"}}}  # fmt: skip
+RECORD = {
+    "experiment": "thermal-error",
+    "experiment_id": "2",
+    "parent_run_id": PARENT,
+    "champions": {
+        "Z": {
+            "registered_model": "thermal-error-spindle-Z",
+            "version": "3",
+            "model": "pls_dl/gra_top_k/static",
+        }
+    },
+}
 
 
 def test_plan_of_the_complete_layout_ranks_the_eligible_runs():
@@ -164,8 +183,10 @@ def test_plan_of_the_complete_layout_ranks_the_eligible_runs():
     assert problems == []
     (axis,) = plan.axes
     assert [c.name for c in axis.ranked] == [
-        "Z/pls_dl/gra_top_k/static", "Z/ridge_dl/gra_top_k/static", "Z/none/none/static"
-    ]  # fmt: skip
+        "Z/pls_dl/gra_top_k/static",
+        "Z/ridge_dl/gra_top_k/static",
+        "Z/none/none/static",
+    ]
     assert axis.champion.name == "Z/pls_dl/gra_top_k/static"
     assert axis.metric == "loso_Mn_rms_um"
     assert axis.search_filter.endswith("and tags.axis = 'Z' and tags.eligible = 'true'")
@@ -245,8 +266,14 @@ def test_metric_values_must_follow_the_run_names():
 
 
 def test_compare_must_show_one_loaded_heat_map_per_run():
-    page = Page("compare Z", "http://h/#/compare-runs", "03.png", image="cross_season_rms.png",
-                image_count=3, select="cross_season_rms.png")  # fmt: skip
+    page = Page(
+        "compare Z",
+        "http://h/#/compare-runs",
+        "03.png",
+        image="cross_season_rms.png",
+        image_count=3,
+        select="cross_season_rms.png",
+    )
     images = (
         "".join(f'<img alt="cross_season_rms.png" src="blob:http://h/{i}">' for i in range(3))
         + '<img alt="" src="blob:http://h/0">'
@@ -288,8 +315,9 @@ def test_credentials_are_not_printed():
 def test_without_chromium_the_command_exits_2_with_what_to_do(tmp_path):
     env = {k: v for k, v in os.environ.items() if k != "CHROMIUM"}
     env["PATH"] = str(BIN)  # the venv only: no chromium there
-    done = subprocess.run([*THERMAL, "ui-check"], cwd=tmp_path, env=env, capture_output=True,
-                          text=True)  # fmt: skip
+    done = subprocess.run(
+        [*THERMAL, "ui-check"], cwd=tmp_path, env=env, capture_output=True, text=True
+    )
     assert done.returncode == 2, done.stderr
     assert done.stderr.strip() == f"thermal ui-check: error: {NO_CHROMIUM}"
 
@@ -328,8 +356,14 @@ def _ui_check(work: Path, store, base: str) -> subprocess.CompletedProcess:
 
     write_record(work, store.record)
     env = {**os.environ, "MLFLOW_TRACKING_URI": store.tracking_uri}
-    return subprocess.run([*THERMAL, "ui-check", "--ui-url", base], cwd=work, env=env,
-                          capture_output=True, text=True, timeout=600)  # fmt: skip
+    return subprocess.run(
+        [*THERMAL, "ui-check", "--ui-url", base],
+        cwd=work,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
 
 
 @pytest.mark.slow

@@ -373,8 +373,7 @@ def test_other_probe_names_are_accepted_and_bad_ones_reported():
     bad = {"Z": {"probe": "eddy_current"}, "Z-2": {"probe": "eddy_current"}}
     tables = set_campaign(make_tables(), "K01", "displacement_json", json.dumps(bad))
     problem = only(run(tables), "displacement_axis_known")
-    assert_located(problem, "K01", "campaign.yaml", None, "displacement",
-                   "displacement_axis_known")  # fmt: skip
+    assert_located(problem, "K01", "campaign.yaml", None, "displacement", "displacement_axis_known")
 
 
 def test_undeclared_displacement_data():

@@ -55,10 +55,16 @@ def workshop(tmp_path_factory):
     params["select"]["methods"] = {m: params["select"]["methods"][m] for m in METHODS}
     (work / "params.yaml").write_text(yaml.safe_dump(params, sort_keys=False))
     with running_mlflow_server(tmp / "server") as uri:
-        env = {**os.environ, "PATH": f"{BIN}{os.pathsep}{os.environ['PATH']}",
-               "MLFLOW_TRACKING_URI": uri}  # fmt: skip
-        _run([str(BIN / "thermal"), "simulate", "--preset", "workshop", "--out", "data/raw"],
-             work, env)  # fmt: skip
+        env = {
+            **os.environ,
+            "PATH": f"{BIN}{os.pathsep}{os.environ['PATH']}",
+            "MLFLOW_TRACKING_URI": uri,
+        }
+        _run(
+            [str(BIN / "thermal"), "simulate", "--preset", "workshop", "--out", "data/raw"],
+            work,
+            env,
+        )
         output = _run([str(BIN / "dvc"), "repro"], work, env)
         client = MlflowClient(tracking_uri=uri)
         experiment = client.get_experiment_by_name(params["track"]["experiment"])

@@ -177,9 +177,10 @@ def build_ui_store(
     key = views.view_key("ranked", "Z")
     state = {  # as pipeline.tracking.views writes it for the pipeline
         "searchFilter": f"tags.`mlflow.parentRunId` = '{parent_id}' and tags.eligible = 'true'",
-        "orderByKey": views.column("metrics", RANKING_METRIC), "orderByAsc": True,
+        "orderByKey": views.column("metrics", RANKING_METRIC),
+        "orderByAsc": True,
         "selectedColumns": [views.column("tags", "rank"), views.column("metrics", RANKING_METRIC)],
-    }  # fmt: skip
+    }
     client.set_experiment_tag(experiment_id, f"{views.SHARED_VIEW_TAG}{key}", json.dumps(state))
     version = _register_zero_model(client, uri, champion_id, registered_model)
     record = {

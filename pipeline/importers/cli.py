@@ -21,5 +21,6 @@ SOURCES = {
 
 def main(argv: list[str] | None = None) -> int:
     """Dispatch ``argv[0]`` to its importer; return the process exit code."""
-    return dispatch("thermal import", SOURCES, list(sys.argv[1:] if argv is None else argv),
-                    "source")  # fmt: skip
+    return dispatch(
+        "thermal import", SOURCES, list(sys.argv[1:] if argv is None else argv), "source"
+    )

@@ -179,11 +179,8 @@ def segments(elapsed_s: np.ndarray, rpm: np.ndarray, rule: CutRule) -> list[Segm
 
     Parameters
     ----------
-    elapsed_s : ndarray of shape (n,), s
-        Time of every sample, strictly increasing.
-    rpm : ndarray of shape (n,), rpm
-        Spindle speed of every sample.
-    rule : CutRule
+    elapsed_s, rpm, rule
+        Sample times (s), spindle speeds (rpm) and the rule, as for :func:`cut_indices`.
 
     Returns
     -------

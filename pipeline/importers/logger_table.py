@@ -85,6 +85,12 @@ class _Locator:
         )
         return TableError(f"{self.path}, column '{column}', {where}{more}: {problem}; {action}")
 
+    def require(self, column: str, values: np.ndarray, what: str, action: str) -> None:
+        """Raise :meth:`fail` "the ``what`` is missing" at the rows where ``values`` is NaN."""
+        missing = np.flatnonzero(np.isnan(values))
+        if missing.size:
+            raise self.fail(column, missing, f"the {what} is missing", action)
+
 
 def read_logger_table(path: Path, mapping: LoggerMapping) -> LoggerRecord:
     """Read the table and convert it with the mapping.
@@ -121,14 +127,8 @@ def read_logger_table(path: Path, mapping: LoggerMapping) -> LoggerRecord:
     start, elapsed_s = _times(text, mapping, where)
     options = mapping.table
     rpm = _numbers(text[mapping.speed_column], where, options.decimal, options.missing_values)
-    missing = np.flatnonzero(np.isnan(rpm))
-    if missing.size:
-        raise where.fail(
-            mapping.speed_column,
-            missing,
-            "the spindle speed is missing",
-            "fill in the speed (rpm): the record is cut by it",
-        )
+    cut_by_it = "fill in the speed (rpm): the record is cut by it"
+    where.require(mapping.speed_column, rpm, "spindle speed", cut_by_it)
     temperatures = pd.DataFrame(
         {
             s.sensor: _degc(
@@ -295,14 +295,7 @@ def _times(
         start, elapsed_s = _timestamps(text, mapping, where)
     else:
         values = _numbers(text[spec.column], where, mapping.table.decimal, ())
-        missing = np.flatnonzero(np.isnan(values))
-        if missing.size:
-            raise where.fail(
-                spec.column,
-                missing,
-                "the time is missing",
-                "fill in every sample's time, or delete the row",
-            )
+        where.require(spec.column, values, "time", "fill in every sample's time, or delete the row")
         seconds = values * TIME_UNITS[spec.unit]
         start = spec.start + pd.Timedelta(seconds=float(seconds[0]))
         elapsed_s = seconds - seconds[0]

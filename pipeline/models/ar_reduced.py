@@ -40,11 +40,10 @@ from collections.abc import Sequence
 import numpy as np
 import pandas as pd
 from scipy.signal import find_peaks
-from sklearn.base import BaseEstimator, RegressorMixin
-from sklearn.utils.validation import check_is_fitted
 
-from pipeline.models.feedback import ErrorFeedbackMixin, check_history, linear_feedback_predict
-from pipeline.models.series import check_features, check_xy, history, segments
+from pipeline.models.base import FeedbackModel
+from pipeline.models.feedback import linear_feedback_predict
+from pipeline.models.series import history, segments
 
 logger = logging.getLogger(__name__)
 
@@ -54,7 +53,7 @@ FREQUENCY_GRID = np.linspace(0.0, 0.5, 1001)
 PEAK_PROMINENCE_DB = 6.0
 
 
-class ReducedOrderAR(ErrorFeedbackMixin, RegressorMixin, BaseEstimator):
+class ReducedOrderAR(FeedbackModel):
     """AR model of the thermal error reduced from a high order at the knee of the AIC curve.
 
     Uses no temperatures: X's columns are ignored, its index gives the campaigns.
@@ -86,7 +85,7 @@ class ReducedOrderAR(ErrorFeedbackMixin, RegressorMixin, BaseEstimator):
         dominant_frequencies and kept_frequencies (comma-separated, cycles per sample).
     """
 
-    needs_error_feedback = True
+    min_columns = 0
 
     def __init__(
         self,
@@ -98,29 +97,19 @@ class ReducedOrderAR(ErrorFeedbackMixin, RegressorMixin, BaseEstimator):
         self.energy_threshold = energy_threshold
         self.frequency_tolerance = frequency_tolerance
 
-    def fit(self, X: pd.DataFrame, y: np.ndarray) -> ReducedOrderAR:
+    def _check_params(self) -> None:
+        """Raise ValueError unless ``initial_order`` >= 1."""
+        if int(self.initial_order) < 1:
+            raise ValueError(f"initial_order must be >= 1, got {self.initial_order}")
+
+    def _fit(self, X: pd.DataFrame, target: np.ndarray) -> None:
         """Fit AR(1..p_max), find the knee of AIC, check the frequencies, keep that order.
-
-        Parameters
-        ----------
-        X : pandas.DataFrame of shape (n, m)
-            Feature table; only its index (campaigns) is used.
-        y : array-like of shape (n,)
-            Thermal error (um), 0 at each campaign's cold start.
-
-        Returns
-        -------
-        ReducedOrderAR
-            self, fitted.
 
         Raises
         ------
         ValueError
-            If ``initial_order`` < 1 or the data are too short for an AR(1) model.
+            If the data are too short for an AR(1) model.
         """
-        if int(self.initial_order) < 1:
-            raise ValueError(f"initial_order must be >= 1, got {self.initial_order}")
-        X, target = check_xy(X, y, min_columns=0)
         segs = segments(X)
         max_order = feasible_order(int(self.initial_order), segs)
         fits = ar_least_squares(target, segs, max_order)
@@ -154,26 +143,9 @@ class ReducedOrderAR(ErrorFeedbackMixin, RegressorMixin, BaseEstimator):
             _join(kept),
             _join(dominant),
         )
-        return self
 
-    def predict(self, X: pd.DataFrame, y_history: np.ndarray | None = None) -> np.ndarray:
-        """Predict the thermal error one-step-ahead (``y_history``) or in free run (None).
-
-        Parameters
-        ----------
-        X : pandas.DataFrame of shape (n, m)
-            Feature table; only its index (campaigns) is used.
-        y_history : array-like of shape (n,), um, optional
-            Measured error aligned with X's rows; None: free run from pre-sample error 0.
-
-        Returns
-        -------
-        numpy.ndarray of shape (n,)
-            Predicted thermal error (um).
-        """
-        check_is_fitted(self, "chosen_params_")
-        X = check_features(X, min_columns=0)
-        measured = check_history(y_history, len(X))
+    def _predict(self, X: pd.DataFrame, measured: np.ndarray | None) -> np.ndarray:
+        """Predict c plus the AR terms on the measured (free run: predicted) error, um."""
         base = np.full(len(X), self.intercept_)
         return linear_feedback_predict(base, self.ar_, segments(X), measured)
 
@@ -307,10 +279,8 @@ def spectral_peaks(ar: np.ndarray, sigma2: float) -> pd.DataFrame:
 
     Parameters
     ----------
-    ar : numpy.ndarray of shape (p,)
-        AR coefficients.
-    sigma2 : float
-        Innovation variance (um^2).
+    ar, sigma2 : numpy.ndarray of shape (p,), float
+        AR coefficients and innovation variance (um^2) of :func:`ar_spectrum`.
 
     Returns
     -------

@@ -33,18 +33,16 @@ import logging
 import numpy as np
 import pandas as pd
 import statsmodels.api as sm
-from sklearn.base import BaseEstimator, RegressorMixin
-from sklearn.utils.validation import check_is_fitted
 
-from pipeline.models.feedback import ErrorFeedbackMixin, check_history, linear_feedback_predict
-from pipeline.models.series import check_features, check_xy, history, lagged, segments
+from pipeline.models.base import FeedbackModel
+from pipeline.models.feedback import linear_feedback_predict
+from pipeline.models.identification import check_criterion
+from pipeline.models.series import history, lagged, segments
 
 logger = logging.getLogger(__name__)
 
-_CRITERIA = ("aic", "bic")
 
-
-class AutoregressiveDistributedLag(ErrorFeedbackMixin, RegressorMixin, BaseEstimator):
+class AutoregressiveDistributedLag(FeedbackModel):
     """ARDL(p, q) with orders by information criterion, estimated across campaigns.
 
     Parameters
@@ -74,42 +72,27 @@ class AutoregressiveDistributedLag(ErrorFeedbackMixin, RegressorMixin, BaseEstim
         ar_order, dl_order, ic, ic_value, hold_back.
     """
 
-    needs_error_feedback = True
-
     def __init__(self, max_ar: int = 4, max_dl: int = 4, ic: str = "aic"):
         self.max_ar = max_ar
         self.max_dl = max_dl
         self.ic = ic
 
-    def fit(self, X: pd.DataFrame, y: np.ndarray) -> AutoregressiveDistributedLag:
-        """Choose (p, q) by the criterion and estimate the ARDL by stacked OLS.
-
-        Parameters
-        ----------
-        X : pandas.DataFrame of shape (n, m)
-            Selected temperatures (K rise or degC), index as in
-            :func:`pipeline.models.series.segments`.
-        y : array-like of shape (n,)
-            Thermal error (um).
-
-        Returns
-        -------
-        AutoregressiveDistributedLag
-            self, fitted.
-
-        Raises
-        ------
-        ValueError
-            If ``ic`` is unknown, the orders are out of range, or a campaign is too short for
-            the held-back rows plus a fit.
-        """
-        if self.ic not in _CRITERIA:
-            raise ValueError(f"ic must be one of {_CRITERIA}, got {self.ic!r}")
+    def _check_params(self) -> None:
+        """Raise ValueError unless ``ic`` is known, ``max_ar`` >= 1 and ``max_dl`` >= 0."""
+        check_criterion(self.ic)
         if int(self.max_ar) < 1 or int(self.max_dl) < 0:
             raise ValueError(
                 f"max_ar must be >= 1 and max_dl >= 0, got {self.max_ar} and {self.max_dl}"
             )
-        X, target = check_xy(X, y)
+
+    def _fit(self, X: pd.DataFrame, target: np.ndarray) -> None:
+        """Choose (p, q) by the criterion and estimate the ARDL by stacked OLS.
+
+        Raises
+        ------
+        ValueError
+            If a campaign is too short for the held-back rows plus a fit.
+        """
         segs = segments(X)
         hold_back = max(int(self.max_ar), int(self.max_dl))
         shortest = min(len(rows) for rows in segs)
@@ -144,26 +127,13 @@ class AutoregressiveDistributedLag(ErrorFeedbackMixin, RegressorMixin, BaseEstim
             "hold_back": hold_back,
         }
         logger.debug("ARDL(%d, %d) on %s", p, q, self.columns_)
-        return self
 
-    def predict(self, X: pd.DataFrame, y_history: np.ndarray | None = None) -> np.ndarray:
-        """Predict one-step-ahead (``y_history``) or in free run (None).
+    def _fitted_columns(self) -> list[str]:
+        """Return the sensor columns used in fit."""
+        return self.columns_
 
-        Parameters
-        ----------
-        X : pandas.DataFrame of shape (n, m)
-            Temperatures with the sensor columns used in fit.
-        y_history : array-like of shape (n,), um, optional
-            Measured error aligned with X's rows; None: free run from pre-sample error 0.
-
-        Returns
-        -------
-        numpy.ndarray of shape (n,)
-            Predicted thermal error (um).
-        """
-        check_is_fitted(self, "chosen_params_")
-        X = check_features(X, self.columns_)
-        measured = check_history(y_history, len(X))
+    def _predict(self, X: pd.DataFrame, measured: np.ndarray | None) -> np.ndarray:
+        """Predict c plus the lagged temperature terms plus the AR terms on the error, um."""
         base = self.intercept_ + lagged(X, self.dl_order_).to_numpy() @ self.dl_.ravel()
         return linear_feedback_predict(base, self.ar_, segments(X), measured)
 

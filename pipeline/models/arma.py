@@ -42,15 +42,13 @@ from collections.abc import Sequence
 import numpy as np
 import pandas as pd
 from scipy.special import comb
-from sklearn.base import BaseEstimator, RegressorMixin
-from sklearn.utils.validation import check_is_fitted
 from statsmodels.tsa.arima.estimators.hannan_rissanen import hannan_rissanen
 from statsmodels.tsa.arima.model import ARIMA
 from threadpoolctl import threadpool_limits
 
-from pipeline.models.feedback import ErrorFeedbackMixin, check_history
-from pipeline.models.identification import identify
-from pipeline.models.series import check_features, check_xy, segments
+from pipeline.models.base import FeedbackModel
+from pipeline.models.identification import check_criterion, identify
+from pipeline.models.series import segments
 from pipeline.models.stationarity import reverse_arrangement_test
 
 logger = logging.getLogger(__name__)
@@ -59,10 +57,9 @@ logger = logging.getLogger(__name__)
 GAP_LENGTH = 30
 #: Shortest campaign the stationarity test and identification can use (samples).
 MIN_CAMPAIGN_LENGTH = 10
-_CRITERIA = ("aic", "bic")
 
 
-class ARMAErrorModel(ErrorFeedbackMixin, RegressorMixin, BaseEstimator):
+class ARMAErrorModel(FeedbackModel):
     """ARMA(p, q) on the (differenced) zero-mean thermal error, the TS-BP paper's TS module.
 
     Uses no temperatures: X's columns are ignored, its index gives the campaigns.
@@ -103,7 +100,7 @@ class ARMAErrorModel(ErrorFeedbackMixin, RegressorMixin, BaseEstimator):
         p, d, q, identified family, ic and its value, mean_um.
     """
 
-    needs_error_feedback = True
+    min_columns = 0
 
     def __init__(
         self,
@@ -123,30 +120,18 @@ class ARMAErrorModel(ErrorFeedbackMixin, RegressorMixin, BaseEstimator):
         self.n_refit = n_refit
         self.maxiter = maxiter
 
-    def fit(self, X: pd.DataFrame, y: np.ndarray) -> ARMAErrorModel:
+    def _check_params(self) -> None:
+        """Raise ValueError unless ``ic`` is a known criterion."""
+        check_criterion(self.ic)
+
+    def _fit(self, X: pd.DataFrame, target: np.ndarray) -> None:
         """Identify and estimate the ARMA model of the training error.
-
-        Parameters
-        ----------
-        X : pandas.DataFrame of shape (n, m)
-            Feature table; only its index (campaigns) is used.
-        y : array-like of shape (n,)
-            Thermal error (um), 0 at each campaign's cold start.
-
-        Returns
-        -------
-        ARMAErrorModel
-            self, fitted.
 
         Raises
         ------
         ValueError
-            If ``ic`` is unknown, a campaign is shorter than 10 samples, or the error is
-            constant.
+            If a campaign is shorter than 10 samples or the error is constant.
         """
-        if self.ic not in _CRITERIA:
-            raise ValueError(f"ic must be one of {_CRITERIA}, got {self.ic!r}")
-        X, target = check_xy(X, y, min_columns=0)
         segs = segments(X)
         short = [len(rows) for rows in segs if len(rows) < MIN_CAMPAIGN_LENGTH]
         if short:
@@ -176,27 +161,9 @@ class ARMAErrorModel(ErrorFeedbackMixin, RegressorMixin, BaseEstimator):
             "mean_um": self.mean_,
         }
         logger.debug("ARMA error model: order %s (%s)", self.order_, self.identification_.kind)
-        return self
 
-    def predict(self, X: pd.DataFrame, y_history: np.ndarray | None = None) -> np.ndarray:
-        """Predict the thermal error one-step-ahead (``y_history``) or in free run (None).
-
-        Parameters
-        ----------
-        X : pandas.DataFrame of shape (n, m)
-            Feature table; only its index (campaigns) is used.
-        y_history : array-like of shape (n,), um, optional
-            Measured error aligned with X's rows: the prediction at t uses it up to t-1.
-            None: free run from pre-sample error 0 at each campaign start.
-
-        Returns
-        -------
-        numpy.ndarray of shape (n,)
-            Predicted thermal error (um).
-        """
-        check_is_fitted(self, "chosen_params_")
-        X = check_features(X, min_columns=0)
-        measured = check_history(y_history, len(X))
+    def _predict(self, X: pd.DataFrame, measured: np.ndarray | None) -> np.ndarray:
+        """Run the ARIMA(p, d, q) recursion of :func:`arma_recursion`, campaign by campaign."""
         return arma_recursion(self.ar_, self.ma_, self.mean_, self.order_[1], segments(X), measured)
 
     def _choose_differencing(self, pieces: Sequence[np.ndarray]) -> tuple[int, list[float]]:

@@ -20,10 +20,9 @@ import logging
 import numpy as np
 import pandas as pd
 import statsmodels.api as sm
-from sklearn.base import BaseEstimator, RegressorMixin
-from sklearn.utils.validation import check_is_fitted
 
-from pipeline.models.series import check_features, check_xy, lagged
+from pipeline.models.base import TemperatureModel
+from pipeline.models.series import lagged
 
 logger = logging.getLogger(__name__)
 
@@ -171,12 +170,28 @@ def expedient_lag_order(
     return top, f"expedient: no stop up to lag {top} (max_lag={max_lag})"
 
 
-class LaggedLinearModel(RegressorMixin, BaseEstimator):
+def lag_order(
+    X: pd.DataFrame, y: np.ndarray, lag: int | None, max_lag: int, alpha: float
+) -> tuple[int, str]:
+    """Return the fixed lag order ``lag``, or the expedient one when ``lag`` is None.
+
+    Returns
+    -------
+    tuple of (int, str)
+        Lag order (samples) and its rule for MLflow params: "fixed", or why the expedient search
+        (:func:`expedient_lag_order`, on X, y, ``max_lag`` and ``alpha``) stopped.
+    """
+    if lag is None:
+        return expedient_lag_order(X, y, max_lag, alpha)
+    return int(lag), "fixed"
+
+
+class LaggedLinearModel(TemperatureModel):
     """Base of the linear distributed-lag models: ``y_t = a0 + sum_j sum_i b_{j,i} x_{j,t-i}``.
 
-    Subclasses fit and then call :meth:`_set_coefficients`; prediction builds the lagged design
-    per campaign (:func:`pipeline.models.series.lagged`) and applies the coefficients, so one
-    campaign's predictions never depend on another campaign's rows.
+    Subclasses implement ``_fit``, which ends with :meth:`_set_coefficients`; prediction builds
+    the lagged design per campaign (:func:`pipeline.models.series.lagged`) and applies the
+    coefficients, so one campaign's predictions never depend on another campaign's rows.
 
     Attributes
     ----------
@@ -194,8 +209,6 @@ class LaggedLinearModel(RegressorMixin, BaseEstimator):
         What the fit decided (for MLflow params).
     """
 
-    needs_error_feedback = False
-
     def _set_coefficients(self, sensors: list[str], coef: np.ndarray, intercept: float) -> None:
         """Store sensor-major coefficients of shape (m * (lag + 1),) and the intercept."""
         lag = len(coef) // len(sensors) - 1
@@ -209,22 +222,8 @@ class LaggedLinearModel(RegressorMixin, BaseEstimator):
         self.feature_names_in_ = np.asarray(sensors, dtype=object)
         self.n_features_in_ = len(sensors)
 
-    def predict(self, X: pd.DataFrame) -> np.ndarray:
-        """Predict the thermal error.
-
-        Parameters
-        ----------
-        X : pandas.DataFrame, shape (n, m)
-            Temperatures with (at least) the sensor columns seen in fit; index as in
-            :func:`pipeline.models.series.segments`.
-
-        Returns
-        -------
-        numpy.ndarray, shape (n,)
-            Predicted thermal error (um).
-        """
-        check_is_fitted(self, "coef_")
-        frame = check_features(X, list(self.feature_names_in_))
+    def _predict(self, frame: pd.DataFrame) -> np.ndarray:
+        """Apply the coefficients to the per-campaign lagged design, um."""
         design = lagged(frame, self.lag_order_).to_numpy()
         return design @ self.coef_.to_numpy().ravel() + self.intercept_
 
@@ -261,31 +260,15 @@ class DistributedLagRegressor(LaggedLinearModel):
         self.lag = lag
         self.alpha_significance = alpha_significance
 
-    def fit(self, X: pd.DataFrame, y: np.ndarray) -> DistributedLagRegressor:
-        """Fit the DL model.
-
-        Parameters
-        ----------
-        X : pandas.DataFrame, shape (n, m)
-            Temperatures (K rise or degC), index ("campaign_id", "elapsed_s") or one series.
-        y : array-like, shape (n,)
-            Thermal error (um).
-
-        Returns
-        -------
-        DistributedLagRegressor
-            self, fitted.
+    def _fit(self, frame: pd.DataFrame, target: np.ndarray) -> None:
+        """Fit the DL model by OLS at the fixed or expedient lag order.
 
         Raises
         ------
         ValueError
             If there are too few samples for the lag order (message says what to lower).
         """
-        frame, target = check_xy(X, y)
-        if self.lag is None:
-            lag, rule = expedient_lag_order(frame, target, self.max_lag, self.alpha_significance)
-        else:
-            lag, rule = int(self.lag), "fixed"
+        lag, rule = lag_order(frame, target, self.lag, self.max_lag, self.alpha_significance)
         check_lag_feasible(len(target), frame.shape[1], lag)
         result = ols_fit(lagged(frame, lag).to_numpy(), target)
         params = np.asarray(result.params)
@@ -298,4 +281,3 @@ class DistributedLagRegressor(LaggedLinearModel):
         )
         self.chosen_params_ = {"lag_order": lag, "lag_rule": rule}
         logger.debug("DL fit: lag order %d (%s)", lag, rule)
-        return self

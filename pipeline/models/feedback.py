@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Callable, Sequence
-from typing import ClassVar
 
 import numpy as np
 from scipy.signal import lfilter
@@ -28,16 +27,6 @@ logger = logging.getLogger(__name__)
 #: ``step(rows, lags) -> predictions``: rows is an int array (k,) of row positions, lags an
 #: array (k, n_lags) of the error history, column i - 1 holding y_{t-i} (um); returns (k,) um.
 Step = Callable[[np.ndarray, np.ndarray], np.ndarray]
-
-
-class ErrorFeedbackMixin:
-    """Declare whether an estimator needs the measured error's own history.
-
-    Static and distributed-lag models keep the default ``False``; models on the error's own
-    history override it with ``True`` and are scored one-step-ahead and in free run.
-    """
-
-    needs_error_feedback: ClassVar[bool] = False
 
 
 def uses_error_feedback(estimator: object) -> bool:

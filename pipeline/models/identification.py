@@ -31,6 +31,8 @@ BAND_QUANTILE = 1.96
 ABRUPT_RATIO = 2.0
 #: After a cut-off at d, at least this fraction of the remaining lags lie inside the band.
 INSIDE_FRACTION = 0.9
+#: Information criteria that can fix a model's orders.
+CRITERIA = ("aic", "bic")
 
 
 @dataclass(frozen=True)
@@ -59,6 +61,12 @@ class Identification:
     acf_cutoff: int | None
     pacf_cutoff: int | None
     candidates: list[tuple[int, int]]
+
+
+def check_criterion(ic: str) -> None:
+    """Raise ValueError unless ``ic`` is one of :data:`CRITERIA`."""
+    if ic not in CRITERIA:
+        raise ValueError(f"ic must be one of {CRITERIA}, got {ic!r}")
 
 
 def pooled_autocorrelation(pieces: Sequence[np.ndarray], n_lags: int) -> np.ndarray:
@@ -145,10 +153,8 @@ def cutoff_lag(correlations: np.ndarray, band: float, max_order: int) -> int | N
 
     Parameters
     ----------
-    correlations : numpy.ndarray of shape (n_lags + 1,)
-        ACF or PACF at lags 0..n_lags.
-    band : float
-        Half-width of the white-noise band.
+    correlations, band : numpy.ndarray of shape (n_lags + 1,), float
+        ACF or PACF at lags 0..n_lags, and the band's half-width (:func:`first_inside_lag`).
     max_order : int
         Largest order the cut-off may identify.
 

@@ -22,10 +22,8 @@ import logging
 import numpy as np
 import pandas as pd
 from scipy.special import expit
-from sklearn.base import BaseEstimator, RegressorMixin
-from sklearn.utils.validation import check_is_fitted
 
-from pipeline.models.series import check_features, check_xy
+from pipeline.models.base import TemperatureModel
 
 logger = logging.getLogger(__name__)
 
@@ -37,7 +35,7 @@ def _minmax(values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return (high + low) / 2.0, np.where(half > 0.0, half, 1.0)
 
 
-class BackPropagationRegressor(RegressorMixin, BaseEstimator):
+class BackPropagationRegressor(TemperatureModel):
     """Inputs-H-1 back-propagation network with a sigmoid hidden layer (the TS-BP paper).
 
     Parameters
@@ -67,8 +65,6 @@ class BackPropagationRegressor(RegressorMixin, BaseEstimator):
         ``epochs`` (int) and ``train_mse_scaled`` (float).
     """
 
-    needs_error_feedback = False
-
     def __init__(
         self,
         hidden_units: int = 6,
@@ -83,32 +79,16 @@ class BackPropagationRegressor(RegressorMixin, BaseEstimator):
         self.tol = tol
         self.random_state = random_state
 
-    def fit(self, X: pd.DataFrame, y: np.ndarray) -> BackPropagationRegressor:
-        """Train the network by full-batch gradient descent.
-
-        Parameters
-        ----------
-        X : pandas.DataFrame, shape (n, m)
-            Selected temperatures (K rise or degC); rows are treated independently.
-        y : array-like, shape (n,)
-            Thermal error (um).
-
-        Returns
-        -------
-        BackPropagationRegressor
-            self, fitted.
-
-        Raises
-        ------
-        ValueError
-            If a hyper-parameter is out of range.
-        """
+    def _check_params(self) -> None:
+        """Raise ValueError unless the hidden units and epochs are >= 1 and the rate > 0."""
         if self.hidden_units < 1 or self.max_epochs < 1 or self.learning_rate <= 0:
             raise ValueError(
                 "hidden_units and max_epochs must be >= 1 and learning_rate > 0, got "
                 f"{self.hidden_units}, {self.max_epochs}, {self.learning_rate}"
             )
-        frame, target = check_xy(X, y)
+
+    def _fit(self, frame: pd.DataFrame, target: np.ndarray) -> None:
+        """Train the network by full-batch gradient descent; rows are treated independently."""
         self.x_centre_, self.x_half_ = _minmax(frame.to_numpy())
         self.y_centre_, self.y_half_ = (float(v) for v in _minmax(target))
         inputs = (frame.to_numpy() - self.x_centre_) / self.x_half_
@@ -118,7 +98,6 @@ class BackPropagationRegressor(RegressorMixin, BaseEstimator):
         self.n_features_in_ = frame.shape[1]
         self.chosen_params_ = {"epochs": self.n_epochs_, "train_mse_scaled": self.loss_}
         logger.debug("BP fit: %s", self.chosen_params_)
-        return self
 
     def _train(
         self, inputs: np.ndarray, output: np.ndarray
@@ -147,21 +126,8 @@ class BackPropagationRegressor(RegressorMixin, BaseEstimator):
             w1 = w1 - step * (inputs.T @ grad_hidden)
             b1 = b1 - step * grad_hidden.sum(axis=0)
 
-    def predict(self, X: pd.DataFrame) -> np.ndarray:
-        """Predict the thermal error.
-
-        Parameters
-        ----------
-        X : pandas.DataFrame, shape (n, m)
-            Temperatures with (at least) the sensor columns seen in fit.
-
-        Returns
-        -------
-        numpy.ndarray, shape (n,)
-            Predicted thermal error (um).
-        """
-        check_is_fitted(self, "weights_")
-        frame = check_features(X, list(self.feature_names_in_))
+    def _predict(self, frame: pd.DataFrame) -> np.ndarray:
+        """Run the trained network on the scaled inputs and scale its output back to um."""
         inputs = (frame.to_numpy() - self.x_centre_) / self.x_half_
         w1, b1, w2, b2 = self.weights_
         scaled = expit(inputs @ w1 + b1) @ w2 + b2

@@ -20,8 +20,8 @@ import logging
 import numpy as np
 import pandas as pd
 
-from pipeline.models.distributed_lag import LaggedLinearModel, expedient_lag_order
-from pipeline.models.series import check_xy, lagged
+from pipeline.models.distributed_lag import LaggedLinearModel, lag_order
+from pipeline.models.series import lagged
 
 logger = logging.getLogger(__name__)
 
@@ -96,39 +96,26 @@ class PrincipalComponentDistributedLag(LaggedLinearModel):
         self.variance_threshold = variance_threshold
         self.alpha_significance = alpha_significance
 
-    def fit(self, X: pd.DataFrame, y: np.ndarray) -> PrincipalComponentDistributedLag:
+    def _check_params(self) -> None:
+        """Raise ValueError unless ``variance_threshold`` is in (0, 1)."""
+        if not 0.0 < self.variance_threshold < 1.0:
+            raise ValueError(f"variance_threshold must be in (0, 1), got {self.variance_threshold}")
+
+    def _fit(self, frame: pd.DataFrame, target: np.ndarray) -> None:
         """Fit the PCDL model.
-
-        Parameters
-        ----------
-        X : pandas.DataFrame, shape (n, m)
-            Temperatures (K rise or degC), index ("campaign_id", "elapsed_s") or one series.
-        y : array-like, shape (n,)
-            Thermal error (um).
-
-        Returns
-        -------
-        PrincipalComponentDistributedLag
-            self, fitted.
 
         Raises
         ------
         ValueError
-            If ``variance_threshold`` is not in (0, 1), if there are fewer than 3 samples, if
-            every lagged column is constant, or (lag=None) too few samples for the search.
+            If there are fewer than 3 samples, if every lagged column is constant, or
+            (lag=None) too few samples for the search.
         """
-        if not 0.0 < self.variance_threshold < 1.0:
-            raise ValueError(f"variance_threshold must be in (0, 1), got {self.variance_threshold}")
-        frame, target = check_xy(X, y)
         if len(target) < 3:
             raise ValueError(
                 f"too few samples ({len(target)}) for principal-component regression; "
                 "it needs at least 3"
             )
-        if self.lag is None:
-            lag, rule = expedient_lag_order(frame, target, self.max_lag, self.alpha_significance)
-        else:
-            lag, rule = int(self.lag), "fixed"
+        lag, rule = lag_order(frame, target, self.lag, self.max_lag, self.alpha_significance)
         design = lagged(frame, lag).to_numpy()
         mean = design.mean(axis=0)
         scale = design.std(axis=0, ddof=1)
@@ -160,4 +147,3 @@ class PrincipalComponentDistributedLag(LaggedLinearModel):
             "explained_variance": float(ratios[:n_components].sum()),
         }
         logger.debug("PCDL fit: %s", self.chosen_params_)
-        return self

@@ -21,13 +21,15 @@ components). Coefficients are mapped back to the unstandardised lagged temperatu
 from __future__ import annotations
 
 import logging
+from collections.abc import Callable
+from functools import partial
 
 import numpy as np
 import pandas as pd
 from sklearn.cross_decomposition import PLSRegression
 
 from pipeline.models.distributed_lag import LaggedLinearModel
-from pipeline.models.series import check_xy, lagged, segments
+from pipeline.models.series import lagged, segments
 
 logger = logging.getLogger(__name__)
 
@@ -116,10 +118,33 @@ def _pls_coefficients(design: np.ndarray, y: np.ndarray, n_components: int) -> n
     return np.r_[y.mean() - slopes @ design.mean(axis=0), slopes]
 
 
-def _held_out_mse(predictions: list[np.ndarray], truths: list[np.ndarray]) -> np.ndarray:
-    """Mean squared error over all held-out rows, per candidate (predictions (n_test, k))."""
-    errors = np.concatenate([p - t[:, None] for p, t in zip(predictions, truths, strict=True)])
-    return np.mean(errors**2, axis=0)
+def _held_out_mse(
+    design: np.ndarray,
+    y: np.ndarray,
+    folds: list[Fold],
+    fit_path: Callable[[np.ndarray, np.ndarray], np.ndarray],
+) -> np.ndarray:
+    """Mean squared error (um^2) over all held-out rows, per candidate.
+
+    Parameters
+    ----------
+    design, y : numpy.ndarray, shapes (n, p) and (n,)
+        Lagged temperatures and thermal error (um), as for :func:`ridge_path`.
+    folds : list of (train_rows, test_rows)
+        From :func:`cv_folds`.
+    fit_path : callable
+        ``fit_path(design, y) -> (k, p + 1)``: per candidate, intercept (um) then slopes.
+
+    Returns
+    -------
+    numpy.ndarray, shape (k,)
+        Held-out MSE of every candidate.
+    """
+    errors = []
+    for train, test in folds:
+        path = fit_path(design[train], y[train])
+        errors.append(path[:, :1].T + design[test] @ path[:, 1:].T - y[test][:, None])
+    return np.mean(np.concatenate(errors) ** 2, axis=0)
 
 
 class RidgeDistributedLag(LaggedLinearModel):
@@ -146,37 +171,18 @@ class RidgeDistributedLag(LaggedLinearModel):
         self.lag = lag
         self.alphas = alphas
 
-    def fit(self, X: pd.DataFrame, y: np.ndarray) -> RidgeDistributedLag:
-        """Fit; see the class docstring.
-
-        Parameters
-        ----------
-        X : pandas.DataFrame, shape (n, m)
-            Temperatures (K rise or degC), index ("campaign_id", "elapsed_s") or one series.
-        y : array-like, shape (n,)
-            Thermal error (um).
-
-        Returns
-        -------
-        RidgeDistributedLag
-            self, fitted.
-
-        Raises
-        ------
-        ValueError
-            If ``alphas`` is empty or negative, or there are too few samples to cross-validate.
-        """
+    def _check_params(self) -> None:
+        """Raise ValueError unless ``alphas`` is a non-empty sequence of values >= 0."""
         alphas = np.asarray(self.alphas, dtype=float)
         if alphas.size == 0 or (alphas < 0).any():
             raise ValueError(f"alphas must be a non-empty sequence of values >= 0, got {alphas}")
-        frame, target = check_xy(X, y)
+
+    def _fit(self, frame: pd.DataFrame, target: np.ndarray) -> None:
+        """Choose alpha by campaign-wise CV (:func:`cv_folds`), then fit on all rows."""
+        alphas = np.asarray(self.alphas, dtype=float)
         design = lagged(frame, int(self.lag)).to_numpy()
         folds, scheme = cv_folds(frame)
-        predictions = []
-        for train, test in folds:
-            path = ridge_path(design[train], target[train], alphas)
-            predictions.append(path[:, :1].T + design[test] @ path[:, 1:].T)
-        mse = _held_out_mse(predictions, [target[test] for _, test in folds])
+        mse = _held_out_mse(design, target, folds, partial(ridge_path, alphas=alphas))
         best = int(np.argmin(mse))
         solution = ridge_path(design, target, alphas[best : best + 1])[0]
         self._set_coefficients(list(frame.columns), solution[1:], solution[0])
@@ -187,7 +193,6 @@ class RidgeDistributedLag(LaggedLinearModel):
             "cv_scheme": scheme,
         }
         logger.debug("ridge DL fit: %s", self.chosen_params_)
-        return self
 
 
 RIDGE_ALPHAS = tuple(float(a) for a in np.logspace(-2, 6, 17))
@@ -241,40 +246,22 @@ class PLSDistributedLag(LaggedLinearModel):
         self.lag = lag
         self.max_components = max_components
 
-    def fit(self, X: pd.DataFrame, y: np.ndarray) -> PLSDistributedLag:
-        """Fit; see the class docstring.
-
-        Parameters
-        ----------
-        X : pandas.DataFrame, shape (n, m)
-            Temperatures (K rise or degC), index ("campaign_id", "elapsed_s") or one series.
-        y : array-like, shape (n,)
-            Thermal error (um).
-
-        Returns
-        -------
-        PLSDistributedLag
-            self, fitted.
-
-        Raises
-        ------
-        ValueError
-            If ``max_components`` < 1 or there are too few samples to cross-validate.
-        """
+    def _check_params(self) -> None:
+        """Raise ValueError unless ``max_components`` >= 1."""
         if self.max_components < 1:
             raise ValueError(f"max_components must be >= 1, got {self.max_components}")
-        frame, target = check_xy(X, y)
+
+    def _fit(self, frame: pd.DataFrame, target: np.ndarray) -> None:
+        """Choose the components by campaign-wise CV (:func:`cv_folds`), then fit on all rows."""
         design = lagged(frame, int(self.lag)).to_numpy()
         folds, scheme = cv_folds(frame)
         smallest_train = min(len(train) for train, _ in folds)
         candidates = np.arange(1, min(self.max_components, design.shape[1], smallest_train - 1) + 1)
-        predictions = []
-        for train, test in folds:
-            paths = np.array(
-                [_pls_coefficients(design[train], target[train], k) for k in candidates]
-            )
-            predictions.append(paths[:, :1].T + design[test] @ paths[:, 1:].T)
-        mse = _held_out_mse(predictions, [target[test] for _, test in folds])
+
+        def path(train_design: np.ndarray, train_y: np.ndarray) -> np.ndarray:
+            return np.array([_pls_coefficients(train_design, train_y, k) for k in candidates])
+
+        mse = _held_out_mse(design, target, folds, path)
         best = int(candidates[np.argmin(mse)])
         solution = _pls_coefficients(design, target, best)
         self._set_coefficients(list(frame.columns), solution[1:], solution[0])
@@ -287,4 +274,3 @@ class PLSDistributedLag(LaggedLinearModel):
             "cv_scheme": scheme,
         }
         logger.debug("PLS DL fit: %s", self.chosen_params_)
-        return self

@@ -38,20 +38,19 @@ from collections.abc import Sequence
 
 import numpy as np
 import pandas as pd
-from sklearn.base import BaseEstimator, RegressorMixin
 from sklearn.model_selection import GroupKFold, TimeSeriesSplit
 from sklearn.svm import SVR
-from sklearn.utils.validation import check_is_fitted
 
 from pipeline.models.arma import difference
-from pipeline.models.feedback import ErrorFeedbackMixin, check_history, feedback_predict
+from pipeline.models.base import FeedbackModel
+from pipeline.models.feedback import feedback_predict
 from pipeline.models.identification import (
     first_inside_lag,
     partial_autocorrelation,
     pooled_autocorrelation,
     white_noise_band,
 )
-from pipeline.models.series import check_features, check_xy, history, segments
+from pipeline.models.series import history, segments
 
 logger = logging.getLogger(__name__)
 
@@ -60,7 +59,7 @@ COARSE_LOG2_GAMMA = (-9.0, -6.0, -3.0, 0.0)
 COARSE_LOG2_C = (-2.0, 1.0, 4.0, 7.0)
 
 
-class EmbeddedSVR(ErrorFeedbackMixin, RegressorMixin, BaseEstimator):
+class EmbeddedSVR(FeedbackModel):
     """RBF support vector regression of the next error difference on the embedded past.
 
     Uses no temperatures: X's columns are ignored, its index gives the campaigns.
@@ -92,7 +91,7 @@ class EmbeddedSVR(ErrorFeedbackMixin, RegressorMixin, BaseEstimator):
         embedding, gamma, C, epsilon, cv_mse, n_folds, cv.
     """
 
-    needs_error_feedback = True
+    min_columns = 0
 
     def __init__(
         self,
@@ -106,33 +105,22 @@ class EmbeddedSVR(ErrorFeedbackMixin, RegressorMixin, BaseEstimator):
         self.n_folds = n_folds
         self.fine_step = fine_step
 
-    def fit(self, X: pd.DataFrame, y: np.ndarray) -> EmbeddedSVR:
-        """Difference, embed, grid-search g and C by time-ordered cross-validation, refit.
-
-        Parameters
-        ----------
-        X : pandas.DataFrame of shape (n, m)
-            Feature table; only its index (campaigns) is used.
-        y : array-like of shape (n,)
-            Thermal error (um), 0 at each campaign's cold start.
-
-        Returns
-        -------
-        EmbeddedSVR
-            self, fitted.
-
-        Raises
-        ------
-        ValueError
-            If ``max_embedding`` or ``n_folds`` is below its minimum, the campaigns are too
-            short to embed, or the error's differences are constant.
-        """
+    def _check_params(self) -> None:
+        """Raise ValueError unless ``max_embedding`` >= 1 and ``n_folds`` >= 2."""
         if int(self.max_embedding) < 1 or int(self.n_folds) < 2:
             raise ValueError(
                 f"max_embedding must be >= 1 and n_folds >= 2, got {self.max_embedding} "
                 f"and {self.n_folds}"
             )
-        X, target = check_xy(X, y, min_columns=0)
+
+    def _fit(self, X: pd.DataFrame, target: np.ndarray) -> None:
+        """Difference, embed, grid-search g and C by time-ordered cross-validation, refit.
+
+        Raises
+        ------
+        ValueError
+            If the campaigns are too short to embed, or the error's differences are constant.
+        """
         segs = segments(X)
         shortest = min(len(rows) for rows in segs)
         if shortest < 2 * int(self.n_folds) + 2:
@@ -167,26 +155,9 @@ class EmbeddedSVR(ErrorFeedbackMixin, RegressorMixin, BaseEstimator):
             "cv": "leave-campaigns-out" if len(segs) > 1 else "forward-chaining blocks",
         }
         logger.debug("SVR: embedding %d, %s", self.embedding_, self.chosen_params_)
-        return self
 
-    def predict(self, X: pd.DataFrame, y_history: np.ndarray | None = None) -> np.ndarray:
-        """Predict one-step-ahead (``y_history``) or in free run (None).
-
-        Parameters
-        ----------
-        X : pandas.DataFrame of shape (n, m)
-            Feature table; only its index (campaigns) is used.
-        y_history : array-like of shape (n,), um, optional
-            Measured error aligned with X's rows; None: free run from pre-sample error 0.
-
-        Returns
-        -------
-        numpy.ndarray of shape (n,)
-            Predicted thermal error (um): previous level plus the predicted difference.
-        """
-        check_is_fitted(self, "chosen_params_")
-        X = check_features(X, min_columns=0)
-        measured = check_history(y_history, len(X))
+    def _predict(self, X: pd.DataFrame, measured: np.ndarray | None) -> np.ndarray:
+        """Previous level plus the predicted difference (um), from the measured or own levels."""
         m = self.embedding_
 
         def step(rows: np.ndarray, levels: np.ndarray) -> np.ndarray:

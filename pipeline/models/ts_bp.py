@@ -31,13 +31,10 @@ import logging
 
 import numpy as np
 import pandas as pd
-from sklearn.base import BaseEstimator, RegressorMixin
-from sklearn.utils.validation import check_is_fitted
 
 from pipeline.models.arma import ARMAErrorModel
-from pipeline.models.feedback import ErrorFeedbackMixin, check_history
+from pipeline.models.base import FeedbackModel
 from pipeline.models.neural import BackPropagationRegressor
-from pipeline.models.series import check_features, check_xy
 
 logger = logging.getLogger(__name__)
 
@@ -90,7 +87,7 @@ def hybrid_weights(validity_ts: float, validity_bp: float) -> tuple[float, float
     return validity_ts / total, validity_bp / total
 
 
-class TimeSeriesBPHybrid(ErrorFeedbackMixin, RegressorMixin, BaseEstimator):
+class TimeSeriesBPHybrid(FeedbackModel):
     """Fixed-weight TS-BP hybrid of the TS-BP paper.
 
     Parameters
@@ -125,8 +122,6 @@ class TimeSeriesBPHybrid(ErrorFeedbackMixin, RegressorMixin, BaseEstimator):
         k_TS, k_BP, validity_TS, validity_BP, arma_p, arma_d, arma_q, bp_epochs.
     """
 
-    needs_error_feedback = True
-
     def __init__(
         self,
         max_p: int = 6,
@@ -147,23 +142,8 @@ class TimeSeriesBPHybrid(ErrorFeedbackMixin, RegressorMixin, BaseEstimator):
         self.random_state = random_state
         self.min_level_fraction = min_level_fraction
 
-    def fit(self, X: pd.DataFrame, y: np.ndarray) -> TimeSeriesBPHybrid:
-        """Fit both modules and fix their weights from their validity on the training data.
-
-        Parameters
-        ----------
-        X : pandas.DataFrame of shape (n, m)
-            Selected temperatures (K rise or degC), index as in
-            :func:`pipeline.models.series.segments`.
-        y : array-like of shape (n,)
-            Thermal error (um).
-
-        Returns
-        -------
-        TimeSeriesBPHybrid
-            self, fitted.
-        """
-        X, target = check_xy(X, y)
+    def _fit(self, X: pd.DataFrame, target: np.ndarray) -> None:
+        """Fit both modules and fix their weights from their validity on the training data."""
         self.ts_ = ARMAErrorModel(max_p=self.max_p, max_q=self.max_q, ic=self.ic).fit(X, target)
         self.bp_ = BackPropagationRegressor(
             hidden_units=self.hidden_units,
@@ -192,25 +172,7 @@ class TimeSeriesBPHybrid(ErrorFeedbackMixin, RegressorMixin, BaseEstimator):
             "bp_epochs": int(self.bp_.n_epochs_),
         }
         logger.debug("TS-BP weights k_TS = %.3f, k_BP = %.3f", self.k_ts_, self.k_bp_)
-        return self
 
-    def predict(self, X: pd.DataFrame, y_history: np.ndarray | None = None) -> np.ndarray:
-        """Predict k_TS * y_TS + k_BP * y_BP.
-
-        Parameters
-        ----------
-        X : pandas.DataFrame of shape (n, m)
-            Temperatures with the sensor columns used in fit.
-        y_history : array-like of shape (n,), um, optional
-            Measured error aligned with X's rows for the TS module's one-step-ahead
-            prediction; None: the TS module runs free from pre-sample error 0.
-
-        Returns
-        -------
-        numpy.ndarray of shape (n,)
-            Predicted thermal error (um).
-        """
-        check_is_fitted(self, "chosen_params_")
-        X = check_features(X)
-        measured = check_history(y_history, len(X))
+    def _predict(self, X: pd.DataFrame, measured: np.ndarray | None) -> np.ndarray:
+        """k_TS * y_TS + k_BP * y_BP; TS one-step-ahead on ``measured``, else in free run."""
         return self.k_ts_ * self.ts_.predict(X, measured) + self.k_bp_ * self.bp_.predict(X)

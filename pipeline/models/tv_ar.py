@@ -30,17 +30,16 @@ import logging
 
 import numpy as np
 import pandas as pd
-from sklearn.base import BaseEstimator, RegressorMixin
-from sklearn.utils.validation import check_is_fitted
 
 from pipeline.models.ar_reduced import aic_curve, ar_least_squares, feasible_order
-from pipeline.models.feedback import ErrorFeedbackMixin, check_history, linear_feedback_predict
-from pipeline.models.series import check_features, check_xy, history, segments
+from pipeline.models.base import FeedbackModel
+from pipeline.models.feedback import linear_feedback_predict
+from pipeline.models.series import history, segments
 
 logger = logging.getLogger(__name__)
 
 
-class TimeVaryingAR(ErrorFeedbackMixin, RegressorMixin, BaseEstimator):
+class TimeVaryingAR(FeedbackModel):
     """AR(p) whose parameters are tracked on line by recursive least squares with forgetting.
 
     Uses no temperatures: X's columns are ignored, its index gives the campaigns.
@@ -66,41 +65,28 @@ class TimeVaryingAR(ErrorFeedbackMixin, RegressorMixin, BaseEstimator):
         order, forgetting, memory_samples.
     """
 
-    needs_error_feedback = True
+    min_columns = 0
 
     def __init__(self, order: int | None = None, max_order: int = 10, forgetting: float = 0.98):
         self.order = order
         self.max_order = max_order
         self.forgetting = forgetting
 
-    def fit(self, X: pd.DataFrame, y: np.ndarray) -> TimeVaryingAR:
-        """Choose the order and the starting parameters of the recursion.
-
-        Parameters
-        ----------
-        X : pandas.DataFrame of shape (n, m)
-            Feature table; only its index (campaigns) is used.
-        y : array-like of shape (n,)
-            Thermal error (um), 0 at each campaign's cold start.
-
-        Returns
-        -------
-        TimeVaryingAR
-            self, fitted.
-
-        Raises
-        ------
-        ValueError
-            If ``forgetting`` is not in (0, 1] or the order is not a positive integer.
-        """
+    def _check_params(self) -> None:
+        """Raise ValueError unless ``forgetting`` is in (0, 1] and the order is >= 1."""
         if not 0.0 < self.forgetting <= 1.0:
             raise ValueError(f"forgetting must be in (0, 1], got {self.forgetting}")
-        requested = self.max_order if self.order is None else self.order
-        if int(requested) < 1:
-            raise ValueError(f"the AR order must be >= 1, got {requested}")
-        X, target = check_xy(X, y, min_columns=0)
+        if int(self._requested_order()) < 1:
+            raise ValueError(f"the AR order must be >= 1, got {self._requested_order()}")
+
+    def _requested_order(self) -> int:
+        """``order``, or ``max_order`` when the order is chosen by AIC."""
+        return self.max_order if self.order is None else self.order
+
+    def _fit(self, X: pd.DataFrame, target: np.ndarray) -> None:
+        """Choose the order and the starting parameters of the recursion."""
         segs = segments(X)
-        max_order = feasible_order(int(requested), segs)
+        max_order = feasible_order(int(self._requested_order()), segs)
         fits = ar_least_squares(target, segs, max_order)
         order = int(aic_curve(fits, len(target)).idxmin()) if self.order is None else max_order
         if self.order is not None and max_order < self.order:
@@ -117,27 +103,9 @@ class TimeVaryingAR(ErrorFeedbackMixin, RegressorMixin, BaseEstimator):
             "forgetting": float(self.forgetting),
             "memory_samples": round(float(min(memory, len(target))), 3),
         }
-        return self
 
-    def predict(self, X: pd.DataFrame, y_history: np.ndarray | None = None) -> np.ndarray:
-        """Predict one-step-ahead with on-line parameter updates, or in free run.
-
-        Parameters
-        ----------
-        X : pandas.DataFrame of shape (n, m)
-            Feature table; only its index (campaigns) is used.
-        y_history : array-like of shape (n,), um, optional
-            Measured error aligned with X's rows: it supplies the AR history and updates the
-            parameters after each prediction. None: free run with the starting parameters.
-
-        Returns
-        -------
-        numpy.ndarray of shape (n,)
-            Predicted thermal error (um).
-        """
-        check_is_fitted(self, "chosen_params_")
-        X = check_features(X, min_columns=0)
-        measured = check_history(y_history, len(X))
+    def _predict(self, X: pd.DataFrame, measured: np.ndarray | None) -> np.ndarray:
+        """Predict one-step-ahead, updating the parameters by the measured error, or run free."""
         if measured is None:
             base = np.full(len(X), self.theta_[0])
             return linear_feedback_predict(base, self.theta_[1:], segments(X), None)
@@ -158,9 +126,7 @@ class TimeVaryingAR(ErrorFeedbackMixin, RegressorMixin, BaseEstimator):
         pandas.DataFrame of shape (n, p + 1)
             Columns ``intercept_um``, ``a1``..``ap``; index of X. Row t holds theta_t.
         """
-        check_is_fitted(self, "chosen_params_")
-        X = check_features(X, min_columns=0)
-        measured = check_history(y_history, len(X))
+        X, measured = self._prediction_inputs(X, y_history)
         if measured is None:
             raise ValueError("tracked_parameters needs the measured error y_history")
         columns = ["intercept_um"] + [f"a{i + 1}" for i in range(self.order_)]

@@ -233,10 +233,8 @@ def lstsq_rss_function(temperatures: np.ndarray, error: np.ndarray) -> RssFuncti
 
     Parameters
     ----------
-    temperatures : ndarray of shape (n, m)
-        Complete, non-constant sensor columns (K).
-    error : ndarray of shape (n,)
-        Thermal error, um.
+    temperatures, error : ndarray of shape (n, m), ndarray of shape (n,)
+        As for :func:`reduced_factor`.
 
     Returns
     -------
@@ -494,10 +492,7 @@ def _selection(
         "n_subsets_evaluated": search.n_evaluated,
         "n_subsets_aicc_undefined": search.n_undefined,
         "n_subsets_singular": search.n_singular,
-        "n_rows": n,
-        "n_rows_dropped": inputs.n_rows_dropped,
-        "n_sensors_used": len(names),
-        "n_sensors_ignored": len(inputs.ignored),
+        **inputs.counts(),
     }
     if criterion == "parsimonious":
         details["delta_aicc"] = float(delta_aicc)
@@ -517,11 +512,8 @@ def best_subset(
 
     Parameters
     ----------
-    temperatures : DataFrame of shape (n, m)
-        Temperature rises (K) or temperatures (degC), one column per sensor; one or several
-        campaigns (rows pooled).
-    error : array-like of shape (n,)
-        Thermal error, um.
+    temperatures, error : DataFrame of shape (n, m), array-like of shape (n,)
+        The selector inputs (:mod:`pipeline.selection.result`); campaigns' rows are pooled.
     criterion : {"aicc", "adj_r2", "parsimonious"}, default "aicc"
         Choice rule (module docstring).
     max_exhaustive : int, default 25
@@ -584,14 +576,8 @@ def best_subset_naive(
 
     Parameters
     ----------
-    temperatures : DataFrame of shape (n, m)
-        Temperature rises (K) or temperatures (degC), one column per sensor.
-    error : array-like of shape (n,)
-        Thermal error, um.
-    criterion : {"aicc", "adj_r2", "parsimonious"}, default "aicc"
-        Choice rule.
-    delta_aicc : float, default 2.0
-        AICc tolerance of the ``"parsimonious"`` rule.
+    temperatures, error, criterion, delta_aicc
+        As for :func:`best_subset`.
 
     Returns
     -------

@@ -38,11 +38,8 @@ def correlation_grouping(
 
     Parameters
     ----------
-    temperatures : DataFrame of shape (n, m)
-        Temperature rises (K) or temperatures (degC), one column per sensor; one or several
-        campaigns (rows pooled).
-    error : array-like of shape (n,)
-        Thermal error, um.
+    temperatures, error : DataFrame of shape (n, m), array-like of shape (n,)
+        The selector inputs (:mod:`pipeline.selection.result`); campaigns' rows are pooled.
     threshold : float, default 0.9
         A sensor joins a leader's group when their |correlation| exceeds this, in (0, 1).
 
@@ -91,17 +88,13 @@ def correlation_grouping(
             "status": STATUS_USED,
         }
     ).sort_values(["group", "abs_r_leader"], ascending=[True, False], kind="stable")
-    evidence = pd.concat([evidence, inputs.status_rows()], ignore_index=True)
-    evidence["group"] = evidence["group"].astype("Int64")
+    evidence = inputs.with_ignored(evidence, "group")
     sensors = [used[i] for i in leaders]
     details: dict[str, int | float | str] = {
         "threshold": float(threshold),
         "n_groups": len(leaders),
         "rule": "greedy leaders by |r| with the error; members |r| with leader > threshold",
-        "n_rows": len(inputs.error),
-        "n_rows_dropped": inputs.n_rows_dropped,
-        "n_sensors_used": len(used),
-        "n_sensors_ignored": len(inputs.ignored),
+        **inputs.counts(),
     }
     logger.debug("correlation_grouping: %d groups -> %s", len(leaders), sensors)
     return Selection("correlation_grouping", sensors, evidence, details)

@@ -233,11 +233,8 @@ def fc_grd(
 
     Parameters
     ----------
-    temperatures : DataFrame of shape (n, m)
-        Temperature rises (K) or temperatures (degC), one column per sensor; one or several
-        campaigns (rows pooled).
-    error : array-like of shape (n,)
-        Thermal error, um.
+    temperatures, error : DataFrame of shape (n, m), array-like of shape (n,)
+        The selector inputs (:mod:`pipeline.selection.result`); campaigns' rows are pooled.
     n_groups : int or None, default None
         Number of groups; None chooses it by the F test (module docstring).
     rho : float, default 0.5
@@ -283,8 +280,7 @@ def fc_grd(
     evidence["chosen"] = evidence.index.isin(best.index)
     sensors = list(best["sensor"])
     evidence = evidence.sort_values(["group", "grd"], ascending=[True, False], kind="stable")
-    evidence = pd.concat([evidence, inputs.status_rows()], ignore_index=True)
-    evidence["group"] = evidence["group"].astype("Int64")
+    evidence = inputs.with_ignored(evidence, "group")
     details: dict[str, int | float | str] = {
         "lambda": float(chosen_level["lambda"]),
         "n_groups": int(chosen_level["n_groups"]),
@@ -292,10 +288,7 @@ def fc_grd(
         "F_crit": float(chosen_level["F_crit"]),
         "rule": rule,
         "rho": float(rho),
-        "n_rows": len(inputs.error),
-        "n_rows_dropped": inputs.n_rows_dropped,
-        "n_sensors_used": len(used),
-        "n_sensors_ignored": len(inputs.ignored),
+        **inputs.counts(),
     }
     logger.debug("fc_grd: %d groups at lambda=%.4f -> %s", len(best), details["lambda"], sensors)
     return Selection("fc_grd", sensors, evidence, details)

@@ -31,11 +31,8 @@ def gra_top_k(
 
     Parameters
     ----------
-    temperatures : DataFrame of shape (n, m)
-        Temperature rises (K) or temperatures (degC), one column per sensor; one or several
-        campaigns (rows pooled).
-    error : array-like of shape (n,)
-        Thermal error, um.
+    temperatures, error : DataFrame of shape (n, m), array-like of shape (n,)
+        The selector inputs (:mod:`pipeline.selection.result`); campaigns' rows are pooled.
     k : int, default 4
         Number of sensors to keep, between 1 and the number of usable sensors.
     rho : float, default 0.5
@@ -68,16 +65,12 @@ def gra_top_k(
     evidence = pd.DataFrame(
         {"sensor": used, "grd": degrees, "rank": rank, "chosen": rank <= k, "status": STATUS_USED}
     ).sort_values("rank", kind="stable")
-    evidence = pd.concat([evidence, inputs.status_rows()], ignore_index=True)
-    evidence["rank"] = evidence["rank"].astype("Int64")
+    evidence = inputs.with_ignored(evidence, "rank")
     sensors = [used[i] for i in order[:k]]
     details: dict[str, int | float | str] = {
         "k": int(k),
         "rho": float(rho),
-        "n_rows": len(inputs.error),
-        "n_rows_dropped": inputs.n_rows_dropped,
-        "n_sensors_used": len(used),
-        "n_sensors_ignored": len(inputs.ignored),
+        **inputs.counts(),
     }
     logger.debug("gra_top_k: top %d of %d -> %s", k, len(used), sensors)
     return Selection("gra_top_k", sensors, evidence, details)

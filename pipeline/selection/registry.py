@@ -28,10 +28,8 @@ def select_all(temperatures: pd.DataFrame, error: np.ndarray) -> Selection:
 
     Parameters
     ----------
-    temperatures : DataFrame of shape (n, m)
-        Temperature rises (K) or temperatures (degC), one column per sensor.
-    error : array-like of shape (n,)
-        Thermal error, um (only its shape is checked).
+    temperatures, error : DataFrame of shape (n, m), array-like of shape (n,)
+        The selector inputs (:mod:`pipeline.selection.result`); only the error's shape is checked.
 
     Returns
     -------

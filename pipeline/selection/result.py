@@ -88,6 +88,42 @@ class CleanInputs:
             }
         )
 
+    def with_ignored(self, evidence: pd.DataFrame, integer_column: str) -> pd.DataFrame:
+        """Append the ignored sensors' rows (:meth:`status_rows`) to a selector's evidence.
+
+        Parameters
+        ----------
+        evidence : DataFrame
+            One row per used sensor, with a ``sensor`` column.
+        integer_column : str
+            Integer column of ``evidence`` (rank, group) the ignored rows leave empty; it
+            becomes a nullable ``Int64`` column.
+
+        Returns
+        -------
+        DataFrame
+            ``evidence``, then the ignored rows, on a new 0..n-1 index.
+        """
+        table = pd.concat([evidence, self.status_rows()], ignore_index=True)
+        table[integer_column] = table[integer_column].astype("Int64")
+        return table
+
+    def counts(self) -> dict[str, int]:
+        """Return the data counts every selector reports in its ``details``.
+
+        Returns
+        -------
+        dict of str to int
+            ``n_rows`` (complete rows used), ``n_rows_dropped``, ``n_sensors_used``,
+            ``n_sensors_ignored``.
+        """
+        return {
+            "n_rows": len(self.error),
+            "n_rows_dropped": self.n_rows_dropped,
+            "n_sensors_used": self.temperatures.shape[1],
+            "n_sensors_ignored": len(self.ignored),
+        }
+
 
 def check_frame(temperatures: pd.DataFrame, error: np.ndarray) -> np.ndarray:
     """Check the shapes and types of a selector's inputs; return the error as float array.
@@ -143,10 +179,8 @@ def clean_inputs(temperatures: pd.DataFrame, error: np.ndarray, min_rows: int = 
 
     Parameters
     ----------
-    temperatures : DataFrame of shape (n, m)
-        Temperature rises (K) or temperatures (degC), one column per sensor.
-    error : array-like of shape (n,)
-        Thermal error, um.
+    temperatures, error : DataFrame of shape (n, m), array-like of shape (n,)
+        The selector inputs (module docstring), as for :func:`check_frame`.
     min_rows : int, default 3
         Fewest complete rows a selector can work with.
 

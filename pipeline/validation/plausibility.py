@@ -65,9 +65,8 @@ def validate_plausibility(
     campaign : mapping
         The campaign's row of the campaigns table (``campaign_id``, ``sensors_json``,
         ``displacement_json``, ``spindle_program_json``, ``has_spindle_log``).
-    samples : DataFrame
-        Ingested samples (any campaigns; only this campaign's rows are used).
-    limits : ValidationLimits
+    samples, limits : DataFrame, ValidationLimits
+        As for :func:`pipeline.validation.sample_checks.validate_samples`.
 
     Returns
     -------
@@ -121,8 +120,11 @@ def _temperature_unit(
     if value <= limits.air_temperature_max_degC:
         return []
     fields = {"basis": basis}
-    return [Finding(campaign_id, TEMPERATURE_FILE, "temperature_unit", name, None,
-                    round(value, 4), fields)]  # fmt: skip
+    return [
+        Finding(
+            campaign_id, TEMPERATURE_FILE, "temperature_unit", name, None, round(value, 4), fields
+        )
+    ]
 
 
 def _displacement_unit(
@@ -144,10 +146,17 @@ def _displacement_unit(
     if not spans or max(spans.values()) >= limits.displacement_min_span_um:
         return []
     return [
-        Finding(campaign_id, DISPLACEMENT_FILE, "displacement_unit", axis, None, round(span, 6),
-                {"axis": axis, "rise": round(rise, 2)})
+        Finding(
+            campaign_id,
+            DISPLACEMENT_FILE,
+            "displacement_unit",
+            axis,
+            None,
+            round(span, 6),
+            {"axis": axis, "rise": round(rise, 2)},
+        )
         for axis, span in spans.items()
-    ]  # fmt: skip
+    ]
 
 
 def _program_minutes(program_json: object) -> float:
@@ -182,5 +191,14 @@ def _time_unit(
         "program_min": f"{program_min:g}",
         "median_interval": f"{float(steps[steps > 0].median()):g}",
     }
-    return [Finding(campaign_id, TEMPERATURE_FILE, "time_unit", "elapsed_s", None,
-                    round(span_min, 3), fields)]  # fmt: skip
+    return [
+        Finding(
+            campaign_id,
+            TEMPERATURE_FILE,
+            "time_unit",
+            "elapsed_s",
+            None,
+            round(span_min, 3),
+            fields,
+        )
+    ]
