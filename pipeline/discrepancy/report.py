@@ -137,6 +137,20 @@ def _prediction(campaign, residual: np.ndarray) -> np.ndarray:
     return np.asarray(campaign.z_um, dtype=float) - np.asarray(residual, dtype=float)
 
 
+def _heldout_residuals(campaigns: Sequence, result: SearchResult) -> tuple[dict, dict, dict]:
+    """Return the held-out Z residuals (um) of the baseline and final twin, and the campaigns.
+
+    Each of the three is a dict keyed by campaign id.
+    """
+    by_id = {c.campaign_id: c for c in campaigns}
+    return result.baseline.heldout.z_residual_um, result.final.heldout.z_residual_um, by_id
+
+
+def _rms(residual: np.ndarray) -> float:
+    """Return the RMS of a residual, ignoring NaN, in its unit."""
+    return float(np.sqrt(np.nanmean(residual**2)))
+
+
 def heldout_fit_figure(
     campaigns: Sequence, result: SearchResult, title: str, max_panels: int = 3
 ) -> Figure:
@@ -158,10 +172,8 @@ def heldout_fit_figure(
     -------
     Figure
     """
-    base = result.baseline.heldout.z_residual_um
-    final = result.final.heldout.z_residual_um
-    by_id = {c.campaign_id: c for c in campaigns}
-    ranked = sorted(base, key=lambda c: -float(np.sqrt(np.nanmean(base[c] ** 2))))[:max_panels]
+    base, final, by_id = _heldout_residuals(campaigns, result)
+    ranked = sorted(base, key=lambda c: -_rms(base[c]))[:max_panels]
     fig = plots.new_figure(1.6 + 3.6 * max(len(ranked), 1), 4.6)
     axes = fig.subplots(1, max(len(ranked), 1), squeeze=False)
     label = "twin + " + ", ".join(result.named_effects) if result.named_effects else "twin (same)"
@@ -227,9 +239,7 @@ def residuals_figure(campaigns: Sequence, result: SearchResult, title: str) -> F
     -------
     Figure
     """
-    before = result.baseline.heldout.z_residual_um
-    after = result.final.heldout.z_residual_um
-    by_id = {c.campaign_id: c for c in campaigns}
+    before, after, by_id = _heldout_residuals(campaigns, result)
     ids = sorted(before)
     seasons = {cid: getattr(by_id[cid], "season", None) for cid in ids}
     names = {cid: plots.campaign_label(cid, seasons[cid]) for cid in ids}
@@ -256,8 +266,8 @@ def residuals_figure(campaigns: Sequence, result: SearchResult, title: str) -> F
     fig.legend(
         handles, labels, loc="outside right upper", fontsize=8, title=named, title_fontsize=8
     )
-    rms_b = [float(np.sqrt(np.nanmean(before[c] ** 2))) for c in ids]
-    rms_a = [float(np.sqrt(np.nanmean(after[c] ** 2))) if c in after else np.nan for c in ids]
+    rms_b = [_rms(before[c]) for c in ids]
+    rms_a = [_rms(after[c]) if c in after else np.nan for c in ids]
     x = np.arange(len(ids))
     bars = axes["rms"]
     bars.bar(x - 0.2, rms_b, 0.4, label="baseline twin")
