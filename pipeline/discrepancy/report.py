@@ -1,10 +1,11 @@
 """Write the discrepancy outputs: ``discrepancy.json``, ``discrepancy.md``, figures, MLflow run.
 
-The report states, in an engineer's words, where the calibrated baseline twin disagrees with the
-measurements (:mod:`pipeline.discrepancy.localise`), which effects the forward search named
-(:mod:`pipeline.discrepancy.search`), with what evidence, and how far the held-out displacement
-residual shrinks. Figures are built and saved with the helpers of :mod:`pipeline.plots` (Agg
-canvas, no pyplot); mlflow is imported only when a run is logged.
+The report states, in an engineer's words (:mod:`pipeline.discrepancy.report_text`), where the
+calibrated baseline twin disagrees with the measurements (:mod:`pipeline.discrepancy.localise`),
+which effects the forward search named (:mod:`pipeline.discrepancy.search`), with what evidence,
+and how far the held-out displacement residual shrinks. Figures are built and saved with the
+helpers of :mod:`pipeline.plots` (Agg canvas, no pyplot); mlflow is imported only when a run is
+logged.
 """
 
 from __future__ import annotations
@@ -103,19 +104,9 @@ def build_document(
     effects checked on the validation campaigns held back from the search, or None).
     """
     doc = {"status": STATUS_TESTED, **result.to_dict()}
-    doc["localisation"] = {
-        "before": {
-            "findings": before.findings,
-            "ambient_correlation": _num(before.ambient_correlation),
-            "ambient_lag_min": _num(before.ambient_lag_min),
-        }
-    }
+    doc["localisation"] = {"before": _localisation_fields(before)}
     if after is not None:
-        doc["localisation"]["after"] = {
-            "findings": after.findings,
-            "ambient_correlation": _num(after.ambient_correlation),
-            "ambient_lag_min": _num(after.ambient_lag_min),
-        }
+        doc["localisation"]["after"] = _localisation_fields(after)
     doc["thresholds"] = {
         "min_heldout_reduction": settings.min_heldout_reduction,
         "min_heldout_temperature_reduction": settings.min_heldout_t_reduction,
@@ -128,7 +119,17 @@ def build_document(
     return doc
 
 
+def _localisation_fields(localisation: Localisation) -> dict[str, Any]:
+    """Return the findings, the ambient correlation and its lag (min) of a localisation."""
+    return {
+        "findings": localisation.findings,
+        "ambient_correlation": _num(localisation.ambient_correlation),
+        "ambient_lag_min": _num(localisation.ambient_lag_min),
+    }
+
+
 def _num(x: float) -> float | None:
+    """Return ``x`` rounded to 4 decimals, or None when not finite (JSON has no NaN)."""
     x = float(x)
     return round(x, 4) if np.isfinite(x) else None
 
