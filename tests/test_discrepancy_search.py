@@ -464,7 +464,7 @@ def test_mlflow_run_holds_the_metrics_and_figures(tmp_path, monkeypatch):
 
 
 def test_the_motor_loss_is_reported_with_the_rise_it_fixes():
-    from pipeline.discrepancy.report import _motor_rise
+    from pipeline.discrepancy.report_text import _motor_rise
 
     params = {
         "q_motor_W_per_krpm": {"value": 52.0, "unit": "W/krpm"},

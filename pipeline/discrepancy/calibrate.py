@@ -16,12 +16,12 @@ from __future__ import annotations
 
 import logging
 import time
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
 import pandas as pd
-from scipy.optimize import least_squares
+from scipy.optimize import OptimizeResult, least_squares
 from threadpoolctl import threadpool_limits
 
 from pipeline.discrepancy.data import MeasuredCampaign
@@ -231,6 +231,230 @@ def _to_theta(x: np.ndarray, logs: np.ndarray) -> np.ndarray:
     return np.where(logs, np.exp(np.where(logs, x, 0.0)), x)
 
 
+@dataclass(frozen=True)
+class _Space:
+    """The space the optimiser moves in: log of the positive parameters, the others as they are.
+
+    Attributes
+    ----------
+    logs : ndarray of bool, shape (n_theta,)
+        Parameters fitted in log space.
+    lo, hi : ndarray of shape (n_theta,)
+        Bounds of the parameters, in their units.
+    x_lo, x_hi : ndarray of shape (n_theta,)
+        The same bounds in the fitted space (log of the unit, or the unit).
+    margin : ndarray of shape (n_theta,)
+        How far inside the bounds the starts are kept, in the fitted space.
+    """
+
+    logs: np.ndarray
+    lo: np.ndarray
+    hi: np.ndarray
+    x_lo: np.ndarray
+    x_hi: np.ndarray
+    margin: np.ndarray
+
+    def theta(self, x: np.ndarray) -> np.ndarray:
+        """Return the parameters (their units, clipped into the bounds) of fitted points ``x``."""
+        return np.clip(_to_theta(x, self.logs), self.lo, self.hi)
+
+    def inside(self, x: np.ndarray) -> np.ndarray:
+        """Return fitted points ``x`` clipped to ``margin`` inside the bounds."""
+        return np.clip(x, self.x_lo + self.margin, self.x_hi - self.margin)
+
+
+def _space(model: TwinModel) -> _Space:
+    """Return the fitted space of ``model``'s parameters."""
+    logs = np.array([p.log for p in model.param_specs])
+    lo, hi = model.bounds()
+    x_lo, x_hi = _to_x(lo, logs), _to_x(hi, logs)
+    return _Space(logs=logs, lo=lo, hi=hi, x_lo=x_lo, x_hi=x_hi, margin=1e-6 * (x_hi - x_lo))
+
+
+def _checked_weights(weights: Mapping[str, float] | None) -> dict[str, float]:
+    """Return ``weights`` as a dict (empty if None).
+
+    Raises
+    ------
+    ValueError
+        If a key is neither ``temperature`` nor ``z``.
+    """
+    weights = dict(weights or {})
+    unknown = set(weights) - {"temperature", "z"}
+    if unknown:
+        raise ValueError(f"calibrate: unknown weights {sorted(unknown)}; use 'temperature', 'z'")
+    return weights
+
+
+def _initial_theta(model: TwinModel, start: Mapping[str, float] | None) -> np.ndarray:
+    """Return the first start: ``start``'s values by name, the specs' ``initial`` for the rest.
+
+    Raises
+    ------
+    ValueError
+        If ``start`` names a parameter the model does not have.
+    """
+    if not start:
+        return model.initial()
+    bad = set(start) - set(model.names)
+    if bad:
+        raise ValueError(
+            f"calibrate: start has unknown parameters {sorted(bad)}; the model's are "
+            f"{', '.join(model.names)}"
+        )
+    return np.array([float(start.get(p.name, p.initial)) for p in model.param_specs])
+
+
+def _objective(
+    model: TwinModel, targets: list[_Target], space: _Space
+) -> tuple[Callable[[np.ndarray], np.ndarray], Callable[[np.ndarray], np.ndarray]]:
+    """Return the weighted residuals of a fitted point ``x`` and their Jacobian, as functions."""
+
+    def fun(x: np.ndarray) -> np.ndarray:
+        return _weighted(model, space.theta(x)[None, :], targets)[0]
+
+    def jac(x: np.ndarray) -> np.ndarray:
+        # all perturbed parameter vectors and the base point in one batched simulation
+        h = _forward_difference_steps(x, space.x_hi)
+        xs = np.vstack([x, x + np.diag(h)])
+        r = _weighted(model, space.theta(xs), targets)
+        return ((r[1:] - r[0]) / h[:, None]).T
+
+    return fun, jac
+
+
+def _multistart(
+    model: TwinModel,
+    targets: list[_Target],
+    space: _Space,
+    theta0: np.ndarray,
+    *,
+    n_starts: int,
+    seed: int,
+    max_nfev: int,
+    tol: float,
+) -> OptimizeResult:
+    """Run ``least_squares`` from each start; return the result of the lowest cost.
+
+    The first start is ``theta0`` (clipped inside the bounds); each other one adds normal
+    noise of standard deviation 0.5 (``seed``) to its log-space coordinates.
+    """
+    fun, jac = _objective(model, targets, space)
+    x0 = space.inside(_to_x(np.clip(theta0, space.lo, space.hi), space.logs))
+    x_scale = np.where(space.logs, 1.0, np.maximum(np.abs(theta0), (space.hi - space.lo) / 20.0))
+    rng = np.random.default_rng(seed)
+    best = None
+    for k in range(max(1, int(n_starts))):
+        if k == 0:
+            xs = x0
+        else:
+            xs = space.inside(x0 + np.where(space.logs, rng.normal(0.0, 0.5, x0.size), 0.0))
+        res = least_squares(
+            fun,
+            xs,
+            jac=jac,
+            bounds=(space.x_lo, space.x_hi),
+            x_scale=x_scale,
+            method="trf",
+            max_nfev=max_nfev,
+            ftol=tol,
+            xtol=tol,
+        )
+        logger.debug("calibration start %d: cost %.4g, nfev %d", k, res.cost, res.nfev)
+        if best is None or res.cost < best.cost:
+            best = res
+    assert best is not None
+    return best
+
+
+def _information_criteria(sse: float, n_obs: int, k: int) -> tuple[float, float]:
+    """Return AICc and BIC of ``k`` parameters fitted to ``n_obs`` observations with ``sse``."""
+    aic = n_obs * np.log(max(sse, 1e-300) / n_obs) + 2 * k
+    aicc = aic + (2 * k * (k + 1) / (n_obs - k - 1) if n_obs - k - 1 > 0 else np.inf)
+    bic = n_obs * np.log(max(sse, 1e-300) / n_obs) + k * np.log(n_obs)
+    return float(aicc), float(bic)
+
+
+def _rms(values: np.ndarray) -> float:
+    """Root mean square of ``values``, in their unit; NaN if empty."""
+    return float(np.sqrt(np.mean(values**2))) if values.size else float("nan")
+
+
+def _residual_tables(targets: list[_Target], raw: list[tuple]) -> dict[str, dict]:
+    """Return :attr:`Calibration.residuals`: each campaign's residuals, NaN where unmeasured."""
+    return {
+        t.campaign.campaign_id: {
+            "z_um": np.where(t.mask_z, rz, np.nan),
+            "temperatures_K": pd.DataFrame(np.where(t.mask_t, rT, np.nan), columns=t.sensors),
+        }
+        for t, (rT, rz) in zip(targets, raw, strict=True)
+    }
+
+
+def _at_bounds(model: TwinModel, space: _Space, x: np.ndarray) -> list[str]:
+    """Return the parameters within 0.1 % of their range (fitted space) of a bound."""
+    span = space.x_hi - space.x_lo
+    near = (x - space.x_lo < 1e-3 * span) | (space.x_hi - x < 1e-3 * span)
+    return [p.name for p, b in zip(model.param_specs, near, strict=True) if b]
+
+
+def _calibration(
+    model: TwinModel,
+    targets: list[_Target],
+    space: _Space,
+    best: OptimizeResult,
+    raw_batch: list[tuple],
+    noise: NoiseFloor,
+    seconds: float,
+) -> Calibration:
+    """Assemble the :class:`Calibration` of the best ``least_squares`` result.
+
+    ``raw_batch`` is :func:`_raw_residuals` at ``best.x`` alone; ``seconds`` the time the fit
+    took, s.
+    """
+    raw = [(rT[0], rz[0]) for rT, rz in raw_batch]
+    theta = space.theta(best.x)
+    n_obs = int(sum(t.mask_t.sum() + t.mask_z.sum() for t in targets))
+    sse = float(np.sum(best.fun**2))
+    k = len(theta) + len(targets)
+    aicc, bic = _information_criteria(sse, n_obs, k)
+    z_all = np.concatenate([rz[t.mask_z] for t, (_, rz) in zip(targets, raw, strict=True)])
+    t_all = np.concatenate([rT[t.mask_t] for t, (rT, _) in zip(targets, raw, strict=True)])
+    return Calibration(
+        effects=model.effects,
+        theta=theta,
+        params={p.name: (float(v), p.unit) for p, v in zip(model.param_specs, theta, strict=True)},
+        residuals=_residual_tables(targets, raw),
+        sse=sse,
+        n_obs=n_obs,
+        n_params=k,
+        aicc=aicc,
+        bic=bic,
+        rmse_z_um=_rms(z_all),
+        rmse_T_K=_rms(t_all),
+        converged=bool(best.success),
+        noise=noise,
+        at_bounds=_at_bounds(model, space, best.x),
+        message=str(best.message),
+        nfev=int(best.nfev),
+        seconds=seconds,
+    )
+
+
+def _log_calibration(result: Calibration, n_campaigns: int) -> None:
+    """Log the effects, RMS residuals, evaluations, time and parameters at bounds of a fit."""
+    logger.info(
+        "calibrated twin (%s) on %d campaigns: rmse Z %.3f um, T %.3f K, %d evaluations, %.1f s%s",
+        ", ".join(sorted(result.effects)) or "baseline",
+        n_campaigns,
+        result.rmse_z_um,
+        result.rmse_T_K,
+        result.nfev,
+        result.seconds,
+        f"; at bounds: {', '.join(result.at_bounds)}" if result.at_bounds else "",
+    )
+
+
 def calibrate(
     model: TwinModel,
     campaigns: Sequence[MeasuredCampaign],
@@ -280,113 +504,20 @@ def calibrate(
     """
     if not campaigns:
         raise ValueError("calibrate: give at least one campaign")
-    weights = dict(weights or {})
-    unknown = set(weights) - {"temperature", "z"}
-    if unknown:
-        raise ValueError(f"calibrate: unknown weights {sorted(unknown)}; use 'temperature', 'z'")
+    weights = _checked_weights(weights)
     t0 = time.perf_counter()
     noise = noise or estimate_noise(campaigns)
     targets = _targets(model, campaigns, noise, weights)
-    specs = model.param_specs
-    logs = np.array([p.log for p in specs])
-    lo, hi = model.bounds()
-    theta0 = model.initial()
-    if start:
-        bad = set(start) - set(model.names)
-        if bad:
-            raise ValueError(
-                f"calibrate: start has unknown parameters {sorted(bad)}; the model's are "
-                f"{', '.join(model.names)}"
-            )
-        theta0 = np.array([float(start.get(p.name, p.initial)) for p in specs])
-    x_lo, x_hi = _to_x(lo, logs), _to_x(hi, logs)
-    margin = 1e-6 * (x_hi - x_lo)
-    x0 = np.clip(_to_x(np.clip(theta0, lo, hi), logs), x_lo + margin, x_hi - margin)
-    x_scale = np.where(logs, 1.0, np.maximum(np.abs(theta0), (hi - lo) / 20.0))
-
-    def fun(x: np.ndarray) -> np.ndarray:
-        return _weighted(model, np.clip(_to_theta(x, logs), lo, hi)[None, :], targets)[0]
-
-    def jac(x: np.ndarray) -> np.ndarray:
-        # all perturbed parameter vectors and the base point in one batched simulation
-        h = _forward_difference_steps(x, x_hi)
-        xs = np.vstack([x, x + np.diag(h)])
-        r = _weighted(model, np.clip(_to_theta(xs, logs), lo, hi), targets)
-        return ((r[1:] - r[0]) / h[:, None]).T
-
-    rng = np.random.default_rng(seed)
-    best = None
-    limiter = threadpool_limits(limits=1)  # BLAS threads only slow down these small matrices
-    for k in range(max(1, int(n_starts))):
-        xs = x0 if k == 0 else np.clip(
-            x0 + np.where(logs, rng.normal(0.0, 0.5, x0.size), 0.0), x_lo + margin, x_hi - margin
-        )  # fmt: skip
-        res = least_squares(
-            fun,
-            xs,
-            jac=jac,
-            bounds=(x_lo, x_hi),
-            x_scale=x_scale,
-            method="trf",
-            max_nfev=max_nfev,
-            ftol=tol,
-            xtol=tol,
+    space = _space(model)
+    theta0 = _initial_theta(model, start)
+    with threadpool_limits(limits=1):  # BLAS threads only slow down these small matrices
+        best = _multistart(
+            model, targets, space, theta0, n_starts=n_starts, seed=seed, max_nfev=max_nfev, tol=tol
         )
-        logger.debug("calibration start %d: cost %.4g, nfev %d", k, res.cost, res.nfev)
-        if best is None or res.cost < best.cost:
-            best = res
-    assert best is not None
-    theta = np.clip(_to_theta(best.x, logs), lo, hi)
-    raw = [(rT[0], rz[0]) for rT, rz in _raw_residuals(model, theta[None, :], targets)]
-    limiter.restore_original_limits()
-    n_obs = int(sum(t.mask_t.sum() + t.mask_z.sum() for t in targets))
-    sse = float(np.sum(best.fun**2))
-    k = len(theta) + len(targets)
-    aic = n_obs * np.log(max(sse, 1e-300) / n_obs) + 2 * k
-    aicc = aic + (2 * k * (k + 1) / (n_obs - k - 1) if n_obs - k - 1 > 0 else np.inf)
-    bic = n_obs * np.log(max(sse, 1e-300) / n_obs) + k * np.log(n_obs)
-    z_all = np.concatenate([rz[t.mask_z] for t, (_, rz) in zip(targets, raw, strict=True)])
-    t_all = np.concatenate([rT[t.mask_t] for t, (rT, _) in zip(targets, raw, strict=True)])
-    residuals = {
-        t.campaign.campaign_id: {
-            "z_um": np.where(t.mask_z, rz, np.nan),
-            "temperatures_K": pd.DataFrame(np.where(t.mask_t, rT, np.nan), columns=t.sensors),
-        }
-        for t, (rT, rz) in zip(targets, raw, strict=True)
-    }
-    span = x_hi - x_lo
-    near = (best.x - x_lo < 1e-3 * span) | (x_hi - best.x < 1e-3 * span)
-    at_bounds = [p.name for p, b in zip(specs, near, strict=True) if b]
-    seconds = time.perf_counter() - t0
-    logger.info(
-        "calibrated twin (%s) on %d campaigns: rmse Z %.3f um, T %.3f K, %d evaluations, %.1f s%s",
-        ", ".join(sorted(model.effects)) or "baseline",
-        len(targets),
-        float(np.sqrt(np.mean(z_all**2))) if z_all.size else float("nan"),
-        float(np.sqrt(np.mean(t_all**2))) if t_all.size else float("nan"),
-        best.nfev,
-        seconds,
-        f"; at bounds: {', '.join(at_bounds)}" if at_bounds else "",
-    )
-    return Calibration(
-        effects=model.effects,
-        theta=theta,
-        params={p.name: (float(v), p.unit) for p, v in zip(specs, theta, strict=True)},
-        residuals=residuals,
-        sse=sse,
-        n_obs=n_obs,
-        n_params=k,
-        aicc=float(aicc),
-        bic=float(bic),
-        rmse_z_um=float(np.sqrt(np.mean(z_all**2))) if z_all.size else float("nan"),
-        rmse_T_K=float(np.sqrt(np.mean(t_all**2))) if t_all.size else float("nan"),
-        converged=bool(best.success),
-        noise=noise,
-        at_bounds=at_bounds,
-        message=str(best.message),
-        nfev=int(best.nfev),
-        seconds=seconds,
-    )
+        raw = _raw_residuals(model, space.theta(best.x)[None, :], targets)
+    result = _calibration(model, targets, space, best, raw, noise, time.perf_counter() - t0)
+    _log_calibration(result, len(targets))
+    return result
 
 
 def predict(model: TwinModel, calibration: Calibration, campaign: MeasuredCampaign) -> Simulation:

@@ -1,10 +1,11 @@
 """Write the discrepancy outputs: ``discrepancy.json``, ``discrepancy.md``, figures, MLflow run.
 
-The report states, in an engineer's words, where the calibrated baseline twin disagrees with the
-measurements (:mod:`pipeline.discrepancy.localise`), which effects the forward search named
-(:mod:`pipeline.discrepancy.search`), with what evidence, and how far the held-out displacement
-residual shrinks. Figures are built and saved with the helpers of :mod:`pipeline.plots`
-(Agg canvas, no pyplot); mlflow is imported only when a run is logged.
+The report states, in an engineer's words (:mod:`pipeline.discrepancy.report_text`), where the
+calibrated baseline twin disagrees with the measurements (:mod:`pipeline.discrepancy.localise`),
+which effects the forward search named (:mod:`pipeline.discrepancy.search`), with what evidence,
+and how far the held-out displacement residual shrinks. Figures are built and saved with the
+helpers of :mod:`pipeline.plots` (Agg canvas, no pyplot); mlflow is imported only when a run is
+logged.
 """
 
 from __future__ import annotations
@@ -21,6 +22,7 @@ from matplotlib.figure import Figure
 
 from pipeline import plots
 from pipeline.discrepancy.localise import Localisation
+from pipeline.discrepancy.report_text import markdown, untestable_markdown
 from pipeline.discrepancy.search import SearchResult, SearchSettings
 
 logger = logging.getLogger(__name__)
@@ -30,16 +32,6 @@ MARKDOWN_FILE = "discrepancy.md"
 FIT_FIGURE = "heldout_fit.png"
 RESIDUAL_FIGURE = "residuals.png"
 LOCALISATION_CSV = "localisation.csv"
-
-EFFECT_WORDS = {
-    "ambient_variation": "the workshop air temperature varies and the structure follows it",
-    "centrifugal_growth": "the spindle nose shifts instantly with speed squared (centrifugal)",
-    "nonlinear_bearing_heat": "bearing friction heat grows faster than linearly with speed",
-    "sensor_lag": "the sensors read their locations through a first-order lag",
-    "thermal_bending": "the column bends when its front and rear differ in temperature",
-    "motor_heat": "the spindle motor heats the headstock",
-}
-"""One line per effect, for the report."""
 
 STATUS_TESTED = "tested"
 STATUS_UNTESTABLE = "untestable"
@@ -74,28 +66,13 @@ def untestable_document(
     }
 
 
-def untestable_markdown(doc: Mapping[str, Any]) -> str:
-    """Write the engineer's report when the twin cannot be compared with the campaigns."""
-    source = "synthetic campaigns (not measurements)" if doc["synthetic"] else "measured campaigns"
-    quarantined = (
-        f" Quarantined and left out: {', '.join(doc['quarantined'])}." if doc["quarantined"] else ""
-    )
-    return "\n".join([
-        "# Where the twin and the measurements disagree",
-        "",
-        f"**Untestable on these campaigns.** {doc['reason'][:1].upper()}{doc['reason'][1:]}.",
-        "",
-        f"Data: {len(doc['campaigns'])} spindle campaign(s) with a Z displacement, {source}; "
-        f"sensor roles present: {', '.join(doc['roles_present']) or 'none'}.{quarantined}",
-        "",
-        "The physical twin is a thermal network whose nodes are the places of the sensors "
-        "(`campaign.yaml` `sensors: <name>: {role: ...}`). Roles it can use: "
-        + ", ".join(f"`{r}`" for r in doc["needed_roles"])
-        + "; `ambient` drives it. Nothing was calibrated or named, and the `twin` candidate of "
-        "the model comparison is skipped for this reason. The rest of the pipeline (the "
-        "regression models, their scores and the champion) does not need the roles.",
-        "",
-    ])  # fmt: skip
+def _write_document(out_dir: Path, doc: Mapping[str, Any], report: str) -> list[Path]:
+    """Write ``doc`` as ``discrepancy.json`` and ``report`` as ``discrepancy.md``; return both."""
+    json_path = out_dir / JSON_FILE
+    json_path.write_text(json.dumps(doc, indent=2, ensure_ascii=False) + "\n", encoding="utf-8")
+    md_path = out_dir / MARKDOWN_FILE
+    md_path.write_text(report, encoding="utf-8")
+    return [json_path, md_path]
 
 
 def write_untestable(out_dir: Path, doc: Mapping[str, Any]) -> list[Path]:
@@ -103,11 +80,7 @@ def write_untestable(out_dir: Path, doc: Mapping[str, Any]) -> list[Path]:
     out_dir.mkdir(parents=True, exist_ok=True)
     for stale in (FIT_FIGURE, RESIDUAL_FIGURE, LOCALISATION_CSV):
         (out_dir / stale).unlink(missing_ok=True)
-    json_path = out_dir / JSON_FILE
-    json_path.write_text(json.dumps(doc, indent=2, ensure_ascii=False) + "\n", encoding="utf-8")
-    md_path = out_dir / MARKDOWN_FILE
-    md_path.write_text(untestable_markdown(doc), encoding="utf-8")
-    return [json_path, md_path]
+    return _write_document(out_dir, doc, untestable_markdown(doc))
 
 
 def build_document(
@@ -131,19 +104,9 @@ def build_document(
     effects checked on the validation campaigns held back from the search, or None).
     """
     doc = {"status": STATUS_TESTED, **result.to_dict()}
-    doc["localisation"] = {
-        "before": {
-            "findings": before.findings,
-            "ambient_correlation": _num(before.ambient_correlation),
-            "ambient_lag_min": _num(before.ambient_lag_min),
-        }
-    }
+    doc["localisation"] = {"before": _localisation_fields(before)}
     if after is not None:
-        doc["localisation"]["after"] = {
-            "findings": after.findings,
-            "ambient_correlation": _num(after.ambient_correlation),
-            "ambient_lag_min": _num(after.ambient_lag_min),
-        }
+        doc["localisation"]["after"] = _localisation_fields(after)
     doc["thresholds"] = {
         "min_heldout_reduction": settings.min_heldout_reduction,
         "min_heldout_temperature_reduction": settings.min_heldout_t_reduction,
@@ -156,177 +119,37 @@ def build_document(
     return doc
 
 
+def _localisation_fields(localisation: Localisation) -> dict[str, Any]:
+    """Return the findings, the ambient correlation and its lag (min) of a localisation."""
+    return {
+        "findings": localisation.findings,
+        "ambient_correlation": _num(localisation.ambient_correlation),
+        "ambient_lag_min": _num(localisation.ambient_lag_min),
+    }
+
+
 def _num(x: float) -> float | None:
+    """Return ``x`` rounded to 4 decimals, or None when not finite (JSON has no NaN)."""
     x = float(x)
     return round(x, 4) if np.isfinite(x) else None
 
 
-def _fmt(x: float | None, digits: int = 2) -> str:
-    return "n/a" if x is None or not np.isfinite(x) else f"{x:.{digits}f}"
-
-
-def _pct(x: float | None) -> str:
-    return "n/a" if x is None or not np.isfinite(x) else f"{100 * x:.0f} %"
-
-
-def _motor_rise(params: Mapping[str, Any]) -> float | None:
-    """Steady rise of the motor node over its surroundings per 1000 rpm, K (None if n/a)."""
-    names = ("q_motor_W_per_krpm", "h_motor_W_per_K", "G_motor_headstock_W_per_K")
-    values = [(params.get(n) or {}).get("value") for n in names]
-    if any(v is None for v in values):
-        return None
-    q, h, g = values
-    return q / (h + g)
-
-
-def _per_campaign_table(label: str, per_campaign: Mapping[str, Any]) -> list[str]:
-    """Markdown rows: Z (um) and temperature (K) RMS before and after, one row per campaign."""
-    lines = [
-        f"| {label} | Z before (um) | Z after (um) | T before (K) | T after (K) |",
-        "|---|---:|---:|---:|---:|",
-    ]
-    for cid, row in per_campaign.items():
-        b, a = row["before"], row["after"]
-        lines.append(
-            f"| {cid} | {_fmt(b.get('z_um'))} | {_fmt(a.get('z_um'))} | "
-            f"{_fmt(b.get('t_k'))} | {_fmt(a.get('t_k'))} |"
-        )
-    return lines
-
-
-def markdown(doc: Mapping[str, Any], figures: Sequence[str]) -> str:
-    """Write the engineer's report (``discrepancy.md``) from the JSON document."""
-    named = doc["named_effects"]
-    source = "synthetic campaigns (not measurements)" if doc["synthetic"] else "measured campaigns"
-    lines = [
-        "# Where the twin and the measurements disagree",
-        "",
-        f"Data: {len(doc['campaigns'])} spindle campaigns, {source}"
-        + (
-            f"; quarantined and left out: {', '.join(doc['quarantined'])}"
-            if doc["quarantined"]
-            else ""
-        )
-        + ".",
-        f"Held-out = displacement residual on campaigns not used for calibration "
-        f"({len(doc['folds'])}-fold cross-validation across the "
-        f"{sum(len(f) for f in doc['folds'])} searched campaigns)"
-        + (
-            f"; the {len(doc['validation']['campaigns'])} validation campaigns are held back "
-            "from the search and used only for the check below."
-            if doc.get("validation")
-            else "."
-        ),
-        "",
-        "## What the baseline twin misses",
-        "",
-    ]
-    lines += [f"- {f}" for f in doc["localisation"]["before"]["findings"]]
-    lines += ["", "## What is missing", ""]
-    if named:
-        lines.append(
-            f"The search names **{len(named)}** effect(s), in order: "
-            + ", ".join(f"`{e}`" for e in named)
-            + "."
-        )
-        lines.append("")
-        for step in doc["steps"]:
-            ev = step["evidence"]
-            lines.append(
-                f"- adding `{step['effect']}` ({EFFECT_WORDS.get(step['effect'], '')}) reduces the "
-                f"held-out Z residual from {_fmt(step['rmse_um_before'])} um to "
-                f"{_fmt(step['rmse_um_after'])} um RMS ({_pct(ev['heldout_reduction'])}), "
-                f"temperatures from {_fmt(step['rmse_T_K_before'])} K to "
-                f"{_fmt(step['rmse_T_K_after'])} K; BIC changes by {_fmt(ev['delta_bic'], 1)}."
-            )
-            own = step["effect_parameters"]
-            shown = ", ".join(f"{k} = {_fmt(v['value'], 4)} {v['unit']}" for k, v in own.items())
-            shown = shown or "none (it uses the measured signals)"
-            lines.append(
-                f"  - its own calibrated parameters: {shown} (all parameters in discrepancy.json)"
-            )
-            rise = _motor_rise(step["parameters"]) if step["effect"] == "motor_heat" else None
-            if rise is not None:
-                lines.append(
-                    "  - read the motor loss together with the node's cooling: the temperatures "
-                    "fix the motor node's steady rise over its surroundings, q / (h + G) = "
-                    f"{_fmt(rise, 3)} K per 1000 rpm, and its time constant, not q, h and its "
-                    "heat capacity one by one (they scale together while its link to the "
-                    "headstock is weak)"
-                )
-    else:
-        lines.append(
-            "No candidate effect passes the thresholds: the baseline twin explains the data "
-            "within what the cross-validation can tell apart. Nothing is named."
-        )
-    lines += [
-        "",
-        f"Overall held-out Z residual: **{_fmt(doc['rmse_um_before'])} um** with the baseline, "
-        f"**{_fmt(doc['rmse_um_after'])} um** with "
-        + (f"the twin + {', '.join(named)}" if named else "no effect added")
-        + f"; temperatures {_fmt(doc['rmse_T_K_before'])} K -> {_fmt(doc['rmse_T_K_after'])} K.",
-        "",
-    ]
-    lines += _per_campaign_table("campaign", doc["per_campaign"])
-    val = doc.get("validation")
-    if val:
-        lines += [
-            "",
-            "## Check on the validation campaigns",
-            "",
-            f"Calibrated on all {sum(len(f) for f in doc['folds'])} searched campaigns, the "
-            f"baseline twin predicts the validation campaigns ({', '.join(val['campaigns'])}), "
-            "which no step of the search has seen, with a Z residual of "
-            f"**{_fmt(val['rmse_um_before'])} um** RMS and temperatures "
-            f"{_fmt(val['rmse_T_K_before'])} K; "
-            + (f"the twin + {', '.join(named)}" if named else "with nothing added it is the same")
-            + f": **{_fmt(val['rmse_um_after'])} um**, {_fmt(val['rmse_T_K_after'])} K.",
-            "",
-        ]
-        lines += _per_campaign_table("validation campaign", val["per_campaign"])
-    if "after" in doc["localisation"] and named:
-        lines += ["", "## What remains after adding the named effects", ""]
-        lines += [f"- {f}" for f in doc["localisation"]["after"]["findings"]]
-    lines += ["", "## Evidence of every candidate", ""]
-    lines.append(
-        f"An effect is named when it reduces the held-out Z RMS by at least "
-        f"{100 * doc['thresholds']['min_heldout_reduction']:.0f} % or the held-out temperature "
-        f"RMS by at least {100 * doc['thresholds']['min_heldout_temperature_reduction']:.0f} %, "
-        f"and changes BIC by at most {doc['thresholds']['max_delta_bic']:g}; the candidate with "
-        "the lowest BIC among those is added and the search repeats."
-    )
-    for entry in doc["candidates_by_step"]:
-        lines += [
-            "",
-            f"Step {entry['step']}:",
-            "",
-            "| effect | held-out Z RMS (um) | Z reduction | held-out T RMS (K) | T reduction "
-            "| delta BIC | delta AICc | passes |",
-            "|---|---:|---:|---:|---:|---:|---:|---|",
-        ]
-        for c in entry["candidates"]:
-            lines.append(
-                f"| `{c['effect']}` | {_fmt(c['rmse_heldout_um'])} | "
-                f"{_pct(c['heldout_reduction'])} | {_fmt(c['rmse_heldout_T_K'], 3)} | "
-                f"{_pct(c['heldout_T_reduction'])} | "
-                f"{_fmt(c['delta_bic'], 1)} | {_fmt(c['delta_aicc'], 1)} | "
-                f"{'yes' if c['passes'] else 'no'} |"
-            )
-    if doc["untestable"]:
-        lines += ["", "## Effects that cannot be tested on these data", ""]
-        for effect, roles in doc["untestable"].items():
-            lines.append(
-                f"- `{effect}`: no sensor with role {' / '.join(roles)}; map one in campaign.yaml "
-                "to test it."
-            )
-    if figures:
-        lines += ["", "## Figures", ""]
-        lines += [f"![{Path(f).stem}]({Path(f).name})" for f in figures]
-    return "\n".join(lines) + "\n"
-
-
 def _prediction(campaign, residual: np.ndarray) -> np.ndarray:
     return np.asarray(campaign.z_um, dtype=float) - np.asarray(residual, dtype=float)
+
+
+def _heldout_residuals(campaigns: Sequence, result: SearchResult) -> tuple[dict, dict, dict]:
+    """Return the held-out Z residuals (um) of the baseline and final twin, and the campaigns.
+
+    Each of the three is a dict keyed by campaign id.
+    """
+    by_id = {c.campaign_id: c for c in campaigns}
+    return result.baseline.heldout.z_residual_um, result.final.heldout.z_residual_um, by_id
+
+
+def _rms(residual: np.ndarray) -> float:
+    """Return the RMS of a residual, ignoring NaN, in its unit."""
+    return float(np.sqrt(np.nanmean(residual**2)))
 
 
 def heldout_fit_figure(
@@ -350,10 +173,8 @@ def heldout_fit_figure(
     -------
     Figure
     """
-    base = result.baseline.heldout.z_residual_um
-    final = result.final.heldout.z_residual_um
-    by_id = {c.campaign_id: c for c in campaigns}
-    ranked = sorted(base, key=lambda c: -float(np.sqrt(np.nanmean(base[c] ** 2))))[:max_panels]
+    base, final, by_id = _heldout_residuals(campaigns, result)
+    ranked = sorted(base, key=lambda c: -_rms(base[c]))[:max_panels]
     fig = plots.new_figure(1.6 + 3.6 * max(len(ranked), 1), 4.6)
     axes = fig.subplots(1, max(len(ranked), 1), squeeze=False)
     label = "twin + " + ", ".join(result.named_effects) if result.named_effects else "twin (same)"
@@ -362,8 +183,9 @@ def heldout_fit_figure(
         c = by_id[cid]
         minutes = np.asarray(c.t_s, dtype=float) / 60.0
         speed = ax.twinx()
-        speed_handles = speed.step(minutes, c.rpm, where="post", color="0.65", lw=0.9,
-                                   label="spindle speed (right axis)")  # fmt: skip
+        speed_handles = speed.step(
+            minutes, c.rpm, where="post", color="0.65", lw=0.9, label="spindle speed (right axis)"
+        )
         speed.set_ylabel("spindle speed (rpm)", color="0.4")
         ax.set_zorder(speed.get_zorder() + 1)
         ax.patch.set_visible(False)
@@ -375,8 +197,13 @@ def heldout_fit_figure(
         ax.set(xlabel="elapsed time (min)", ylabel="Z drift (um)")
     if ranked:
         handles, names = axes[0][0].get_legend_handles_labels()
-        fig.legend([*handles, *speed_handles], [*names, "spindle speed (right axis)"],
-                   loc="outside lower center", ncols=4, fontsize=9)  # fmt: skip
+        fig.legend(
+            [*handles, *speed_handles],
+            [*names, "spindle speed (right axis)"],
+            loc="outside lower center",
+            ncols=4,
+            fontsize=9,
+        )
     fig.suptitle(plots.wrap_text(fig, title, plots.TITLE_FONTSIZE), fontsize=plots.TITLE_FONTSIZE)
     return fig
 
@@ -413,9 +240,7 @@ def residuals_figure(campaigns: Sequence, result: SearchResult, title: str) -> F
     -------
     Figure
     """
-    before = result.baseline.heldout.z_residual_um
-    after = result.final.heldout.z_residual_um
-    by_id = {c.campaign_id: c for c in campaigns}
+    before, after, by_id = _heldout_residuals(campaigns, result)
     ids = sorted(before)
     seasons = {cid: getattr(by_id[cid], "season", None) for cid in ids}
     names = {cid: plots.campaign_label(cid, seasons[cid]) for cid in ids}
@@ -432,17 +257,18 @@ def residuals_figure(campaigns: Sequence, result: SearchResult, title: str) -> F
         ax = axes[key]
         for colour, cid in zip(colours, ids, strict=False):
             if cid in series:
-                ax.plot(np.asarray(by_id[cid].t_s) / 60.0, series[cid], lw=1, color=colour,
-                        label=names[cid])  # fmt: skip
+                minutes = np.asarray(by_id[cid].t_s) / 60.0
+                ax.plot(minutes, series[cid], lw=1, color=colour, label=names[cid])
         ax.axhline(0, color="k", lw=0.5)
         ax.set_title(plots.wrap_text(fig, f"held-out residual, {name}", 10.5, 5.0), fontsize=10.5)
         ax.set(xlabel="elapsed time (min)", ylabel="measured - twin Z (um)", ylim=(-lim, lim))
     handles, labels = axes["before"].get_legend_handles_labels()
     named = "campaign (season)" if any(seasons.values()) else "campaign"
-    fig.legend(handles, labels, loc="outside right upper", fontsize=8, title=named,
-               title_fontsize=8)  # fmt: skip
-    rms_b = [float(np.sqrt(np.nanmean(before[c] ** 2))) for c in ids]
-    rms_a = [float(np.sqrt(np.nanmean(after[c] ** 2))) if c in after else np.nan for c in ids]
+    fig.legend(
+        handles, labels, loc="outside right upper", fontsize=8, title=named, title_fontsize=8
+    )
+    rms_b = [_rms(before[c]) for c in ids]
+    rms_a = [_rms(after[c]) if c in after else np.nan for c in ids]
     x = np.arange(len(ids))
     bars = axes["rms"]
     bars.bar(x - 0.2, rms_b, 0.4, label="baseline twin")
@@ -485,12 +311,54 @@ def write_outputs(
     plot_residuals(campaigns, result, f"Displacement residual before and after ({data})", res_png)
     table = out_dir / LOCALISATION_CSV
     before.table.to_csv(table, index=False, float_format="%.4g")
-    json_path = out_dir / JSON_FILE
-    json_path.write_text(json.dumps(doc, indent=2, ensure_ascii=False) + "\n", encoding="utf-8")
-    md_path = out_dir / MARKDOWN_FILE
-    md_path.write_text(markdown(doc, [str(fit_png), str(res_png)]), encoding="utf-8")
+    written = _write_document(out_dir, doc, markdown(doc, [str(fit_png), str(res_png)]))
     logger.info("wrote %s, %s and figures to %s", JSON_FILE, MARKDOWN_FILE, out_dir)
-    return [json_path, md_path, fit_png, res_png, table]
+    return [*written, fit_png, res_png, table]
+
+
+def _run_tags(doc: Mapping[str, Any]) -> dict[str, str]:
+    """Return the MLflow run's tags: stage, status, synthetic, named effects, why untestable."""
+    tags = {
+        "stage": "discrepancy",
+        "status": str(doc.get("status", STATUS_TESTED)),
+        "synthetic": str(bool(doc["synthetic"])).lower(),
+        "named_effects": ",".join(doc["named_effects"]) or "none",
+    }
+    if doc.get("status") == STATUS_UNTESTABLE:
+        tags["mlflow.note.content"] = f"Untestable: {doc['reason']}"
+    return tags
+
+
+def _log_rmse(client: Any, run_id: str, rmse: Mapping[str, Any], prefix: str = "") -> None:
+    """Log the held-out Z (um) and temperature (K) RMS before and after that ``rmse`` holds."""
+    for key in ("rmse_um_before", "rmse_um_after", "rmse_T_K_before", "rmse_T_K_after"):
+        if rmse.get(key) is not None:
+            client.log_metric(run_id, f"{prefix}{key}", float(rmse[key]))
+
+
+def _log_search(client: Any, run_id: str, doc: Mapping[str, Any]) -> None:
+    """Log the held-out Z RMS along the search (um) and each named effect's parameters.
+
+    Step 0 of the ``heldout_rmse_um`` metric is the baseline, step k the twin after the k-th
+    named effect; parameters are logged as ``<effect>.<name>_<unit>``.
+    """
+    if doc.get("rmse_um_before") is not None:
+        client.log_metric(run_id, "heldout_rmse_um", float(doc["rmse_um_before"]), step=0)
+    for k, step in enumerate(doc.get("steps", []), start=1):
+        client.log_metric(run_id, "heldout_rmse_um", float(step["rmse_um_after"]), step=k)
+        for name, value in step["effect_parameters"].items():
+            if value["value"] is not None:
+                client.log_param(run_id, f"{step['effect']}.{name}_{value['unit']}", value["value"])
+
+
+def _log_per_campaign(client: Any, run_id: str, per_campaign: Mapping[str, Any]) -> None:
+    """Log each campaign's held-out Z (um) and temperature (K) RMS before and after."""
+    for cid, pair in per_campaign.items():
+        for when in ("before", "after"):
+            for key, name in (("z_um", "rmse_um"), ("t_k", "rmse_T_K")):
+                value = pair[when].get(key)
+                if value is not None and np.isfinite(value):
+                    client.log_metric(run_id, f"{name}_{when}.{cid}", float(value))
 
 
 def log_mlflow(files: Sequence[Path], doc: Mapping[str, Any], settings: Mapping[str, Any]) -> str:
@@ -525,39 +393,14 @@ def log_mlflow(files: Sequence[Path], doc: Mapping[str, Any], settings: Mapping[
         uri, str(settings.get("local_artifact_dir") or "mlartifacts"), experiment
     )
     experiment_id = ensure_experiment(client, experiment, location)
-    tags = {
-        "stage": "discrepancy",
-        "status": str(doc.get("status", STATUS_TESTED)),
-        "synthetic": str(bool(doc["synthetic"])).lower(),
-        "named_effects": ",".join(doc["named_effects"]) or "none",
-    }
-    if doc.get("status") == STATUS_UNTESTABLE:
-        tags["mlflow.note.content"] = f"Untestable: {doc['reason']}"
-    run = client.create_run(experiment_id, tags=tags, run_name="discrepancy")
+    run = client.create_run(experiment_id, tags=_run_tags(doc), run_name="discrepancy")
     run_id = run.info.run_id
     try:
-        for key in ("rmse_um_before", "rmse_um_after", "rmse_T_K_before", "rmse_T_K_after"):
-            if doc.get(key) is not None:
-                client.log_metric(run_id, key, float(doc[key]))
-        # the gap along the search: step 0 = baseline, step k = after the k-th named effect
-        if doc.get("rmse_um_before") is not None:
-            client.log_metric(run_id, "heldout_rmse_um", float(doc["rmse_um_before"]), step=0)
-        for k, step in enumerate(doc.get("steps", []), start=1):
-            client.log_metric(run_id, "heldout_rmse_um", float(step["rmse_um_after"]), step=k)
-            for name, value in step["effect_parameters"].items():
-                if value["value"] is not None:
-                    client.log_param(run_id, f"{step['effect']}.{name}_{value['unit']}",
-                                     value["value"])  # fmt: skip
-        for cid, pair in doc.get("per_campaign", {}).items():  # held-out, per campaign
-            for when in ("before", "after"):
-                for key, name in (("z_um", "rmse_um"), ("t_k", "rmse_T_K")):
-                    value = pair[when].get(key)
-                    if value is not None and np.isfinite(value):
-                        client.log_metric(run_id, f"{name}_{when}.{cid}", float(value))
-        val = doc.get("validation") or {}
-        for key in ("rmse_um_before", "rmse_um_after", "rmse_T_K_before", "rmse_T_K_after"):
-            if val.get(key) is not None:  # the validation campaigns the search never saw
-                client.log_metric(run_id, f"validation_{key}", float(val[key]))
+        _log_rmse(client, run_id, doc)
+        _log_search(client, run_id, doc)
+        _log_per_campaign(client, run_id, doc.get("per_campaign", {}))
+        # the validation campaigns the search never saw
+        _log_rmse(client, run_id, doc.get("validation") or {}, prefix="validation_")
         client.log_param(run_id, "named_effects", ",".join(doc["named_effects"]) or "none")
         for name, value in doc.get("thresholds", {}).items():
             client.log_param(run_id, name, str(value))

@@ -436,6 +436,47 @@ def _run(
     return result
 
 
+def _fit_tasks(
+    effect_sets: Sequence[frozenset],
+    ids: tuple[str, ...],
+    folds: Sequence[Sequence[str]],
+    current: ModelEvidence | None,
+) -> list[tuple]:
+    """Return the calibrations to run: per effect set, the full fit then one per fold.
+
+    Each is ``(effects, train_ids, test_ids, start)``; ``start`` holds the parameters of the
+    same calibration of ``current`` (name -> value), or None.
+    """
+    starts = [None] * (1 + len(folds))
+    if current is not None:
+        starts = [current.full.params] + [f.params for f in current.folds]
+        starts = [{k: v for k, (v, _) in p.items()} or None for p in starts]
+    tasks = []
+    for effects in effect_sets:
+        tasks.append((effects, ids, ids, starts[0]))
+        for k, fold in enumerate(folds):
+            train = tuple(c for c in ids if c not in set(fold))
+            tasks.append((effects, train, tuple(fold), starts[1 + k]))
+    return tasks
+
+
+def _model_evidence(effects: frozenset, chunk: Sequence[FitResult]) -> ModelEvidence:
+    """Return the evidence of one effect set from its full fit and its folds' fits, in order.
+
+    The held-out result pools the folds' residuals (um, K); it converged if every fold did.
+    """
+    full, cv = chunk[0], chunk[1:]
+    heldout = FitResult(
+        bic=float("nan"),
+        aicc=float("nan"),
+        params={},
+        z_residual_um={k: v for r in cv for k, v in r.z_residual_um.items()},
+        t_residual_k={k: v for r in cv for k, v in r.t_residual_k.items()},
+        converged=all(r.converged for r in cv),
+    )
+    return ModelEvidence(frozenset(effects), full, heldout, list(cv))
+
+
 def evaluate_many(
     evaluator: Evaluator,
     effect_sets: Sequence[frozenset],
@@ -465,38 +506,18 @@ def evaluate_many(
     list of ModelEvidence
         One per effect set, same order.
     """
-    ids = tuple(campaign_ids)
-    tasks = []
-    starts = [None] * (1 + len(folds))
-    if current is not None:
-        starts = [current.full.params] + [f.params for f in current.folds]
-        starts = [{k: v for k, (v, _) in p.items()} or None for p in starts]
-    for effects in effect_sets:
-        tasks.append((effects, ids, ids, starts[0]))
-        for k, fold in enumerate(folds):
-            train = tuple(c for c in ids if c not in set(fold))
-            tasks.append((effects, train, tuple(fold), starts[1 + k]))
+    tasks = _fit_tasks(effect_sets, tuple(campaign_ids), folds, current)
     if n_jobs == 1 or len(tasks) == 1:
         results = [_run(evaluator, *t) for t in tasks]
     else:
         from joblib import Parallel, delayed
 
         results = Parallel(n_jobs=n_jobs)(delayed(_run)(evaluator, *t) for t in tasks)
-    out = []
     per = 1 + len(folds)
-    for i, effects in enumerate(effect_sets):
-        chunk = results[i * per : (i + 1) * per]
-        full, cv = chunk[0], chunk[1:]
-        heldout = FitResult(
-            bic=float("nan"),
-            aicc=float("nan"),
-            params={},
-            z_residual_um={k: v for r in cv for k, v in r.z_residual_um.items()},
-            t_residual_k={k: v for r in cv for k, v in r.t_residual_k.items()},
-            converged=all(r.converged for r in cv),
-        )
-        out.append(ModelEvidence(frozenset(effects), full, heldout, list(cv)))
-    return out
+    return [
+        _model_evidence(effects, results[i * per : (i + 1) * per])
+        for i, effects in enumerate(effect_sets)
+    ]
 
 
 def candidate_evidence(
@@ -527,6 +548,35 @@ def candidate_evidence(
         passes=passes,
         converged=bool(augmented.full.converged and augmented.heldout.converged),
     )
+
+
+def _ranked(
+    pool: Sequence[str],
+    current: ModelEvidence,
+    models: Sequence[ModelEvidence],
+    settings: SearchSettings,
+) -> list[Candidate]:
+    """Return the evidence of each effect of ``pool`` (``models``, same order), by delta BIC."""
+    tried = [candidate_evidence(e, current, m, settings) for e, m in zip(pool, models, strict=True)]
+    order = np.argsort([c.delta_bic for c in tried], kind="stable")
+    return [tried[i] for i in order]
+
+
+def _log_round(step: int, ranked: Sequence[Candidate]) -> None:
+    """Log the evidence of every candidate of one step of the search."""
+    for c in ranked:
+        logger.info(
+            "step %d: %-22s held-out Z RMS %.2f um (%+.0f %%), T RMS %.3f K (%+.0f %%), "
+            "delta BIC %+.1f%s",
+            step,
+            c.effect,
+            c.rmse_heldout_um,
+            -100 * c.heldout_reduction,
+            c.rmse_heldout_t_k,
+            -100 * c.heldout_t_reduction,
+            c.delta_bic,
+            " passes" if c.passes else "",
+        )
 
 
 def forward_search(
@@ -572,25 +622,9 @@ def forward_search(
             break
         sets = [current.effects | {e} for e in pool]
         models = evaluate_many(evaluator, sets, campaign_ids, folds, settings.n_jobs, current)
-        tried = [
-            candidate_evidence(e, current, m, settings) for e, m in zip(pool, models, strict=True)
-        ]
-        order = np.argsort([c.delta_bic for c in tried], kind="stable")
-        ranked = [tried[i] for i in order]
+        ranked = _ranked(pool, current, models, settings)
         rounds.append(ranked)
-        for c in ranked:
-            logger.info(
-                "step %d: %-22s held-out Z RMS %.2f um (%+.0f %%), T RMS %.3f K (%+.0f %%), "
-                "delta BIC %+.1f%s",
-                len(rounds),
-                c.effect,
-                c.rmse_heldout_um,
-                -100 * c.heldout_reduction,
-                c.rmse_heldout_t_k,
-                -100 * c.heldout_t_reduction,
-                c.delta_bic,
-                " passes" if c.passes else "",
-            )
+        _log_round(len(rounds), ranked)
         best = next((c for c in ranked if c.passes), None)
         if best is None:
             break

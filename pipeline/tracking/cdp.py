@@ -64,26 +64,22 @@ class Session:
     def __exit__(self, *exc: object) -> None:
         self.close()
 
-    def _tail(self) -> str:
-        self._errors.seek(0)
-        lines = self._errors.read().decode(errors="replace").splitlines()
-        return "\n".join(lines[-ui_browser.LOG_TAIL_LINES :])
-
     def _start(self) -> None:
         profile = Path(self._profile.name)
+        arguments = ["--remote-debugging-port=0", "about:blank"]
         self._process = subprocess.Popen(  # noqa: S603
-            [self.chromium, "--headless=new", "--no-sandbox", "--disable-gpu",
-             "--disable-dev-shm-usage", "--hide-scrollbars", "--no-first-run",
-             "--no-default-browser-check", "--remote-debugging-port=0",
-             f"--user-data-dir={profile}", f"--window-size={self.window[0]},{self.window[1]}",
-             "about:blank"],
-            stdout=subprocess.DEVNULL, stderr=self._errors, stdin=subprocess.DEVNULL,
+            ui_browser.chromium_command(self.chromium, profile, self.window, arguments),
+            stdout=subprocess.DEVNULL,
+            stderr=self._errors,
+            stdin=subprocess.DEVNULL,
             start_new_session=True,
-        )  # fmt: skip
+        )
         active, deadline = profile / "DevToolsActivePort", time.monotonic() + self.timeout_s
         while len(lines := _lines(active)) < 2:
             if self._process.poll() is not None or time.monotonic() > deadline:
-                raise CdpError(f"Chromium opened no DevTools port:\n{self._tail()}")
+                raise CdpError(
+                    f"Chromium opened no DevTools port:\n{ui_browser.file_tail(self._errors)}"
+                )
             time.sleep(0.05)
         port = int(lines[0])
         status, body = ui_browser.fetch(f"http://127.0.0.1:{port}/json/list", self.timeout_s)
@@ -93,8 +89,13 @@ class Session:
         path = urlsplit(pages[0]["webSocketDebuggerUrl"]).path
         self._socket = rfc6455.connect("127.0.0.1", port, path, self.timeout_s)
         width, height = self.window
-        self.call("Emulation.setDeviceMetricsOverride", width=width, height=height,
-                  deviceScaleFactor=1, mobile=False)  # fmt: skip
+        self.call(
+            "Emulation.setDeviceMetricsOverride",
+            width=width,
+            height=height,
+            deviceScaleFactor=1,
+            mobile=False,
+        )
 
     def call(self, method: str, timeout_s: float | None = None, **params: Any) -> dict[str, Any]:
         """Send one command; return its ``result`` (events met meanwhile are dropped).

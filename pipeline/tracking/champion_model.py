@@ -144,14 +144,16 @@ def log_and_register(tracking_uri: str, run_id: str, registered_name: str, folde
         info = mlflow.pyfunc.log_model(
             name=MODEL_NAME,
             python_model=ChampionModel(),
-            artifacts={"estimator": str(folder / paths.CHAMPION_ESTIMATOR_FILE),
-                       "card": str(card_path)},
+            artifacts={
+                "estimator": str(folder / paths.CHAMPION_ESTIMATOR_FILE),
+                "card": str(card_path),
+            },
             code_paths=[str(package)],
             pip_requirements=list(REQUIREMENTS),
             signature=signature(spec),
             input_example=example,
             registered_model_name=registered_name,
-        )  # fmt: skip
+        )
     finally:
         mlflow.end_run(status="RUNNING")
         # set_tracking_uri also sets the environment variable: restore the caller's.
@@ -162,12 +164,17 @@ def log_and_register(tracking_uri: str, run_id: str, registered_name: str, folde
     client.update_model_version(registered_name, version, description=description(card))
     client.update_registered_model(registered_name, description=model_description(card))
     tags = {
-        "axis": card["axis"], "model": card["model"], "selection": card["selection"],
-        "mode": card["mode"], "compensate": str(card["compensate"]).lower(),
-        "protocol": str(card.get("protocol")), "needs_speed_log": str(spec.needs_speed).lower(),
-        "inputs": ",".join(spec.inputs) or "-", "ranked_by": str(card.get("chosen_on")),
+        "axis": card["axis"],
+        "model": card["model"],
+        "selection": card["selection"],
+        "mode": card["mode"],
+        "compensate": str(card["compensate"]).lower(),
+        "protocol": str(card.get("protocol")),
+        "needs_speed_log": str(spec.needs_speed).lower(),
+        "inputs": ",".join(spec.inputs) or "-",
+        "ranked_by": str(card.get("chosen_on")),
         "trained_on": ",".join(card.get("trained_on") or []) or "-",
-    }  # fmt: skip
+    }
     for key, value in tags.items():
         client.set_model_version_tag(registered_name, version, key, value)
     logger.info("registered %s version %s with alias @%s", registered_name, version, ALIAS)

@@ -96,8 +96,9 @@ def _bullets(items: Mapping[str, str], code: bool = True) -> list[str]:
 
 def experiment_description(experiment: str) -> str:
     """Markdown description of the experiment: how to read its runs and every score name."""
-    prefixes = ", ".join(f"`{prefix or '(none)'}` {scheme}" for scheme, prefix in
-                         SCHEME_PREFIX.items())  # fmt: skip
+    prefixes = ", ".join(
+        f"`{prefix or '(none)'}` {scheme}" for scheme, prefix in SCHEME_PREFIX.items()
+    )
     lines = [
         f"# {experiment}: thermal-error models compared across seasons",
         "",

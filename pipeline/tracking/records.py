@@ -279,8 +279,10 @@ def group_metrics(groups: Sequence[Mapping[str, Any]]) -> dict[str, float]:
     metrics = {}
     for row in groups:
         name = str(row["name"])
-        for key, value in ((name, row.get("rms_um")),
-                           (name.removesuffix("_rms_um") + "_eta", row.get("eta"))):  # fmt: skip
+        for key, value in (
+            (name, row.get("rms_um")),
+            (name.removesuffix("_rms_um") + "_eta", row.get("eta")),
+        ):
             number = _as_metric(value)
             if number is not None and math.isfinite(number):
                 metrics[safe_key(key)] = number
@@ -336,8 +338,11 @@ def headline(scores: Mapping[str, float], groups: Mapping[str, float], name: str
     if len(groups) > room:
         logger.warning(
             "%s: %d per-group scores, room for %d metrics: the rest are in %s only",
-            name, len(groups), max(room, 0), GROUPS_TABLE,
-        )  # fmt: skip
+            name,
+            len(groups),
+            max(room, 0),
+            GROUPS_TABLE,
+        )
     metrics.update(dict(list(groups.items())[: max(room, 0)]))
     return metrics
 
@@ -379,8 +384,10 @@ def child_records(inputs: ChildInputs, tags: Mapping[str, str] | None = None) ->
     for key in sorted(set(inputs.scores) | set(inputs.summaries)):
         axis, model, selection, mode = key
         name = "/".join(key)
-        for what, table in (("cross_season_scores.csv", inputs.scores),
-                            ("model_scores.csv", inputs.summaries)):  # fmt: skip
+        for what, table in (
+            ("cross_season_scores.csv", inputs.scores),
+            ("model_scores.csv", inputs.summaries),
+        ):
             if key not in table:
                 logger.warning("%s: no entry for %s; its child run lacks that part", what, name)
         scores, standing = inputs.summaries.get(key, ({}, Standing(False, "not scored", 0, False)))
@@ -396,10 +403,15 @@ def child_records(inputs: ChildInputs, tags: Mapping[str, str] | None = None) ->
                     params[safe_key("chosen", param)] = _text(value, MAX_PARAM_LENGTH, name)
         ranked_by = inputs.ranked_by.get(axis, "")
         child_tags = {
-            **(tags or {}), "axis": axis, "model": model, "selection": selection, "mode": mode,
-            ELIGIBLE_TAG: str(standing.eligible).lower(), RANKED_BY_TAG: ranked_by or "-",
+            **(tags or {}),
+            "axis": axis,
+            "model": model,
+            "selection": selection,
+            "mode": mode,
+            ELIGIBLE_TAG: str(standing.eligible).lower(),
+            RANKED_BY_TAG: ranked_by or "-",
             CHAMPION_TAG: str(standing.champion).lower(),
-        }  # fmt: skip
+        }
         if standing.rank:
             child_tags[RANK_TAG] = str(standing.rank)
         if not standing.eligible:

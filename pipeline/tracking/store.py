@@ -198,9 +198,10 @@ def discard_incomplete(
             continue
         parent_id = parent.info.run_id
         children = client.search_runs(
-            [experiment_id], filter_string=f"tags.{PARENT_RUN_TAG} = '{parent_id}'",
+            [experiment_id],
+            filter_string=f"tags.{PARENT_RUN_TAG} = '{parent_id}'",
             max_results=5000,
-        )  # fmt: skip
+        )
         child_ids = [run.info.run_id for run in children]
         for child_id in child_ids:
             for version in client.search_model_versions(f"run_id = '{child_id}'"):

@@ -20,13 +20,24 @@ import time
 import urllib.error
 import urllib.request
 from collections.abc import Iterator, Mapping
-from contextlib import contextmanager
+from contextlib import contextmanager, suppress
 from pathlib import Path
+from typing import BinaryIO
 
 ENV_CHROMIUM = "CHROMIUM"
 CHROMIUM_NAMES = ("chromium", "chromium-browser", "google-chrome")
 HEALTH_TIMEOUT_S = 60.0
 LOG_TAIL_LINES = 30
+HEADLESS_FLAGS = (
+    "--headless=new",
+    "--no-sandbox",
+    "--disable-gpu",
+    "--disable-dev-shm-usage",
+    "--hide-scrollbars",
+    "--no-first-run",
+    "--no-default-browser-check",
+)
+"""Flags of every headless Chromium this check starts (no GPU, no first-run dialogs)."""
 
 
 class ServerError(RuntimeError):
@@ -89,9 +100,20 @@ def fetch(url: str, timeout_s: float = 30.0) -> tuple[int, bytes]:
         return 0, b""
 
 
-def _tail(path: Path, lines: int = LOG_TAIL_LINES) -> str:
+def _last_lines(output: bytes, lines: int = LOG_TAIL_LINES) -> str:
+    """Return the last ``lines`` lines of a process's ``output``, decoded."""
+    return "\n".join(output.decode(errors="replace").splitlines()[-lines:])
+
+
+def file_tail(file: BinaryIO) -> str:
+    """Return the last lines of an open (temporary) output file, read from its start."""
+    file.seek(0)
+    return _last_lines(file.read())
+
+
+def _tail(path: Path) -> str:
     try:
-        return "\n".join(path.read_text(errors="replace").splitlines()[-lines:])
+        return _last_lines(path.read_bytes())
     except OSError:
         return "(no output)"
 
@@ -103,18 +125,12 @@ def stop_group(process: subprocess.Popen, grace_s: float = 5.0) -> None:
     the leader exited (Chromium's helper processes).
     """
     if process.poll() is None:
-        try:
+        with suppress(ProcessLookupError):
             os.killpg(process.pid, signal.SIGTERM)
-        except ProcessLookupError:
-            pass
-        try:
+        with suppress(subprocess.TimeoutExpired):
             process.wait(timeout=grace_s)
-        except subprocess.TimeoutExpired:
-            pass
-    try:
+    with suppress(ProcessLookupError):
         os.killpg(process.pid, signal.SIGKILL)
-    except ProcessLookupError:
-        pass
     process.wait(timeout=grace_s)
 
 
@@ -122,6 +138,32 @@ def mlflow_command() -> list[str]:
     """Return the ``mlflow`` executable beside the running Python, else ``python -m mlflow``."""
     executable = Path(sys.executable).parent / "mlflow"
     return [str(executable)] if executable.is_file() else [sys.executable, "-m", "mlflow"]
+
+
+def _wait_healthy(
+    process: subprocess.Popen, base_url: str, name: str, log: Path, timeout_s: float
+) -> None:
+    """Wait until ``<base_url>/health`` answers 200.
+
+    Raises
+    ------
+    ServerError
+        If ``process`` (``name``, its output in ``log``) exits first, or ``timeout_s`` seconds
+        pass.
+    """
+    deadline = time.monotonic() + timeout_s
+    while not healthy(base_url):
+        if process.poll() is not None:
+            raise ServerError(
+                f"{name} exited with code {process.returncode} before "
+                f"answering {base_url}/health; its output ends with:\n{_tail(log)}"
+            )
+        if time.monotonic() > deadline:
+            raise ServerError(
+                f"{name} did not answer {base_url}/health within "
+                f"{timeout_s:.0f} s; its output ends with:\n{_tail(log)}"
+            )
+        time.sleep(0.25)
 
 
 @contextmanager
@@ -155,13 +197,12 @@ def running_mlflow(
     """
     port = free_port()
     base_url = f"http://127.0.0.1:{port}"
-    command = [*mlflow_command(), *arguments, "--host", "127.0.0.1", "--port", str(port),
-               "--workers", "1"]  # fmt: skip
+    host = ["--host", "127.0.0.1", "--port", str(port), "--workers", "1"]
     env = {k: v for k, v in os.environ.items() if not k.startswith("MLFLOW_")}
     log = Path(folder) / "mlflow.log"
     with log.open("wb") as output:
         process = subprocess.Popen(  # noqa: S603
-            command,
+            [*mlflow_command(), *arguments, *host],
             cwd=folder,
             env=env,
             stdout=output,
@@ -170,19 +211,7 @@ def running_mlflow(
             start_new_session=True,
         )
     try:
-        deadline = time.monotonic() + timeout_s
-        while not healthy(base_url):
-            if process.poll() is not None:
-                raise ServerError(
-                    f"mlflow {arguments[0]} exited with code {process.returncode} before "
-                    f"answering {base_url}/health; its output ends with:\n{_tail(log)}"
-                )
-            if time.monotonic() > deadline:
-                raise ServerError(
-                    f"mlflow {arguments[0]} did not answer {base_url}/health within "
-                    f"{timeout_s:.0f} s; its output ends with:\n{_tail(log)}"
-                )
-            time.sleep(0.25)
+        _wait_healthy(process, base_url, f"mlflow {arguments[0]}", log, timeout_s)
         yield base_url
     finally:
         stop_group(process)
@@ -199,6 +228,61 @@ def running_mlflow_ui(store_uri: str, timeout_s: float = HEALTH_TIMEOUT_S) -> It
         arguments = ["ui", "--backend-store-uri", store_uri]
         with running_mlflow(arguments, Path(folder), timeout_s) as base_url:
             yield base_url
+
+
+def chromium_command(
+    chromium: str, profile: Path, window: tuple[int, int], arguments: list[str]
+) -> list[str]:
+    """Return the command line of a headless Chromium.
+
+    Parameters
+    ----------
+    chromium : str
+        The Chromium executable.
+    profile : Path
+        ``--user-data-dir``, a fresh temporary folder.
+    window : tuple of int
+        Window width and height, in CSS pixels.
+    arguments : list of str
+        What follows :data:`HEADLESS_FLAGS`, the profile and the window size (the page last).
+
+    Returns
+    -------
+    list of str
+    """
+    return [
+        chromium,
+        *HEADLESS_FLAGS,
+        f"--user-data-dir={profile}",
+        f"--window-size={window[0]},{window[1]}",
+        *arguments,
+    ]
+
+
+def _run_to_end(command: list[str], timeout_s: float) -> tuple[int | None, str, str]:
+    """Run ``command`` in its own process group, stopped with its children after it ends.
+
+    Returns
+    -------
+    code : int or None
+        Exit code; None if it ran longer than ``timeout_s`` seconds.
+    stdout : str
+        Its whole output.
+    tail : str
+        The last lines of its error output.
+    """
+    with tempfile.TemporaryFile() as output, tempfile.TemporaryFile() as errors:
+        process = subprocess.Popen(  # noqa: S603
+            command, stdout=output, stderr=errors, stdin=subprocess.DEVNULL, start_new_session=True
+        )
+        try:
+            code = process.wait(timeout=timeout_s)
+        except subprocess.TimeoutExpired:
+            code = None
+        finally:
+            stop_group(process)
+        output.seek(0)
+        return code, output.read().decode("utf-8", errors="replace"), file_tail(errors)
 
 
 def render_page(
@@ -239,41 +323,9 @@ def render_page(
     """
     screenshot.parent.mkdir(parents=True, exist_ok=True)
     screenshot.unlink(missing_ok=True)
-    command = [
-        chromium,
-        "--headless=new",
-        "--no-sandbox",
-        "--disable-gpu",
-        "--disable-dev-shm-usage",
-        "--hide-scrollbars",
-        "--no-first-run",
-        "--no-default-browser-check",
-        f"--user-data-dir={profile}",
-        f"--window-size={window[0]},{window[1]}",
-        f"--virtual-time-budget={budget_ms}",
-        f"--screenshot={screenshot}",
-        "--dump-dom",
-        url,
-    ]
+    page = [f"--virtual-time-budget={budget_ms}", f"--screenshot={screenshot}", "--dump-dom", url]
     timeout_s = budget_ms / 1000 + 90
-    with tempfile.TemporaryFile() as output, tempfile.TemporaryFile() as errors:
-        process = subprocess.Popen(  # noqa: S603
-            command,
-            stdout=output,
-            stderr=errors,
-            stdin=subprocess.DEVNULL,
-            start_new_session=True,
-        )
-        try:
-            code = process.wait(timeout=timeout_s)
-        except subprocess.TimeoutExpired:
-            code = None
-        finally:
-            stop_group(process)
-        output.seek(0)
-        dom = output.read().decode("utf-8", errors="replace")
-        errors.seek(0)
-        tail = "\n".join(errors.read().decode(errors="replace").splitlines()[-LOG_TAIL_LINES:])
+    code, dom, tail = _run_to_end(chromium_command(chromium, profile, window, page), timeout_s)
     if code is None:
         raise BrowserError(f"Chromium did not finish {url} within {timeout_s:.0f} s:\n{tail}")
     if code != 0 or not screenshot.is_file():

@@ -41,8 +41,11 @@ def view_key(kind: str, axis: str) -> str:
 def _score_columns(children: Sequence[RunRecord], ranked_by: str) -> list[str]:
     """Ranking score, its eta, the per-group scores logged as metrics, the validation score."""
     logged = {name for child in children for name in child.metrics}
-    groups = {(row["split"], str(row["held_out"])): row["name"]
-              for child in children for row in child.tables.get(GROUPS_TABLE, [])}  # fmt: skip
+    groups = {
+        (row["split"], str(row["held_out"])): row["name"]
+        for child in children
+        for row in child.tables.get(GROUPS_TABLE, [])
+    }
     scheme = ranked_by.split("_", 1)[0]
     wanted = [ranked_by, f"{scheme}_eta"]
     wanted += [groups[key] for key in sorted(groups) if key[0] == "train"]
@@ -72,17 +75,23 @@ def shared_views(
             continue
         scores = _score_columns(mine, score)
         where = f"tags.`{PARENT_RUN_TAG}` = '{parent_id}' and tags.axis = '{axis}'"
-        common = {"orderByKey": column("metrics", score), "orderByAsc": True,
-                  "runsHiddenMode": SHOW_ALL_RUNS}  # fmt: skip
-        views[view_key("ranked", axis)] = json.dumps({
-            **common, "searchFilter": f"{where} and tags.eligible = 'true'",
-            "selectedColumns": [column("tags", "rank"), column("tags", "champion"), *scores],
-        })  # fmt: skip
-        views[view_key("all", axis)] = json.dumps({
-            **common, "searchFilter": where,
-            "selectedColumns": [column("tags", "eligible"), column("tags", "rank"),
-                                column("tags", "ineligible_reason"), *scores[:2]],
-        })  # fmt: skip
+        common = {
+            "orderByKey": column("metrics", score),
+            "orderByAsc": True,
+            "runsHiddenMode": SHOW_ALL_RUNS,
+        }
+        ranked = [column("tags", "rank"), column("tags", "champion"), *scores]
+        every = [column("tags", name) for name in ("eligible", "rank", "ineligible_reason")]
+        views[view_key("ranked", axis)] = json.dumps(
+            {
+                **common,
+                "searchFilter": f"{where} and tags.eligible = 'true'",
+                "selectedColumns": ranked,
+            }
+        )
+        views[view_key("all", axis)] = json.dumps(
+            {**common, "searchFilter": where, "selectedColumns": [*every, *scores[:2]]}
+        )
     return views
 
 

@@ -1,0 +1,266 @@
+"""The engineer's report, ``discrepancy.md``, written from the ``discrepancy.json`` document.
+
+One function per section of the report, each returning its Markdown lines: where the baseline
+twin disagrees with the measurements, which effects the search named with what evidence, the
+check on the validation campaigns, what remains, the evidence of every candidate and the effects
+the data cannot test (:func:`markdown`); and the short report of campaigns the twin cannot be
+compared with (:func:`untestable_markdown`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+TITLE = "# Where the twin and the measurements disagree"
+"""First line of both reports."""
+
+EFFECT_WORDS = {
+    "ambient_variation": "the workshop air temperature varies and the structure follows it",
+    "centrifugal_growth": "the spindle nose shifts instantly with speed squared (centrifugal)",
+    "nonlinear_bearing_heat": "bearing friction heat grows faster than linearly with speed",
+    "sensor_lag": "the sensors read their locations through a first-order lag",
+    "thermal_bending": "the column bends when its front and rear differ in temperature",
+    "motor_heat": "the spindle motor heats the headstock",
+}
+"""One line per effect, for the report."""
+
+
+def _source(doc: Mapping[str, Any]) -> str:
+    """Return what the campaigns are: synthetic or measured."""
+    return "synthetic campaigns (not measurements)" if doc["synthetic"] else "measured campaigns"
+
+
+def untestable_markdown(doc: Mapping[str, Any]) -> str:
+    """Write the engineer's report when the twin cannot be compared with the campaigns."""
+    source = _source(doc)
+    quarantined = (
+        f" Quarantined and left out: {', '.join(doc['quarantined'])}." if doc["quarantined"] else ""
+    )
+    lines = [
+        TITLE,
+        "",
+        f"**Untestable on these campaigns.** {doc['reason'][:1].upper()}{doc['reason'][1:]}.",
+        "",
+        f"Data: {len(doc['campaigns'])} spindle campaign(s) with a Z displacement, {source}; "
+        f"sensor roles present: {', '.join(doc['roles_present']) or 'none'}.{quarantined}",
+        "",
+        "The physical twin is a thermal network whose nodes are the places of the sensors "
+        "(`campaign.yaml` `sensors: <name>: {role: ...}`). Roles it can use: "
+        + ", ".join(f"`{r}`" for r in doc["needed_roles"])
+        + "; `ambient` drives it. Nothing was calibrated or named, and the `twin` candidate of "
+        "the model comparison is skipped for this reason. The rest of the pipeline (the "
+        "regression models, their scores and the champion) does not need the roles.",
+        "",
+    ]
+    return "\n".join(lines)
+
+
+def _fmt(x: float | None, digits: int = 2) -> str:
+    """Return ``x`` with ``digits`` decimals, or ``n/a`` when missing or not finite."""
+    return "n/a" if x is None or not np.isfinite(x) else f"{x:.{digits}f}"
+
+
+def _pct(x: float | None) -> str:
+    """Return the fraction ``x`` as a whole percentage, or ``n/a`` when missing or not finite."""
+    return "n/a" if x is None or not np.isfinite(x) else f"{100 * x:.0f} %"
+
+
+def _motor_rise(params: Mapping[str, Any]) -> float | None:
+    """Steady rise of the motor node over its surroundings per 1000 rpm, K (None if n/a)."""
+    names = ("q_motor_W_per_krpm", "h_motor_W_per_K", "G_motor_headstock_W_per_K")
+    values = [(params.get(n) or {}).get("value") for n in names]
+    if any(v is None for v in values):
+        return None
+    q, h, g = values
+    return q / (h + g)
+
+
+def _per_campaign_table(label: str, per_campaign: Mapping[str, Any]) -> list[str]:
+    """Markdown rows: Z (um) and temperature (K) RMS before and after, one row per campaign."""
+    lines = [
+        f"| {label} | Z before (um) | Z after (um) | T before (K) | T after (K) |",
+        "|---|---:|---:|---:|---:|",
+    ]
+    for cid, row in per_campaign.items():
+        b, a = row["before"], row["after"]
+        lines.append(
+            f"| {cid} | {_fmt(b.get('z_um'))} | {_fmt(a.get('z_um'))} | "
+            f"{_fmt(b.get('t_k'))} | {_fmt(a.get('t_k'))} |"
+        )
+    return lines
+
+
+def _section(title: str, body: list[str]) -> list[str]:
+    """Return a Markdown section: a blank line, the ``## title`` heading, a blank line, body."""
+    return ["", f"## {title}", "", *body]
+
+
+def _twin_plus(named: Sequence[str], otherwise: str) -> str:
+    """Return "the twin + <named effects>", or ``otherwise`` when nothing is named."""
+    return f"the twin + {', '.join(named)}" if named else otherwise
+
+
+def _intro_lines(doc: Mapping[str, Any]) -> list[str]:
+    """Return the title and what the data and the held-out residual are."""
+    source = _source(doc)
+    quarantined = (
+        f"; quarantined and left out: {', '.join(doc['quarantined'])}" if doc["quarantined"] else ""
+    )
+    validation = (
+        f"; the {len(doc['validation']['campaigns'])} validation campaigns are held back "
+        "from the search and used only for the check below."
+        if doc.get("validation")
+        else "."
+    )
+    return [
+        TITLE,
+        "",
+        f"Data: {len(doc['campaigns'])} spindle campaigns, {source}{quarantined}.",
+        f"Held-out = displacement residual on campaigns not used for calibration "
+        f"({len(doc['folds'])}-fold cross-validation across the "
+        f"{sum(len(f) for f in doc['folds'])} searched campaigns){validation}",
+    ]
+
+
+def _step_lines(step: Mapping[str, Any]) -> list[str]:
+    """Return the bullet of one named effect: its evidence and its calibrated parameters."""
+    ev = step["evidence"]
+    lines = [
+        f"- adding `{step['effect']}` ({EFFECT_WORDS.get(step['effect'], '')}) reduces the "
+        f"held-out Z residual from {_fmt(step['rmse_um_before'])} um to "
+        f"{_fmt(step['rmse_um_after'])} um RMS ({_pct(ev['heldout_reduction'])}), "
+        f"temperatures from {_fmt(step['rmse_T_K_before'])} K to "
+        f"{_fmt(step['rmse_T_K_after'])} K; BIC changes by {_fmt(ev['delta_bic'], 1)}."
+    ]
+    own = step["effect_parameters"]
+    shown = ", ".join(f"{k} = {_fmt(v['value'], 4)} {v['unit']}" for k, v in own.items())
+    shown = shown or "none (it uses the measured signals)"
+    lines.append(f"  - its own calibrated parameters: {shown} (all parameters in discrepancy.json)")
+    rise = _motor_rise(step["parameters"]) if step["effect"] == "motor_heat" else None
+    if rise is not None:
+        lines.append(
+            "  - read the motor loss together with the node's cooling: the temperatures "
+            "fix the motor node's steady rise over its surroundings, q / (h + G) = "
+            f"{_fmt(rise, 3)} K per 1000 rpm, and its time constant, not q, h and its "
+            "heat capacity one by one (they scale together while its link to the "
+            "headstock is weak)"
+        )
+    return lines
+
+
+def _missing_lines(doc: Mapping[str, Any]) -> list[str]:
+    """Return the named effects with their evidence, the overall and per-campaign RMS."""
+    named = doc["named_effects"]
+    if named:
+        lines = [
+            f"The search names **{len(named)}** effect(s), in order: "
+            + ", ".join(f"`{e}`" for e in named)
+            + ".",
+            "",
+        ]
+        for step in doc["steps"]:
+            lines += _step_lines(step)
+    else:
+        lines = [
+            "No candidate effect passes the thresholds: the baseline twin explains the data "
+            "within what the cross-validation can tell apart. Nothing is named."
+        ]
+    return [
+        *lines,
+        "",
+        f"Overall held-out Z residual: **{_fmt(doc['rmse_um_before'])} um** with the baseline, "
+        f"**{_fmt(doc['rmse_um_after'])} um** with {_twin_plus(named, 'no effect added')}; "
+        f"temperatures {_fmt(doc['rmse_T_K_before'])} K -> {_fmt(doc['rmse_T_K_after'])} K.",
+        "",
+        *_per_campaign_table("campaign", doc["per_campaign"]),
+    ]
+
+
+def _validation_lines(doc: Mapping[str, Any]) -> list[str]:
+    """Return the check on the validation campaigns, with one row per campaign."""
+    val = doc["validation"]
+    return [
+        f"Calibrated on all {sum(len(f) for f in doc['folds'])} searched campaigns, the "
+        f"baseline twin predicts the validation campaigns ({', '.join(val['campaigns'])}), "
+        "which no step of the search has seen, with a Z residual of "
+        f"**{_fmt(val['rmse_um_before'])} um** RMS and temperatures "
+        f"{_fmt(val['rmse_T_K_before'])} K; "
+        f"{_twin_plus(doc['named_effects'], 'with nothing added it is the same')}: "
+        f"**{_fmt(val['rmse_um_after'])} um**, {_fmt(val['rmse_T_K_after'])} K.",
+        "",
+        *_per_campaign_table("validation campaign", val["per_campaign"]),
+    ]
+
+
+def _candidate_table(entry: Mapping[str, Any]) -> list[str]:
+    """Return the evidence of every candidate of one search step, as a Markdown table."""
+    lines = [
+        "",
+        f"Step {entry['step']}:",
+        "",
+        "| effect | held-out Z RMS (um) | Z reduction | held-out T RMS (K) | T reduction "
+        "| delta BIC | delta AICc | passes |",
+        "|---|---:|---:|---:|---:|---:|---:|---|",
+    ]
+    for c in entry["candidates"]:
+        lines.append(
+            f"| `{c['effect']}` | {_fmt(c['rmse_heldout_um'])} | "
+            f"{_pct(c['heldout_reduction'])} | {_fmt(c['rmse_heldout_T_K'], 3)} | "
+            f"{_pct(c['heldout_T_reduction'])} | "
+            f"{_fmt(c['delta_bic'], 1)} | {_fmt(c['delta_aicc'], 1)} | "
+            f"{'yes' if c['passes'] else 'no'} |"
+        )
+    return lines
+
+
+def _evidence_lines(doc: Mapping[str, Any]) -> list[str]:
+    """Return the naming rule and the evidence of every candidate at every step."""
+    thresholds = doc["thresholds"]
+    lines = [
+        f"An effect is named when it reduces the held-out Z RMS by at least "
+        f"{100 * thresholds['min_heldout_reduction']:.0f} % or the held-out temperature "
+        f"RMS by at least {100 * thresholds['min_heldout_temperature_reduction']:.0f} %, "
+        f"and changes BIC by at most {thresholds['max_delta_bic']:g}; the candidate with "
+        "the lowest BIC among those is added and the search repeats."
+    ]
+    for entry in doc["candidates_by_step"]:
+        lines += _candidate_table(entry)
+    return lines
+
+
+def _untestable_lines(untestable: Mapping[str, Sequence[str]]) -> list[str]:
+    """Return one bullet per effect that lacks a sensor role (effect -> roles it needs)."""
+    return [
+        f"- `{effect}`: no sensor with role {' / '.join(roles)}; map one in campaign.yaml "
+        "to test it."
+        for effect, roles in untestable.items()
+    ]
+
+
+def markdown(doc: Mapping[str, Any], figures: Sequence[str]) -> str:
+    """Write the engineer's report (``discrepancy.md``) from the JSON document."""
+    findings = doc["localisation"]
+    lines = _intro_lines(doc)
+    lines += _section(
+        "What the baseline twin misses", [f"- {f}" for f in findings["before"]["findings"]]
+    )
+    lines += _section("What is missing", _missing_lines(doc))
+    if doc.get("validation"):
+        lines += _section("Check on the validation campaigns", _validation_lines(doc))
+    if "after" in findings and doc["named_effects"]:
+        lines += _section(
+            "What remains after adding the named effects",
+            [f"- {f}" for f in findings["after"]["findings"]],
+        )
+    lines += _section("Evidence of every candidate", _evidence_lines(doc))
+    if doc["untestable"]:
+        lines += _section(
+            "Effects that cannot be tested on these data", _untestable_lines(doc["untestable"])
+        )
+    if figures:
+        lines += _section("Figures", [f"![{Path(f).stem}]({Path(f).name})" for f in figures])
+    return "\n".join(lines) + "\n"
