@@ -172,9 +172,7 @@ def run_workflow(raw: Path, out: Path, section: dict, params_file: Path = DEFAUL
 
     gap = float(load_section("ingest", params_file)["max_alignment_gap_s"])
     campaigns, quarantined, synthetic = read_raw(raw, gap, load_section("validate", params_file))
-    _, doc = run(
-        campaigns, section, out, quarantined=quarantined, synthetic=synthetic, mlflow=False
-    )
+    _, doc, _ = run(campaigns, section, out, quarantined=quarantined, synthetic=synthetic)
     return doc
 
 

@@ -41,7 +41,7 @@ ALLOWED = {
     "discrepancy": {"thermal", "io", "validation"},
     "protocol": {"separation", "selection", "models", "discrepancy", "thermal"},
     "reporting": {"protocol", "separation"},
-    "tracking": {"protocol", "separation"},
+    "tracking": {"protocol", "separation", "discrepancy"},
     "stages": {
         "io",
         "validation",

@@ -440,12 +440,12 @@ def test_report_files_say_what_was_named_and_the_gap(tmp_path):
 def test_mlflow_run_holds_the_metrics_and_figures(tmp_path, monkeypatch):
     from mlflow.tracking import MlflowClient
 
-    from pipeline.discrepancy.report import log_mlflow
+    from pipeline.tracking.discrepancy_run import log_discrepancy_run
 
     doc, files = _fake_report(tmp_path)
     uri = f"sqlite:///{(tmp_path / 'mlflow.db').as_posix()}"
     monkeypatch.setenv("MLFLOW_TRACKING_URI", uri)
-    run_id = log_mlflow(files, doc, {"experiment": "discrepancy-test"})
+    run_id = log_discrepancy_run(files, doc, {"experiment": "discrepancy-test"})
     client = MlflowClient(tracking_uri=uri)
     run = client.get_run(run_id)
     assert run.data.metrics["rmse_um_before"] == pytest.approx(doc["rmse_um_before"])

@@ -82,13 +82,11 @@ PARAMS = {
         "candidates": {"none": "none", "mlr": "pair", "ridge": "all", "ar1": "none"},
         "n_jobs": 2,
     },
-    "track": {
-        "experiment": EXPERIMENT,
-        "batch_size": 1000,
+    "tracking": {
         "default_tracking_uri": "sqlite:///mlflow.db",
         "local_artifact_dir": "mlartifacts",
-        "registered_model": REGISTERED,
     },
+    "track": {"experiment": EXPERIMENT, "batch_size": 1000, "registered_model": REGISTERED},
 }
 
 

@@ -22,7 +22,6 @@ from pipeline.discrepancy.localise import LocaliseSettings, localise
 from pipeline.discrepancy.model import ROLE_NODES
 from pipeline.discrepancy.report import (
     build_document,
-    log_mlflow,
     untestable_document,
     write_outputs,
     write_untestable,
@@ -148,8 +147,7 @@ def run(
     *,
     quarantined: list[str] | None = None,
     synthetic: bool = False,
-    mlflow: bool = True,
-) -> tuple[SearchResult, dict]:
+) -> tuple[SearchResult, dict, list[Path]]:
     """Search, localise and write the outputs for already-read campaigns.
 
     Returns
@@ -157,6 +155,8 @@ def run(
     result : SearchResult
     doc : dict
         The ``discrepancy.json`` content.
+    files : list of Path
+        The files written to ``out_dir``.
     """
     settings = SearchSettings.from_params(section)
     loc_settings = LocaliseSettings(**dict(section.get("localise") or {}))
@@ -192,30 +192,25 @@ def run(
         result.rmse_um_after,
         result.seconds,
     )
-    if mlflow and section.get("mlflow", True):
-        try:
-            doc["mlflow_run_id"] = log_mlflow(files, doc, section)
-        except Exception as err:  # the report stands without the tracking record
-            logger.warning("MLflow logging failed (%s); the report files are written", err)
-    return result, doc
+    return result, doc, files
 
 
 def run_untestable(
     campaigns: list[MeasuredCampaign],
     reason: str,
-    section: dict,
     out_dir: Path,
     *,
     quarantined: list[str] | None = None,
     synthetic: bool = False,
-    mlflow: bool = True,
-) -> dict:
+) -> tuple[dict, list[Path]]:
     """Write the report of campaigns the twin cannot be compared with (status untestable).
 
     Returns
     -------
-    dict
+    doc : dict
         The ``discrepancy.json`` content.
+    files : list of Path
+        The files written to ``out_dir``.
     """
     doc = untestable_document(
         reason,
@@ -227,9 +222,4 @@ def run_untestable(
     )
     files = write_untestable(out_dir, doc)
     logger.warning("discrepancy: untestable: %s", reason)
-    if mlflow and section.get("mlflow", True):
-        try:
-            doc["mlflow_run_id"] = log_mlflow(files, doc, section)
-        except Exception as err:  # the report stands without the tracking record
-            logger.warning("MLflow logging failed (%s); the report files are written", err)
-    return doc
+    return doc, files

@@ -46,6 +46,7 @@ from pipeline.discrepancy.workflow import (
     untestable_reason,
 )
 from pipeline.errors import MissingInputError
+from pipeline.tracking.discrepancy_run import log_discrepancy_run
 
 logger = logging.getLogger(__name__)
 
@@ -115,11 +116,17 @@ def main(argv: list[str] | None = None) -> int:
             logger.error("%s", err)
             return 1
     reason = untestable_reason(campaigns)
-    common = {"quarantined": quarantined, "synthetic": synthetic, "mlflow": not args.no_mlflow}
+    common = {"quarantined": quarantined, "synthetic": synthetic}
     if reason is not None:
-        doc = run_untestable(campaigns, reason, section, args.out, **common)
+        doc, files = run_untestable(campaigns, reason, args.out, **common)
     else:
-        doc = run(campaigns, section, args.out, **common)[1]
+        doc, files = run(campaigns, section, args.out, **common)[1:]
+    if not args.no_mlflow and section.get("mlflow", True):
+        settings = {**load_section("tracking", args.params), "experiment": section["experiment"]}
+        try:
+            doc["mlflow_run_id"] = log_discrepancy_run(files, doc, settings)
+        except Exception as err:  # the report stands without the tracking record
+            logger.warning("MLflow logging failed (%s); the report files are written", err)
     record = args.run_record or (paths.DISCREPANCY_RECORD if args.out == DEFAULT_OUT else None)
     if record is not None:
         write_run_record(record, doc.get("mlflow_run_id"))

@@ -18,7 +18,7 @@
   its signature and an input example, registered as ``<track.registered_model>-<axis>`` with
   the alias ``champion``.
 
-The store is ``$MLFLOW_TRACKING_URI`` when set, else ``track.default_tracking_uri``
+The store is ``$MLFLOW_TRACKING_URI`` when set, else ``tracking.default_tracking_uri``
 (``sqlite:///mlflow.db`` in the working directory, artifacts in ``mlartifacts/`` beside it).
 When the store already holds a finished parent with the same run identity (see
 :mod:`pipeline.tracking.identity`) nothing is logged. ``reports/mlflow_run.json`` records
@@ -81,9 +81,12 @@ def main(argv: list[str] | None = None) -> int:
     prepared = prepare(Path(args.params))
     n_metrics = records.count_metrics([prepared.parent, *prepared.children])
     ready = time.perf_counter()
-    uri = resolve_tracking_uri(settings)
+    store_settings = load_section("tracking", args.params)
+    uri = resolve_tracking_uri(store_settings)
     try:
-        record = log_pipeline_run(prepared, settings, uri, experiment, batch_size, n_metrics)
+        record = log_pipeline_run(
+            prepared, {**store_settings, **settings}, uri, experiment, batch_size, n_metrics
+        )
     except store.UNREACHABLE as error:
         raise SystemExit(unreachable_message(uri, error)) from error
     finished = time.perf_counter()

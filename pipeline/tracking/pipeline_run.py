@@ -151,7 +151,7 @@ def log_pipeline_run(
     prepared : Prepared
         The records of :func:`prepare`.
     settings : Mapping
-        The ``track`` section of ``params.yaml``.
+        The ``tracking`` and ``track`` sections of ``params.yaml``, merged.
     uri : str
         Tracking URI (:func:`pipeline.tracking.location.resolve_tracking_uri`).
     experiment : str

@@ -102,7 +102,7 @@ def resolve_store(
     record : mapping
         ``reports/mlflow_run.json`` (``tracking_uri``: where the track stage logged).
     params_path : Path
-        ``params.yaml`` (``track.default_tracking_uri``), if it exists.
+        ``params.yaml`` (``tracking.default_tracking_uri``), if it exists.
 
     Returns
     -------
@@ -118,7 +118,7 @@ def resolve_store(
     """
     default = DEFAULT_STORE
     if params_path.is_file():
-        default = str(load_section("track", params_path).get("default_tracking_uri") or default)
+        default = str(load_section("tracking", params_path).get("default_tracking_uri") or default)
     uri = option or env.get(ENV_TRACKING_URI) or record.get("tracking_uri") or default
     path = sqlite_path(uri)
     if path is None:
@@ -255,7 +255,7 @@ def _parse_args(argv: list[str] | None) -> argparse.Namespace:
     parser.add_argument(
         "--tracking-uri",
         help=f"store to check (default: ${ENV_TRACKING_URI}, the record's tracking_uri, "
-        f"params.yaml track.default_tracking_uri, {DEFAULT_STORE})",
+        f"params.yaml tracking.default_tracking_uri, {DEFAULT_STORE})",
     )
     parser.add_argument(
         "--ui-url", help="an MLflow UI already serving that store (default: start mlflow ui)"

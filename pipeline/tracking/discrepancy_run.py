@@ -1,0 +1,119 @@
+"""The discrepancy workflow's MLflow run: its metrics, named effects, thresholds and report files.
+
+One run per execution in the experiment ``discrepancy.experiment`` (``thermal-discrepancy``) of the
+store of ``params.yaml`` ``tracking`` (``$MLFLOW_TRACKING_URI`` wins); the ``discrepancy`` stage
+logs it after writing the report, and the ``track`` stage links it with the pipeline's run.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from pipeline.discrepancy.report import STATUS_TESTED, STATUS_UNTESTABLE
+from pipeline.tracking.location import (
+    absolute_store_uri,
+    local_artifact_location,
+    resolve_tracking_uri,
+)
+from pipeline.tracking.store import ensure_experiment, make_client
+
+logger = logging.getLogger(__name__)
+
+
+def _run_tags(doc: Mapping[str, Any]) -> dict[str, str]:
+    """Return the MLflow run's tags: stage, status, synthetic, named effects, why untestable."""
+    tags = {
+        "stage": "discrepancy",
+        "status": str(doc.get("status", STATUS_TESTED)),
+        "synthetic": str(bool(doc["synthetic"])).lower(),
+        "named_effects": ",".join(doc["named_effects"]) or "none",
+    }
+    if doc.get("status") == STATUS_UNTESTABLE:
+        tags["mlflow.note.content"] = f"Untestable: {doc['reason']}"
+    return tags
+
+
+def _log_rmse(client: Any, run_id: str, rmse: Mapping[str, Any], prefix: str = "") -> None:
+    """Log the held-out Z (um) and temperature (K) RMS before and after that ``rmse`` holds."""
+    for key in ("rmse_um_before", "rmse_um_after", "rmse_T_K_before", "rmse_T_K_after"):
+        if rmse.get(key) is not None:
+            client.log_metric(run_id, f"{prefix}{key}", float(rmse[key]))
+
+
+def _log_search(client: Any, run_id: str, doc: Mapping[str, Any]) -> None:
+    """Log the held-out Z RMS along the search (um) and each named effect's parameters.
+
+    Step 0 of the ``heldout_rmse_um`` metric is the baseline, step k the twin after the k-th
+    named effect; parameters are logged as ``<effect>.<name>_<unit>``.
+    """
+    if doc.get("rmse_um_before") is not None:
+        client.log_metric(run_id, "heldout_rmse_um", float(doc["rmse_um_before"]), step=0)
+    for k, step in enumerate(doc.get("steps", []), start=1):
+        client.log_metric(run_id, "heldout_rmse_um", float(step["rmse_um_after"]), step=k)
+        for name, value in step["effect_parameters"].items():
+            if value["value"] is not None:
+                client.log_param(run_id, f"{step['effect']}.{name}_{value['unit']}", value["value"])
+
+
+def _log_per_campaign(client: Any, run_id: str, per_campaign: Mapping[str, Any]) -> None:
+    """Log each campaign's held-out Z (um) and temperature (K) RMS before and after."""
+    for cid, pair in per_campaign.items():
+        for when in ("before", "after"):
+            for key, name in (("z_um", "rmse_um"), ("t_k", "rmse_T_K")):
+                value = pair[when].get(key)
+                if value is not None and np.isfinite(value):
+                    client.log_metric(run_id, f"{name}_{when}.{cid}", float(value))
+
+
+def log_discrepancy_run(
+    files: Sequence[Path], doc: Mapping[str, Any], settings: Mapping[str, Any]
+) -> str:
+    """Log one MLflow run with the metrics, the named effects and the report files.
+
+    Parameters
+    ----------
+    files : sequence of Path
+        Report files, logged as artifacts under ``discrepancy/``.
+    doc : mapping
+        The ``discrepancy.json`` content.
+    settings : mapping
+        ``default_tracking_uri`` and ``local_artifact_dir`` (``params.yaml`` ``tracking``;
+        ``$MLFLOW_TRACKING_URI`` wins over the default store) and ``experiment``.
+
+    Returns
+    -------
+    str
+        The run id.
+    """
+    uri = absolute_store_uri(resolve_tracking_uri(settings))
+    experiment = str(settings.get("experiment") or "thermal-discrepancy")
+    client = make_client(uri)
+    location = local_artifact_location(
+        uri, str(settings.get("local_artifact_dir") or "mlartifacts"), experiment
+    )
+    experiment_id = ensure_experiment(client, experiment, location)
+    run = client.create_run(experiment_id, tags=_run_tags(doc), run_name="discrepancy")
+    run_id = run.info.run_id
+    try:
+        _log_rmse(client, run_id, doc)
+        _log_search(client, run_id, doc)
+        _log_per_campaign(client, run_id, doc.get("per_campaign", {}))
+        # the validation campaigns the search never saw
+        _log_rmse(client, run_id, doc.get("validation") or {}, prefix="validation_")
+        client.log_param(run_id, "named_effects", ",".join(doc["named_effects"]) or "none")
+        for name, value in doc.get("thresholds", {}).items():
+            client.log_param(run_id, name, str(value))
+        client.log_param(run_id, "campaigns", ",".join(doc["campaigns"])[:500])
+        for path in files:
+            client.log_artifact(run_id, str(path), artifact_path="discrepancy")
+    except BaseException:
+        client.set_terminated(run_id, "FAILED")
+        raise
+    client.set_terminated(run_id)
+    logger.info("logged MLflow run %s in experiment '%s'", run_id, experiment)
+    return run_id
