@@ -400,30 +400,6 @@ def _draw_heatmap(
     return texts
 
 
-def score_heatmaps(
-    matrices: dict[str, pd.DataFrame],
-    title: str,
-    out: Path,
-    seasons: Mapping[str, str] | None = None,
-    validation: Collection[str] = (),
-    in_sample: pd.DataFrame | None = None,
-) -> None:
-    """Draw train x test score matrices side by side and save them as a PNG.
-
-    Parameters
-    ----------
-    matrices : dict of str to DataFrame
-        Quantity with its unit -> matrix (rows: training unit, columns: test campaign), um.
-    title : str
-        Figure title (says whether the data are synthetic).
-    out : Path
-        PNG path; parent folders are created.
-    seasons, validation, in_sample
-        See :func:`score_heatmap_figure`.
-    """
-    save_figure(score_heatmap_figure(matrices, title, seasons, validation, in_sample), out)
-
-
 def axis_separation_figure(
     passes: pd.DataFrame, geometric: pd.DataFrame, campaign_id: str, title: str
 ) -> Figure:
@@ -488,21 +464,6 @@ def axis_separation_figure(
     return fig
 
 
-def axis_separation(
-    passes: pd.DataFrame, geometric: pd.DataFrame, campaign_id: str, title: str, out: Path
-) -> None:
-    """Plot measured, geometric and thermal positioning error of one axis campaign as a PNG.
-
-    Parameters
-    ----------
-    passes, geometric, campaign_id, title
-        See :func:`axis_separation_figure`.
-    out : Path
-        PNG path; parent folders are created.
-    """
-    save_figure(axis_separation_figure(passes, geometric, campaign_id, title), out)
-
-
 def selection_stability_figure(stability: pd.DataFrame, title: str) -> Figure:
     """Build the heat-map of how often each method chose each input across the campaigns.
 
@@ -547,21 +508,6 @@ def selection_stability_figure(stability: pd.DataFrame, title: str) -> Figure:
     ax.set_title(wrap_text(fig, note, 9.5, 0.8 * fig.get_figwidth()), fontsize=9.5)
     fig.suptitle(wrap_text(fig, title, TITLE_FONTSIZE), fontsize=TITLE_FONTSIZE)
     return fig
-
-
-def selection_stability(stability: pd.DataFrame, title: str, out: Path) -> None:
-    """Heat-map of how often each method chose each sensor across the training campaigns.
-
-    Parameters
-    ----------
-    stability : DataFrame
-        ``method``, ``sensor``, ``frequency`` (0-1), ``times_chosen``, ``n_campaigns``.
-    title : str
-        Figure title (says whether the data are synthetic).
-    out : Path
-        PNG path; parent folders are created.
-    """
-    save_figure(selection_stability_figure(stability, title), out)
 
 
 def predicted_vs_measured_figure(
@@ -613,22 +559,3 @@ def predicted_vs_measured_figure(
         axes.flat[0].text(0.5, 0.5, "no held-out prediction to show", ha="center", va="center")
     fig.suptitle(wrap_text(fig, title, TITLE_FONTSIZE), fontsize=TITLE_FONTSIZE)
     return fig
-
-
-def predicted_vs_measured(
-    panels: dict[str, pd.DataFrame],
-    labels: tuple[str, str],
-    title: str,
-    out: Path,
-    seasons: Mapping[str, str] | None = None,
-) -> None:
-    """Measured thermal error and two models' predictions, one panel per campaign, as a PNG.
-
-    Parameters
-    ----------
-    panels, labels, title, seasons
-        See :func:`predicted_vs_measured_figure`.
-    out : Path
-        PNG path; parent folders are created.
-    """
-    save_figure(predicted_vs_measured_figure(panels, labels, title, seasons), out)

@@ -208,21 +208,6 @@ def heldout_fit_figure(
     return fig
 
 
-def plot_heldout_fit(
-    campaigns: Sequence, result: SearchResult, title: str, out: Path, max_panels: int = 3
-) -> None:
-    """Measured Z vs held-out baseline and augmented twin, a few campaigns, as a PNG.
-
-    Parameters
-    ----------
-    campaigns, result, title, max_panels
-        See :func:`heldout_fit_figure`.
-    out : Path
-        PNG path; parent folders are created.
-    """
-    plots.save_figure(heldout_fit_figure(campaigns, result, title, max_panels), out)
-
-
 def residuals_figure(campaigns: Sequence, result: SearchResult, title: str) -> Figure:
     """Build the held-out Z residuals before and after, every campaign, and RMS per campaign.
 
@@ -283,19 +268,6 @@ def residuals_figure(campaigns: Sequence, result: SearchResult, title: str) -> F
     return fig
 
 
-def plot_residuals(campaigns: Sequence, result: SearchResult, title: str, out: Path) -> None:
-    """Held-out Z residuals before and after, every campaign, and RMS per campaign, as a PNG.
-
-    Parameters
-    ----------
-    campaigns, result, title
-        See :func:`residuals_figure`.
-    out : Path
-        PNG path; parent folders are created.
-    """
-    plots.save_figure(residuals_figure(campaigns, result, title), out)
-
-
 def write_outputs(
     out_dir: Path,
     doc: Mapping[str, Any],
@@ -307,8 +279,10 @@ def write_outputs(
     out_dir.mkdir(parents=True, exist_ok=True)
     data = "synthetic data" if doc["synthetic"] else "measured data"
     fit_png, res_png = out_dir / FIT_FIGURE, out_dir / RESIDUAL_FIGURE
-    plot_heldout_fit(campaigns, result, f"Z drift on held-out campaigns ({data})", fit_png)
-    plot_residuals(campaigns, result, f"Displacement residual before and after ({data})", res_png)
+    fit_title = f"Z drift on held-out campaigns ({data})"
+    plots.save_figure(heldout_fit_figure(campaigns, result, fit_title), fit_png)
+    residual_title = f"Displacement residual before and after ({data})"
+    plots.save_figure(residuals_figure(campaigns, result, residual_title), res_png)
     table = out_dir / LOCALISATION_CSV
     before.table.to_csv(table, index=False, float_format="%.4g")
     written = _write_document(out_dir, doc, markdown(doc, [str(fit_png), str(res_png)]))

@@ -161,19 +161,12 @@ def run(
     settings = SearchSettings.from_params(section)
     loc_settings = LocaliseSettings(**dict(section.get("localise") or {}))
     result = search_twin(campaigns, settings)
-    before = localise(
-        campaigns,
-        result.baseline.full.z_residual_um,
-        result.baseline.full.t_residual_k,
-        loc_settings,
-        label="the baseline twin",
-    )
-    after = localise(
-        campaigns,
-        result.final.full.z_residual_um,
-        result.final.full.t_residual_k,
-        loc_settings,
-        label="the augmented twin",
+    before, after = (
+        localise(campaigns, fit.z_residual_um, fit.t_residual_k, loc_settings, label=label)
+        for fit, label in (
+            (result.baseline.full, "the baseline twin"),
+            (result.final.full, "the augmented twin"),
+        )
     )
     doc = build_document(
         result,

@@ -276,7 +276,7 @@ def champion_card(
         "input_spec": spec.to_dict(),
         "sample_interval_s": round(float(sample_interval_s), 3),
         "trained_on": list(result.unit.campaigns),
-        "chosen_params": {k: _plain(v) for k, v in result.chosen_params.items()},
+        "chosen_params": json_ready_params(result.chosen_params),
         "scores": scores,
     }
 
@@ -317,6 +317,11 @@ def standing(summary: pd.DataFrame, decision: Decision) -> pd.DataFrame:
             "rank": ranks.get(key, 0), "champion": key == champion,
         })  # fmt: skip
     return pd.DataFrame(records)
+
+
+def json_ready_params(params: dict) -> dict:
+    """Return a fit's chosen parameters as JSON-ready Python values (arrays as lists)."""
+    return {k: _plain(v) for k, v in params.items()}
 
 
 def _plain(value):

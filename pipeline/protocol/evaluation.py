@@ -22,6 +22,7 @@ from pipeline.protocol.champion import (
     Decision,
     champion_card,
     choose_champion,
+    json_ready_params,
     standing,
 )
 from pipeline.protocol.cross_season import UnitResult
@@ -179,17 +180,11 @@ def fitted_record(evaluations: list[AxisEvaluation]) -> dict:
             "train_unit": r.unit.name,
             "scheme": r.unit.scheme,
             "inputs": r.sensors,
-            "chosen_params": {k: _plain(v) for k, v in r.chosen_params.items()},
+            "chosen_params": json_ready_params(r.chosen_params),
         }
         for e in evaluations
         for r in e.results
     }
-
-
-def _plain(value):
-    if hasattr(value, "tolist"):
-        return value.tolist()
-    return value
 
 
 def find_result(item: AxisEvaluation, model: str, selection: str, unit: str) -> UnitResult:

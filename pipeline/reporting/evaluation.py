@@ -88,15 +88,15 @@ def write_matrices(scores: pd.DataFrame, title_suffix: str) -> list[str]:
         out = paths.MATRICES / f"{'__'.join(keys)}.png"
         campaigns = group.drop_duplicates("test_campaign")
         in_sample = group.assign(fit=(group["role"] == "fit").astype(float))
-        plots.score_heatmaps(
+        figure = plots.score_heatmap_figure(
             {"RMS of the residual (um)": score_matrix(group, "rmse_um")},
             f"Axis {keys[0]}, candidate {' / '.join(keys[1:])}: built on each training unit, "
             f"applied to every campaign ({title_suffix})",
-            out,
             seasons=dict(zip(campaigns["test_campaign"], campaigns["test_season"], strict=True)),
             validation=set(campaigns.loc[campaigns["test_split"] == "validation", "test_campaign"]),
             in_sample=score_matrix(in_sample, "fit") > 0,
         )
+        plots.save_figure(figure, out)
         figures.append(out.relative_to(paths.REPORTS).as_posix())
     matrix = pd.concat(frames) if frames else pd.DataFrame(columns=[*keys_all, "score"])
     matrix.to_csv(paths.MATRIX_CSV, float_format="%.4f")
@@ -139,7 +139,7 @@ def report_axis(
     )
     seasons = {s.campaign_id: s.season for s in item.series}
     title = f"Axis {item.axis}: {where} ({origin})"
-    plots.predicted_vs_measured(panels, labels, title, figure, seasons=seasons)
+    plots.save_figure(plots.predicted_vs_measured_figure(panels, labels, title, seasons), figure)
     groups = group_scores(item.scores)
     context = comparison_report.AxisContext(
         item.axis, rows, decision, card, selected["axes"][item.axis], item.series,

@@ -12,7 +12,8 @@ validate stage). It keeps the spindle-drift campaigns with a Z displacement, the
 2. names the missing effects by forward selection with cross-validation across campaigns
    (:mod:`pipeline.discrepancy.search`);
 3. writes ``<out>/discrepancy.json``, ``<out>/discrepancy.md``, ``<out>/localisation.csv`` and
-   the figures, and logs an MLflow run with the same files (:mod:`pipeline.discrepancy.report`).
+   the figures (:mod:`pipeline.discrepancy.report`);
+4. logs an MLflow run with the same files (:mod:`pipeline.tracking.discrepancy_run`).
 
 When the campaigns cannot be compared with the twin -- fewer than two valid spindle-drift
 campaigns with a Z displacement, or no sensor with a structure role (the twin's nodes are
@@ -21,7 +22,8 @@ to) -- the stage still succeeds: it writes ``discrepancy.json`` with ``status: u
 the reason and the roles it would need, and ``discrepancy.md`` saying so, so that the rest of
 ``dvc repro`` goes on (the ``twin`` candidate of ``evaluate`` is then skipped with that reason).
 
-Parameters: ``params.yaml`` section ``discrepancy`` (thresholds, folds, n_jobs, MLflow store);
+Parameters: ``params.yaml`` section ``discrepancy`` (thresholds, folds, n_jobs, experiment) and
+``tracking`` (the MLflow store);
 with ``--raw`` the ingest and validation limits come from the ``ingest`` and ``validate``
 sections so that a campaign is read and quarantined exactly as by those stages.
 """

@@ -79,11 +79,9 @@ def write_outputs(
     for axis, by_method in selections.items():
         stability = stability_table(by_method, units[axis], inputs[axis]).assign(axis=axis)
         tables.append(stability)
-        plots.selection_stability(
-            stability,
-            f"Axis {axis}: how often each input is chosen, across the training campaigns ({label})",
-            paths.SELECTION / f"stability_{axis}.png",
-        )
+        title = f"Axis {axis}: how often each input is chosen, across the training campaigns"
+        figure = plots.selection_stability_figure(stability, f"{title} ({label})")
+        plots.save_figure(figure, paths.SELECTION / f"stability_{axis}.png")
     stability = pd.concat(tables, ignore_index=True)[["axis", *STABILITY_COLUMNS]]
     stability.to_csv(paths.SELECTION_STABILITY, index=False, float_format="%.4f")
 

@@ -48,13 +48,13 @@ def main(argv: list[str] | None = None) -> int:
     tables["thermal"].to_parquet(paths.AXIS_THERMAL_ERROR, index=False)
     tables["slopes"].to_parquet(paths.AXIS_SLOPES, index=False)
     for meta in campaigns.itertuples(index=False):
-        plots.axis_separation(
+        figure = plots.axis_separation_figure(
             tables["thermal"][tables["thermal"]["campaign_id"] == meta.campaign_id],
             geometric_curve(tables, meta.campaign_id),
             meta.campaign_id,
             "SYNTHETIC data" if meta.synthetic else "measured data",
-            paths.SEPARATION_PLOTS / f"{meta.campaign_id}.png",
         )
+        plots.save_figure(figure, paths.SEPARATION_PLOTS / f"{meta.campaign_id}.png")
     slopes = tables["slopes"]
     LOGGER.info(
         "axis separation of %d campaigns: slopes %.4f to %.4f um/mm over %d passes",
