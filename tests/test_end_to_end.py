@@ -127,6 +127,97 @@ def test_malformed_campaign_is_quarantined_while_the_others_are_scored(tmp_path)
     assert "K99" not in disc["campaigns"] and "K01" in disc["campaigns"]
 
 
+def _check_child_tables(client, children, scores: pd.DataFrame, folder: Path) -> None:
+    """Every (training unit, test campaign) score is in its child's table artifact, once."""
+    logged = []
+    for run in children:
+        assert len(run.data.metrics) <= 100, run.info.run_name
+        local = client.download_artifacts(
+            run.info.run_id, "scores.json", str(folder / run.info.run_id)
+        )
+        content = json.loads(Path(local).read_text())
+        table = pd.DataFrame(content["data"], columns=content["columns"])
+        keys = dict(zip(KEYS, run.info.run_name.split("/"), strict=True))
+        logged.append(table.assign(**keys))
+    logged = pd.concat(logged, ignore_index=True)
+    assert len(logged) == len(scores)
+    pairs = [*KEYS, "train_unit", "test_campaign"]
+    both = scores.merge(logged, on=pairs, suffixes=("", "_logged"), validate="one_to_one")
+    assert len(both) == len(scores)
+    for column in ("rmse_um", "resid_std_um", "eta"):
+        np.testing.assert_allclose(both[f"{column}_logged"].astype(float), both[column])
+
+
+def _check_child_headlines(work: Path, children) -> None:
+    """The headline scores are the model_scores.csv columns; the standing tags rank them."""
+    summary = pd.read_csv(work / "reports" / "model_scores.csv")
+    child = next(r for r in children if r.info.run_name == "Z/dl/fc_grd/static")
+    row = summary.query("model == 'dl'").iloc[0]
+    for name in ("loso_Mn_rms_um", "loso_eta", "Mn_um", "pooled_Mn_val_rms_um"):
+        assert child.data.metrics[name] == pytest.approx(row[name], abs=1e-4)
+    assert {"loso_winter_rms_um", "loso_summer_eta"} <= set(child.data.metrics)
+    assert child.data.params["inputs"]
+    tags = {r.info.run_name: r.data.tags for r in children}
+    ranked = [t for t in tags.values() if t["eligible"] == "true"]
+    assert sorted(int(t["rank"]) for t in ranked) == list(range(1, len(ranked) + 1))
+    assert all(t["ineligible_reason"] for t in tags.values() if t["eligible"] == "false")
+    assert sum(t["champion"] == "true" for t in tags.values()) == 1
+
+
+def _check_discrepancy_run(work: Path, client, experiment: str, parent) -> None:
+    """Named effects met the rule held out; the discrepancy and pipeline runs name each other."""
+    disc = json.loads((work / "reports" / "discrepancy" / "discrepancy.json").read_text())
+    rule = disc["thresholds"]
+    for step in disc["steps"]:
+        ev = step["evidence"]
+        assert ev["delta_bic"] <= rule["max_delta_bic"]
+        by_z = ev["heldout_reduction"] >= rule["min_heldout_reduction"]
+        by_t = ev["heldout_T_reduction"] >= rule["min_heldout_temperature_reduction"]
+        assert by_z or by_t
+    assert (work / "reports" / "discrepancy" / "heldout_fit.png").stat().st_size > 10_000
+    (disc_run,) = client.search_runs([client.get_experiment_by_name(experiment).experiment_id])
+    assert disc_run.data.tags["pipeline_run_id"] == parent.info.run_id
+    assert parent.data.tags["discrepancy_run_id"] == disc_run.info.run_id
+    assert disc_run.data.metrics["rmse_um_before"] == pytest.approx(disc["rmse_um_before"])
+    assert disc_run.data.params["named_effects"] == (",".join(disc["named_effects"]) or "none")
+    # the search never saw the validation campaigns; the named effects are checked on them
+    val = disc["validation"]
+    assert sorted(val["campaigns"]) == [f"V{i:02d}" for i in range(1, 7)]
+    assert not set(val["campaigns"]) & {c for fold in disc["folds"] for c in fold}
+    metric = disc_run.data.metrics["validation_rmse_um_after"]
+    assert metric == pytest.approx(val["rmse_um_after"])
+
+
+def _check_champion_loads(work: Path, uri: str, scores: pd.DataFrame) -> None:
+    """The registered champion predicts a logged table as the pooled fit scored it."""
+    record = json.loads((work / "reports" / "mlflow_run.json").read_text())
+    card = json.loads((work / "data" / "models" / "champion" / "Z" / "champion.json").read_text())
+    assert card["protocol"] == "loso" and card["compensate"]
+    os.environ["MLFLOW_TRACKING_URI"] = uri
+    try:
+        import mlflow
+
+        mlflow.set_tracking_uri(uri)
+        model = mlflow.pyfunc.load_model(record["champions"]["Z"]["uri"])
+    finally:
+        del os.environ["MLFLOW_TRACKING_URI"]
+    separated = pd.read_parquet(work / "data" / "separated" / "spindle_thermal_error.parquet")
+    measured = separated.query("campaign_id == 'V01'").sort_values("elapsed_s")
+    # the machine's own table: degC readings, the speed and the time, as logged
+    table = measured[["campaign_id", "elapsed_s", "rpm", *card["input_spec"]["inputs"]]]
+    table = table[[c for c in table.columns if not c.startswith("speed")]]
+    predicted = model.predict(table.reset_index(drop=True)).to_numpy()
+    rmse = float(((measured["thermal_error_um"].to_numpy() - predicted) ** 2).mean() ** 0.5)
+    pooled = scores[
+        (scores["model"] == card["model"])
+        & (scores["selection"] == card["selection"])
+        & (scores["mode"] == card["mode"])
+        & (scores["train_unit"] == "all_training")
+    ]
+    (logged_rmse,) = pooled.loc[pooled["test_campaign"] == "V01", "rmse_um"]
+    assert rmse == pytest.approx(logged_rmse, rel=1e-4)
+
+
 def test_every_score_reaches_a_real_mlflow_server_once_and_the_champion_loads(tmp_path):
     work = copy_repository(ROOT, tmp_path / "repo")
     with running_mlflow_server(tmp_path / "server") as uri:
@@ -143,97 +234,18 @@ def test_every_score_reaches_a_real_mlflow_server_once_and_the_champion_loads(tm
         assert set(scores["axis"]) == {"Z"}  # the demo campaigns have a Z probe only
         assert len(parents) == 1
         assert len(children) == scores.groupby(["axis", "model", "selection", "mode"]).ngroups
-        # every (training unit, test campaign) score is in its child's table artifact, once
-        logged = []
-        for run in children:
-            assert len(run.data.metrics) <= 100, run.info.run_name
-            local = client.download_artifacts(
-                run.info.run_id, "scores.json", str(tmp_path / run.info.run_id)
-            )
-            content = json.loads(Path(local).read_text())
-            table = pd.DataFrame(content["data"], columns=content["columns"])
-            keys = dict(zip(KEYS, run.info.run_name.split("/"), strict=True))
-            logged.append(table.assign(**keys))
-        logged = pd.concat(logged, ignore_index=True)
-        assert len(logged) == len(scores)
-        pairs = [*KEYS, "train_unit", "test_campaign"]
-        both = scores.merge(logged, on=pairs, suffixes=("", "_logged"), validate="one_to_one")
-        assert len(both) == len(scores)
-        for column in ("rmse_um", "resid_std_um", "eta"):
-            np.testing.assert_allclose(both[f"{column}_logged"].astype(float), both[column])
-        # the headline scores are the model_scores.csv columns, under the same names
-        summary = pd.read_csv(work / "reports" / "model_scores.csv")
-        child = next(r for r in children if r.info.run_name == "Z/dl/fc_grd/static")
-        row = summary.query("model == 'dl'").iloc[0]
-        for name in ("loso_Mn_rms_um", "loso_eta", "Mn_um", "pooled_Mn_val_rms_um"):
-            assert child.data.metrics[name] == pytest.approx(row[name], abs=1e-4)
-        assert {"loso_winter_rms_um", "loso_summer_eta"} <= set(child.data.metrics)
-        assert child.data.params["inputs"]
-        tags = {r.info.run_name: r.data.tags for r in children}
-        ranked = [t for t in tags.values() if t["eligible"] == "true"]
-        assert sorted(int(t["rank"]) for t in ranked) == list(range(1, len(ranked) + 1))
-        assert all(t["ineligible_reason"] for t in tags.values() if t["eligible"] == "false")
-        assert sum(t["champion"] == "true" for t in tags.values()) == 1
+        _check_child_tables(client, children, scores, tmp_path)
+        _check_child_headlines(work, children)
         assert parents[0].data.tags.get("git_commit")
         assert (work / "reports" / "model_comparison.md").is_file()
         twin = scores.query("model == 'twin'")
         assert {"K01", "not_summer", "all_training"} <= set(twin["train_unit"])
         assert twin["rmse_um"].notna().all()
-
-        disc = json.loads((work / "reports" / "discrepancy" / "discrepancy.json").read_text())
-        # every named effect met the rule on the held-out campaigns, in Z or in temperature
-        rule = disc["thresholds"]
-        for step in disc["steps"]:
-            ev = step["evidence"]
-            assert ev["delta_bic"] <= rule["max_delta_bic"]
-            by_z = ev["heldout_reduction"] >= rule["min_heldout_reduction"]
-            by_t = ev["heldout_T_reduction"] >= rule["min_heldout_temperature_reduction"]
-            assert by_z or by_t
-        assert (work / "reports" / "discrepancy" / "heldout_fit.png").stat().st_size > 10_000
-        discrepancy = client.get_experiment_by_name(params["discrepancy"]["experiment"])
-        (disc_run,) = client.search_runs([discrepancy.experiment_id])
-        # the discrepancy run and the pipeline run of the same dvc repro name each other
-        assert disc_run.data.tags["pipeline_run_id"] == parents[0].info.run_id
-        assert parents[0].data.tags["discrepancy_run_id"] == disc_run.info.run_id
-        assert disc_run.data.metrics["rmse_um_before"] == pytest.approx(disc["rmse_um_before"])
-        named = ",".join(disc["named_effects"]) or "none"
-        assert disc_run.data.params["named_effects"] == named
-        # the search never saw the validation campaigns; the named effects are checked on them
-        val = disc["validation"]
-        assert sorted(val["campaigns"]) == [f"V{i:02d}" for i in range(1, 7)]
-        assert not set(val["campaigns"]) & {c for fold in disc["folds"] for c in fold}
-        metric = disc_run.data.metrics["validation_rmse_um_after"]
-        assert metric == pytest.approx(val["rmse_um_after"])
-
-        record = json.loads((work / "reports" / "mlflow_run.json").read_text())
-        champion = work / "data" / "models" / "champion" / "Z" / "champion.json"
-        card = json.loads(champion.read_text())
-        assert card["protocol"] == "loso" and card["compensate"]
-        os.environ["MLFLOW_TRACKING_URI"] = uri
-        try:
-            import mlflow
-
-            mlflow.set_tracking_uri(uri)
-            model = mlflow.pyfunc.load_model(record["champions"]["Z"]["uri"])
-        finally:
-            del os.environ["MLFLOW_TRACKING_URI"]
-        separated = pd.read_parquet(work / "data" / "separated" / "spindle_thermal_error.parquet")
-        measured = separated.query("campaign_id == 'V01'").sort_values("elapsed_s")
-        # the machine's own table: degC readings, the speed and the time, as logged
-        table = measured[["campaign_id", "elapsed_s", "rpm", *card["input_spec"]["inputs"]]]
-        table = table[[c for c in table.columns if not c.startswith("speed")]]
-        predicted = model.predict(table.reset_index(drop=True)).to_numpy()
-        rmse = float(((measured["thermal_error_um"].to_numpy() - predicted) ** 2).mean() ** 0.5)
-        pooled = scores[
-            (scores["model"] == card["model"])
-            & (scores["selection"] == card["selection"])
-            & (scores["mode"] == card["mode"])
-            & (scores["train_unit"] == "all_training")
-        ]
-        (logged_rmse,) = pooled.loc[pooled["test_campaign"] == "V01", "rmse_um"]
-        assert rmse == pytest.approx(logged_rmse, rel=1e-4)
+        _check_discrepancy_run(work, client, params["discrepancy"]["experiment"], parents[0])
+        _check_champion_loads(work, uri, scores)
 
         _repro(work, env)
         again = client.search_runs([experiment.experiment_id], max_results=1000)
         assert len(again) == len(runs)
+        discrepancy = client.get_experiment_by_name(params["discrepancy"]["experiment"])
         assert len(client.search_runs([discrepancy.experiment_id])) == 1

@@ -96,6 +96,61 @@ def _register_zero_model(client: MlflowClient, uri: str, run_id: str, name: str)
     return str(version.version)
 
 
+def _log_candidate(
+    client,
+    experiment_id: str,
+    parent_id: str,
+    seed: int,
+    candidate: tuple,
+    figures: Path,
+    *,
+    drop_champion_metric: bool,
+    drop_heat_map_rank: str | None,
+) -> tuple[str, str]:
+    """Log one child run as the track stage does (tags, metrics, heat-map, table); id, name."""
+    model, selection, mode, rms, eligible, rank = candidate
+    name = f"Z/{model}/{selection}/{mode}"
+    champion = rank == "1"
+    tags = {
+        "mlflow.parentRunId": parent_id,
+        "axis": "Z",
+        "model": model,
+        "selection": selection,
+        "mode": mode,
+        "eligible": str(eligible).lower(),
+        "rank": rank,
+        "champion": str(champion).lower(),
+    }
+    if not eligible:
+        tags["ineligible_reason"] = "one-step prediction needs the measured error"
+    run_id = client.create_run(experiment_id, run_name=name, tags=tags).info.run_id
+    if not (champion and drop_champion_metric):
+        client.log_metric(run_id, RANKING_METRIC, rms)
+    client.log_metric(run_id, "pooled_Mn_val_rms_um", rms * 0.98)
+    if rank != drop_heat_map_rank:
+        figure = figures / str(seed) / "cross_season_rms.png"
+        figure.parent.mkdir(exist_ok=True)
+        _heat_map(figure, seed)
+        client.log_artifact(run_id, str(figure))
+    client.log_table(
+        run_id, {"test_campaign": ["K01", "K02"], "rmse_um": [rms, rms * 1.1]}, "scores.json"
+    )
+    client.set_terminated(run_id)
+    return run_id, name
+
+
+def _share_ranked_view(client, experiment_id: str, parent_id: str) -> None:
+    """Store the ranked view of axis Z as pipeline.tracking.views writes it for the pipeline."""
+    key = views.view_key("ranked", "Z")
+    state = {
+        "searchFilter": f"tags.`mlflow.parentRunId` = '{parent_id}' and tags.eligible = 'true'",
+        "orderByKey": views.column("metrics", RANKING_METRIC),
+        "orderByAsc": True,
+        "selectedColumns": [views.column("tags", "rank"), views.column("metrics", RANKING_METRIC)],
+    }
+    client.set_experiment_tag(experiment_id, f"{views.SHARED_VIEW_TAG}{key}", json.dumps(state))
+
+
 def build_ui_store(
     root: Path,
     experiment: str,
@@ -140,48 +195,21 @@ def build_ui_store(
     figures = root / "figures"
     figures.mkdir(exist_ok=True)
     champion_id, champion_name = "", ""
-    for seed, (model, selection, mode, rms, eligible, rank) in enumerate(CANDIDATES):
-        name = f"Z/{model}/{selection}/{mode}"
-        champion = rank == "1"
-        tags = {
-            "mlflow.parentRunId": parent_id,
-            "axis": "Z",
-            "model": model,
-            "selection": selection,
-            "mode": mode,
-            "eligible": str(eligible).lower(),
-            "rank": rank,
-            "champion": str(champion).lower(),
-        }
-        if not eligible:
-            tags["ineligible_reason"] = "one-step prediction needs the measured error"
-        run = client.create_run(experiment_id, run_name=name, tags=tags)
-        run_id = run.info.run_id
-        if not (champion and drop_champion_metric):
-            client.log_metric(run_id, RANKING_METRIC, rms)
-        client.log_metric(run_id, "pooled_Mn_val_rms_um", rms * 0.98)
-        if rank != drop_heat_map_rank:
-            figure = figures / str(seed) / "cross_season_rms.png"
-            figure.parent.mkdir(exist_ok=True)
-            _heat_map(figure, seed)
-            client.log_artifact(run_id, str(figure))
-        client.log_table(
-            run_id,
-            {"test_campaign": ["K01", "K02"], "rmse_um": [rms, rms * 1.1]},
-            "scores.json",
+    for seed, candidate in enumerate(CANDIDATES):
+        run_id, name = _log_candidate(
+            client,
+            experiment_id,
+            parent_id,
+            seed,
+            candidate,
+            figures,
+            drop_champion_metric=drop_champion_metric,
+            drop_heat_map_rank=drop_heat_map_rank,
         )
-        client.set_terminated(run_id)
-        if champion:
+        if candidate[-1] == "1":
             champion_id, champion_name = run_id, name
     client.set_terminated(parent_id)
-    key = views.view_key("ranked", "Z")
-    state = {  # as pipeline.tracking.views writes it for the pipeline
-        "searchFilter": f"tags.`mlflow.parentRunId` = '{parent_id}' and tags.eligible = 'true'",
-        "orderByKey": views.column("metrics", RANKING_METRIC),
-        "orderByAsc": True,
-        "selectedColumns": [views.column("tags", "rank"), views.column("metrics", RANKING_METRIC)],
-    }
-    client.set_experiment_tag(experiment_id, f"{views.SHARED_VIEW_TAG}{key}", json.dumps(state))
+    _share_ranked_view(client, experiment_id, parent_id)
     version = _register_zero_model(client, uri, champion_id, registered_model)
     record = {
         "tracking_uri": uri,
