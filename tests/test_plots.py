@@ -162,8 +162,8 @@ def test_write_matrices_passes_seasons_split_and_fits(tmp_path, monkeypatch):
     drawn = {}
     real = plots.score_heatmap_figure
 
-    def keep(*args):
-        drawn["fig"] = real(*args)
+    def keep(*args, **kwargs):
+        drawn["fig"] = real(*args, **kwargs)
         return drawn["fig"]
 
     monkeypatch.setattr(plots, "score_heatmap_figure", keep)
