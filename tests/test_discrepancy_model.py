@@ -28,9 +28,9 @@ from pipeline.discrepancy import model as model_module
 from pipeline.discrepancy.calibrate import noise_sd
 from pipeline.discrepancy.data import campaigns_from_tables, program_steps
 from pipeline.ingest import ingest
+from pipeline.thermal.program import Program, Segment
 from pipeline.twin.campaigns import SpindlePlan, simulate_spindle_campaign
 from pipeline.twin.params import DS18B20, SpindleParams
-from pipeline.twin.program import Program, Segment
 from pipeline.twin.writer import write_campaign
 from pipeline.validate import validate_tables
 from pipeline.validation.limits import limits_from_params

@@ -23,10 +23,10 @@ from pipeline.evaluate import evaluate_axis
 from pipeline.ingest import ingest
 from pipeline.scoring import candidate_summary, metrics_tree
 from pipeline.spindle_separation import SeparationSettings, spindle_thermal_error
+from pipeline.thermal.program import Program, Segment
 from pipeline.training_units import series_by_axis, training_units
 from pipeline.twin.campaigns import SpindlePlan, simulate_spindle_campaign
 from pipeline.twin.params import SpindleParams
-from pipeline.twin.program import Program, Segment
 from pipeline.twin.writer import write_campaign
 from pipeline.twin_candidate import (
     TWIN_MODEL,
