@@ -151,11 +151,11 @@ class _Model:
 
     def integrate(self, grid: np.ndarray, x0: np.ndarray, drive: np.ndarray) -> np.ndarray:
         """States on ``grid`` (s) from ``x0`` with ``drive`` on each interval, (L, n_states)."""
-        amb = self.air(grid)
         q = self.heat(drive)
         if self.method != "expm":
             inputs = partial(self.ivp_inputs, q)
             return integrate_ivp(self.system, x0, grid, inputs, method=self.method)
+        amb = self.air(grid)
         u_left = np.column_stack([amb[:-1], q])
         u_right = np.column_stack([amb[1:], q])
         return integrate_foh(self.system, x0, grid, u_left, u_right)
