@@ -33,9 +33,9 @@ import pandas as pd
 
 from pipeline.config import DEFAULT_PARAMS, load_section
 from pipeline.discrepancy.search import CANDIDATE_EFFECTS
+from pipeline.thermal.program import Program, Segment
 from pipeline.twin.campaigns import SpindlePlan, simulate_spindle_campaign
 from pipeline.twin.params import SpindleParams
-from pipeline.twin.program import Program, Segment
 from pipeline.twin.writer import write_campaign
 
 logger = logging.getLogger(__name__)

@@ -24,13 +24,13 @@ from pipeline.discrepancy import (
     missing_roles,
     predict,
 )
-from pipeline.discrepancy import model as model_module
 from pipeline.discrepancy.calibrate import noise_sd
-from pipeline.discrepancy.data import campaigns_from_tables, program_steps
+from pipeline.discrepancy.data import campaigns_from_tables
 from pipeline.io.tables import ingest
+from pipeline.thermal import stepping
+from pipeline.thermal.program import Program, Segment
 from pipeline.twin.campaigns import SpindlePlan, simulate_spindle_campaign
 from pipeline.twin.params import DS18B20, SpindleParams
-from pipeline.twin.program import Program, Segment
 from pipeline.twin.writer import write_campaign
 from pipeline.validation.checks import validate_tables
 from pipeline.validation.limits import limits_from_params
@@ -87,7 +87,7 @@ def _measured(campaign, drop: tuple[str, ...] = ()) -> MeasuredCampaign:
         temperatures=temps,
         roles={s.name: s.role for s in campaign.sensors if s.name in temps.columns},
         z_um=z - z[0],
-        program=program_steps(campaign.program.to_contract()),
+        program=campaign.program,
     )
 
 
@@ -280,7 +280,7 @@ def test_batched_simulation_equals_one_simulation_per_parameter_vector(baseline_
 def test_modal_stepping_equals_stepping_the_full_state(baseline_campaigns, monkeypatch):
     model, thetas, mixed = _all_effects_and_mixed_grids(baseline_campaigns)
     modal = model.run_batch(thetas, mixed)
-    monkeypatch.setattr(model_module, "MAX_MODAL_CONDITION", 0.0)  # never trust the eigenbasis
+    monkeypatch.setattr(stepping, "MAX_MODAL_CONDITION", 0.0)  # never trust the eigenbasis
     full = model.run_batch(thetas, mixed)
     for m, f in zip(modal, full, strict=True):
         assert np.max(np.abs(m["readings"] - f["readings"])) < 1e-8  # degC
@@ -288,9 +288,19 @@ def test_modal_stepping_equals_stepping_the_full_state(baseline_campaigns, monke
     assert np.ptp(full[0]["z_um"]) > 1.0  # a real trajectory, not a flat line
 
 
+def _shifted(t_min: float | None, delay_s: float) -> float | None:
+    """A segment boundary inside the run (0 to 240 min) moved ``delay_s`` later."""
+    return t_min + delay_s / 60.0 if t_min is not None and 0 < t_min < 240 else t_min
+
+
 def replace_program(c: MeasuredCampaign, delay_s: float) -> MeasuredCampaign:
-    program = tuple((t + delay_s if 0 < t < 240 * 60 else t, v) for t, v in c.program)
-    return MeasuredCampaign(c.campaign_id, c.t_s, c.rpm, c.temperatures, c.roles, c.z_um, program)
+    segments = tuple(
+        Segment(_shifted(s.from_min, delay_s), _shifted(s.to_min, delay_s), s.value)
+        for s in c.program.segments
+    )
+    return MeasuredCampaign(
+        c.campaign_id, c.t_s, c.rpm, c.temperatures, c.roles, c.z_um, Program(segments)
+    )
 
 
 def test_from_tables_reads_the_ingest_and_validate_outputs(tmp_path):
@@ -315,7 +325,8 @@ def test_from_tables_reads_the_ingest_and_validate_outputs(tmp_path):
     assert c.z_um[0] == 0.0
     raw_z = twin.displacement["Z"].to_numpy()
     assert np.allclose(c.z_um, np.round(raw_z, 2) - np.round(raw_z[0], 2), atol=1e-6)
-    assert c.program == ((0.0, 6000.0), (7200.0, 3000.0), (14400.0, 0.0))
+    assert c.program == twin.program
+    assert np.array_equal(c.program.breakpoints_s(), [0.0, 7200.0, 14400.0])
     assert np.array_equal(c.rpm, twin.program.value_at(c.t_s))
     assert list(c.temperatures.columns) == [f"T{i}" for i in range(1, 11)]
     assert campaigns_from_tables(spindle["campaigns"], spindle["samples"])[0].campaign_id == "S02"

@@ -12,6 +12,8 @@ import pandas as pd
 import pytest
 import yaml
 
+from pipeline.thermal.effects import check_effects
+from pipeline.thermal.program import Program
 from pipeline.twin import (
     DEMO_EFFECTS,
     EFFECTS,
@@ -41,8 +43,7 @@ from pipeline.twin.conditions import (
     apply_state,
     draw_state,
 )
-from pipeline.twin.effects import bearing_friction_heat, check_effects, uniform_expansion
-from pipeline.twin.program import Program
+from pipeline.twin.effects import TERMS, bearing_friction_heat, uniform_expansion
 from pipeline.twin.simulate import sensor_time_constants
 from schemas.vocabulary import SENSOR_ROLES
 
@@ -261,10 +262,10 @@ def test_sensor_time_constants_are_per_mounting_and_realistic():
     # several minutes (screwed into a bearing housing) to 20 min (pad on the bed)
     assert all(240.0 <= t <= 1200.0 for t in taus.values())
     assert taus["T1"] < taus["T4"] < taus["T7"] and len(set(taus.values())) >= 5
-    assert EFFECTS["sensor_lag"].term.func(PARAMS) == tuple(taus.values())
+    assert TERMS[EFFECTS["sensor_lag"].term].func(PARAMS) == tuple(taus.values())
     # a sensor without its own time constant uses the machine's; 0 = reads its node directly
     assert AxisParams().sensors[0].tau_s is None
-    assert EFFECTS["sensor_lag"].term.func(AxisParams())[0] == AxisParams().sensor_tau_s
+    assert TERMS[EFFECTS["sensor_lag"].term].func(AxisParams())[0] == AxisParams().sensor_tau_s
     np.testing.assert_array_equal(sensor_time_constants(60.0, 3), [60.0, 60.0, 60.0])
     with pytest.raises(ValueError, match="must be finite and >= 0 s"):
         sensor_time_constants((60.0, -1.0), 2)

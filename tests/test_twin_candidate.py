@@ -35,9 +35,9 @@ from pipeline.protocol.twin_candidate import (
 from pipeline.protocol.units import series_by_axis, training_units
 from pipeline.reporting.comparison import AxisContext, AxisFigures, axis_section, twin_section
 from pipeline.separation.spindle import SeparationSettings, spindle_thermal_error
+from pipeline.thermal.program import Program, Segment
 from pipeline.twin.campaigns import SpindlePlan, simulate_spindle_campaign
 from pipeline.twin.params import SpindleParams
-from pipeline.twin.program import Program, Segment
 from pipeline.twin.writer import write_campaign
 from pipeline.validation.checks import validate_tables
 from pipeline.validation.limits import limits_from_params

@@ -14,11 +14,11 @@ import yaml
 
 from pipeline.config import load_section
 from pipeline.io.tables import ingest
+from pipeline.thermal.program import Program
 from pipeline.twin import SpindleParams, cli
 from pipeline.twin.ambient import SEASON_OF_MONTH, AmbientProfile, draw_weather
 from pipeline.twin.instruments import EddyCurrentProbe, PlacedSensor, first_order_lag
 from pipeline.twin.lateral import LateralParams, lateral_drift
-from pipeline.twin.program import Program
 from pipeline.twin.workshop import (
     WORKSHOP_EFFECTS,
     WORKSHOP_SENSORS,

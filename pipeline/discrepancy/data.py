@@ -12,11 +12,13 @@ from __future__ import annotations
 import json
 import logging
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 import pandas as pd
+
+from pipeline.thermal.program import Program
 
 logger = logging.getLogger(__name__)
 
@@ -41,9 +43,8 @@ class MeasuredCampaign:
         Sensor name -> contract role (``spindle_front_bearing``, ``ambient``, ``other``...).
     z_um : ndarray of shape (n,), um
         Thermal drift: displacement minus its first valid value (NaN = missing).
-    program : tuple of (float, float)
-        Speed steps ``(from_s, rpm)`` of the campaign's spindle program, sorted; the speed
-        holds from each instant to the next. Empty when unknown (e.g. a measured speed log):
+    program : Program or None
+        The campaign's spindle program (rpm). None when unknown (e.g. a measured speed log):
         the speed is then held from each sample to the next.
     season : str or None
     split : str or None
@@ -55,7 +56,7 @@ class MeasuredCampaign:
     temperatures: pd.DataFrame
     roles: dict[str, str]
     z_um: np.ndarray
-    program: tuple[tuple[float, float], ...] = field(default=())
+    program: Program | None = None
     season: str | None = None
     split: str | None = None
 
@@ -94,7 +95,6 @@ class MeasuredCampaign:
             )
         if np.any(~np.isfinite(self.rpm)):
             raise ValueError(f"campaign {self.campaign_id}: rpm has missing values")
-        self.program = tuple((float(a), float(b)) for a, b in self.program)
 
     def sensors_with_role(self, role: str) -> list[str]:
         """Temperature columns whose sensor has ``role``, in column order."""
@@ -151,14 +151,14 @@ class MeasuredCampaign:
             )
         z = rows[DISPLACEMENT_COLUMN].to_numpy(dtype=float)
         z = z - z[np.flatnonzero(np.isfinite(z))[0]]
-        program: tuple[tuple[float, float], ...] = ()
-        if not bool(row.get("has_spindle_log", False)):
-            program = program_steps(json.loads(row.get("spindle_program_json") or "[]"))
+        entries = json.loads(row.get("spindle_program_json") or "[]")
+        logged = bool(row.get("has_spindle_log", False))
+        program = Program.from_contract(entries, key="rpm") if entries and not logged else None
         rpm = rows["rpm"].to_numpy(dtype=float)
         if np.any(~np.isfinite(rpm)):
-            if not program:
+            if program is None:
                 raise ValueError(f"campaign {cid}: spindle speed missing at some samples")
-            rpm = speed_at(program, rows["elapsed_s"].to_numpy(dtype=float))
+            rpm = program.value_at(rows["elapsed_s"].to_numpy(dtype=float))
         return cls(
             campaign_id=cid,
             t_s=rows["elapsed_s"].to_numpy(dtype=float),
@@ -170,34 +170,6 @@ class MeasuredCampaign:
             season=None if row.get("season") is None else str(row["season"]),
             split=None if row.get("split") is None else str(row["split"]),
         )
-
-
-def program_steps(entries: list[Mapping[str, Any]]) -> tuple[tuple[float, float], ...]:
-    """Turn a contract ``spindle_program`` list into sorted ``(from_s, rpm)`` steps.
-
-    A closed last segment (``to_min``) adds a step to 0 rpm; gaps between segments are 0 rpm.
-    """
-    steps: list[tuple[float, float]] = []
-    for entry in sorted(entries, key=lambda e: float(e["from_min"])):
-        start = 60.0 * float(entry["from_min"])
-        steps.append((start, float(entry["rpm"])))
-        if entry.get("to_min") is not None:
-            steps.append((60.0 * float(entry["to_min"]), 0.0))
-    out: dict[float, float] = {}
-    for t, v in steps:  # a later segment starting where one ends wins
-        out[t] = v
-    return tuple(sorted(out.items()))
-
-
-def speed_at(program: tuple[tuple[float, float], ...], t_s: np.ndarray) -> np.ndarray:
-    """Speed of a step program at each instant (right-continuous; 0 before the first step)."""
-    t = np.asarray(t_s, dtype=float)
-    if not program:
-        return np.zeros_like(t)
-    starts = np.array([p[0] for p in program])
-    values = np.array([p[1] for p in program])
-    idx = np.searchsorted(starts, t, side="right") - 1
-    return np.where(idx >= 0, values[np.clip(idx, 0, None)], 0.0)
 
 
 def campaigns_from_tables(campaigns: pd.DataFrame, samples: pd.DataFrame) -> list[MeasuredCampaign]:

@@ -1,12 +1,13 @@
 """Physical twin of a machining centre's thermal behaviour (synthetic demo data).
 
-A lumped-parameter thermal network of a vertical machining centre (spindle Z drift) and of a
-linear axis (positioning error), driven by the operating program and the workshop air, with a
-library of named, switchable physical effects. Modules:
+A fixed machine on top of the thermal-network kernel (:mod:`pipeline.thermal`): a vertical
+machining centre (spindle Z drift) and a linear axis (positioning error), driven by the
+operating program and the workshop air, with the kernel's named, switchable physical effects.
+Modules:
 
-``params``     every parameter, as frozen dataclasses (units in the docstrings)
-``network``    thermal network, exact (matrix exponential) and ``solve_ivp`` integration
-``effects``    named terms and the registry of the six switchable effects
+``params``     every parameter of the fixed machine, as frozen dataclasses (units in docstrings)
+``effects``    the fixed machine's law for each term of the kernel's effect registry
+``simulate``   runs the machine's network under a program, an ambient and the model's terms
 ``spindle``    :func:`simulate_spindle`
 ``axis``       :func:`simulate_axis`, :class:`AxisTruth`
 ``conditions`` campaign-to-campaign machine state no sensor sees (bearings, convection, warm
@@ -20,6 +21,8 @@ library of named, switchable physical effects. Modules:
 ``cli``        ``thermal simulate``
 """
 
+from pipeline.thermal.effects import EFFECTS
+from pipeline.thermal.program import Program
 from pipeline.twin.ambient import AmbientProfile, AmbientSeries, Climate
 from pipeline.twin.axis import AxisTruth, simulate_axis
 from pipeline.twin.campaigns import (
@@ -32,9 +35,8 @@ from pipeline.twin.campaigns import (
     simulate_axis_campaign,
     simulate_spindle_campaign,
 )
-from pipeline.twin.effects import DEMO_EFFECTS, EFFECTS, model_terms
+from pipeline.twin.effects import DEMO_EFFECTS, model_terms
 from pipeline.twin.params import AxisParams, SensorSpec, SpindleParams
-from pipeline.twin.program import Program
 from pipeline.twin.spindle import simulate_spindle
 from pipeline.twin.writer import write_campaign
 

@@ -18,8 +18,8 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from pipeline.thermal.program import Program
 from pipeline.twin.params import AxisParams
-from pipeline.twin.program import Program
 from pipeline.twin.simulate import machine_frame, simulate_machine
 
 

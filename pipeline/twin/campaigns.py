@@ -31,6 +31,8 @@ from datetime import datetime
 import numpy as np
 import pandas as pd
 
+from pipeline.thermal.effects import check_effects
+from pipeline.thermal.program import Program, Segment
 from pipeline.twin.ambient import AmbientProfile, Climate, season_of
 from pipeline.twin.axis import AxisTruth, axis_truth, laser_runs, simulate_axis
 from pipeline.twin.conditions import (
@@ -40,7 +42,7 @@ from pipeline.twin.conditions import (
     apply_state,
     draw_state,
 )
-from pipeline.twin.effects import DEMO_EFFECTS, check_effects
+from pipeline.twin.effects import DEMO_EFFECTS
 from pipeline.twin.params import (
     DS18B20,
     PT100_CLASS_A,
@@ -49,7 +51,6 @@ from pipeline.twin.params import (
     SensorSpec,
     SpindleParams,
 )
-from pipeline.twin.program import Program, Segment
 from pipeline.twin.spindle import simulate_spindle
 
 logger = logging.getLogger(__name__)

@@ -27,6 +27,7 @@ from datetime import datetime
 from pathlib import Path
 
 from pipeline import paths
+from pipeline.thermal.effects import EFFECTS, check_effects
 from pipeline.twin.ambient import SEASON_OF_MONTH, season_of
 from pipeline.twin.campaigns import (
     SEASON_START,
@@ -36,7 +37,7 @@ from pipeline.twin.campaigns import (
     simulate_plan,
 )
 from pipeline.twin.conditions import DEMO_SCATTER
-from pipeline.twin.effects import DEMO_EFFECTS, EFFECTS, check_effects
+from pipeline.twin.effects import DEMO_EFFECTS
 from pipeline.twin.logger_export import logger_table, write_logger_table
 from pipeline.twin.workshop import WORKSHOP_EFFECTS, simulate_workshop, workshop_plan
 from pipeline.twin.writer import write_campaign

@@ -44,8 +44,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from pipeline.thermal.program import Program, Segment
 from pipeline.twin.params import SpindleParams
-from pipeline.twin.program import Program, Segment
 
 SHAFT_LINKS = (("front_bearing", "spindle_shaft"), ("rear_bearing", "spindle_shaft"))
 """Network links through the rolling elements, scaled by the bearing contact gain."""

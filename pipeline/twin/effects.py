@@ -1,92 +1,31 @@
-"""Library of named physical terms of the twin, and the registry of switchable effects.
+"""The generator's physical terms: the fixed demo machine's law for each term of the registry.
 
-A model is a tuple of :class:`Term` objects, each filling one *slot*:
+The registry of effects, the slots and the baseline of each machine are the kernel's
+(:mod:`pipeline.thermal.effects`); this module implements every term it names for the
+generator's parameters (:class:`~pipeline.twin.params.SpindleParams`,
+:class:`~pipeline.twin.params.AxisParams`). The signature of ``func`` in each slot:
 
 ``heat``
-    ``func(params, drive) -> ndarray (k, n_nodes)``, W: heat into each node for each value of
-    the drive (spindle rpm or axis feed mm/s); the terms of the slot add up.
+    ``func(params, drive) -> ndarray (k, n_nodes)``, W, for each value of the drive (spindle
+    rpm or axis feed mm/s).
 ``ambient``
-    ``func(ambient, t_s) -> ndarray (k,)``, degC: the air temperature the structure sees.
+    ``func(ambient, t_s) -> ndarray (k,)``, degC.
 ``displacement``
-    ``func(params, rise_K, drive) -> ndarray (n_t,)``, um: a Z component at the spindle nose
-    from the node temperature rises ``rise_K`` (n_t, n_nodes) since the start; terms add up.
+    ``func(params, rise_K, drive) -> ndarray (n_t,)``, um, from the node temperature rises
+    ``rise_K`` (n_t, n_nodes) since the start.
 ``sensor``
-    ``func(params) -> float or tuple of float``: first-order time constant (s) through which
-    each sensor reads its node, one value for all sensors or one per sensor of
-    ``params.sensors``; 0 = reads it directly.
-
-The *baseline* of a machine is a fixed tuple of terms (spindle: bearing friction heat
-proportional to speed, constant ambient equal to its value at the start, uniform expansion of
-spindle and column, direct sensors). An :class:`Effect` is a named switch that adds a term or
-replaces a baseline term; :func:`model_terms` assembles the model for a set of effect names.
-The ``discrepancy`` workflow switches effects by these names.
+    ``func(params) -> float or tuple of float``, s: one time constant for all sensors or one
+    per sensor of ``params.sensors``; 0 = reads its node directly.
 """
 
 from __future__ import annotations
 
-import logging
-from collections.abc import Callable, Iterable
-from dataclasses import dataclass
+from collections.abc import Iterable
 from typing import Any
 
 import numpy as np
 
-logger = logging.getLogger(__name__)
-
-SLOTS = ("heat", "ambient", "displacement", "sensor")
-MACHINES = ("spindle", "axis")
-
-
-@dataclass(frozen=True)
-class Term:
-    """One physical term of a model.
-
-    Attributes
-    ----------
-    name : str
-        Identifier, e.g. ``"bearing_friction_heat"``; displacement terms also name the
-        ``z_<name>_um`` column of the simulation output.
-    slot : str
-        One of :data:`SLOTS`.
-    description : str
-        What it is, in a machine-tool engineer's words.
-    func : callable
-        See the module docstring for the signature of each slot.
-    """
-
-    name: str
-    slot: str
-    description: str
-    func: Callable[..., Any]
-
-
-@dataclass(frozen=True)
-class Effect:
-    """A switchable physical effect.
-
-    Attributes
-    ----------
-    name : str
-        Registry key (e.g. ``"motor_heat"``).
-    description : str
-        What switching it on changes, in words.
-    term : Term
-        The term it brings in.
-    replaces : str or None
-        Name of the baseline term it replaces, None if it adds ``term``.
-    machines : tuple of str
-        Machines it applies to (``"spindle"``, ``"axis"``); ignored for the others.
-    changes : tuple of str
-        Outputs it changes: any of ``"ambient"``, ``"temperatures"``, ``"sensors"``, ``"z"``.
-    """
-
-    name: str
-    description: str
-    term: Term
-    replaces: str | None
-    machines: tuple[str, ...]
-    changes: tuple[str, ...]
-
+from pipeline.thermal.effects import Term, term_names
 
 # --------------------------------------------------------------------------- heat terms
 
@@ -218,10 +157,11 @@ def lagged_sensors(params: Any) -> tuple[float, ...]:
     return tuple(float(params.sensor_tau_s if s.tau_s is None else s.tau_s) for s in params.sensors)
 
 
-# ----------------------------------------------------------------------------- registry
+# -------------------------------------------------------------------------------- terms
 
-BASELINE_TERMS: dict[str, tuple[Term, ...]] = {
-    "spindle": (
+TERMS: dict[str, Term] = {
+    t.name: t
+    for t in (
         Term(
             "bearing_friction_heat",
             "heat",
@@ -229,20 +169,12 @@ BASELINE_TERMS: dict[str, tuple[Term, ...]] = {
             bearing_friction_heat,
         ),
         Term(
-            "constant_ambient",
-            "ambient",
-            "workshop air constant at its value at the start",
-            constant_ambient,
+            "nonlinear_bearing_heat",
+            "heat",
+            "bearing friction heat ~ rpm^a",
+            nonlinear_bearing_heat,
         ),
-        Term(
-            "uniform_expansion",
-            "displacement",
-            "uniform thermal expansion of spindle, headstock, Z screw and column",
-            uniform_expansion,
-        ),
-        Term("direct_sensors", "sensor", "sensors read the structure directly", direct_sensors),
-    ),
-    "axis": (
+        Term("motor_heat", "heat", "spindle-motor loss", motor_heat),
         Term(
             "axis_friction_heat",
             "heat",
@@ -255,72 +187,20 @@ BASELINE_TERMS: dict[str, tuple[Term, ...]] = {
             "workshop air constant at its value at the start",
             constant_ambient,
         ),
+        Term("varying_ambient", "ambient", "time-varying workshop air", varying_ambient),
+        Term(
+            "uniform_expansion",
+            "displacement",
+            "uniform thermal expansion of spindle, headstock, Z screw and column",
+            uniform_expansion,
+        ),
+        Term("thermal_bending", "displacement", "column thermal bending", thermal_bending),
+        Term("centrifugal_growth", "displacement", "centrifugal growth", centrifugal_growth),
         Term("direct_sensors", "sensor", "sensors read the structure directly", direct_sensors),
-    ),
-}
-
-EFFECTS: dict[str, Effect] = {
-    e.name: e
-    for e in (
-        Effect(
-            "ambient_variation",
-            "the structure follows the workshop's daily temperature cycle and drift "
-            "(off: air constant at its start value)",
-            Term("varying_ambient", "ambient", "time-varying workshop air", varying_ambient),
-            replaces="constant_ambient",
-            machines=("spindle", "axis"),
-            changes=("ambient", "temperatures", "sensors", "z"),
-        ),
-        Effect(
-            "centrifugal_growth",
-            "spindle nose shifts instantly with speed squared (centrifugal force, bearing "
-            "contact angle); no temperature change",
-            Term("centrifugal_growth", "displacement", "centrifugal growth", centrifugal_growth),
-            replaces=None,
-            machines=("spindle",),
-            changes=("z",),
-        ),
-        Effect(
-            "nonlinear_bearing_heat",
-            "bearing friction heat grows as speed^a (Palmgren, a = 5/3) instead of linearly",
-            Term(
-                "nonlinear_bearing_heat",
-                "heat",
-                "bearing friction heat ~ rpm^a",
-                nonlinear_bearing_heat,
-            ),
-            replaces="bearing_friction_heat",
-            machines=("spindle",),
-            changes=("temperatures", "sensors", "z"),
-        ),
-        Effect(
-            "sensor_lag",
-            "each sensor reads its location through a first-order lag set by its mounting "
-            "(spindle: 4 min in a bearing housing to 20 min on the bed)",
-            Term("lagged_sensors", "sensor", "first-order sensor lag", lagged_sensors),
-            replaces="direct_sensors",
-            machines=("spindle", "axis"),
-            changes=("sensors",),
-        ),
-        Effect(
-            "thermal_bending",
-            "column bends when its front face is warmer than its rear, tilting the head",
-            Term("thermal_bending", "displacement", "column thermal bending", thermal_bending),
-            replaces=None,
-            machines=("spindle",),
-            changes=("z",),
-        ),
-        Effect(
-            "motor_heat",
-            "spindle-motor losses heat the motor and, through it, the headstock",
-            Term("motor_heat", "heat", "spindle-motor loss", motor_heat),
-            replaces=None,
-            machines=("spindle",),
-            changes=("temperatures", "sensors", "z"),
-        ),
+        Term("lagged_sensors", "sensor", "first-order sensor lag", lagged_sensors),
     )
 }
-"""Switchable effects by name; exactly these six."""
+"""The generator's implementation of every term the registry names."""
 
 DEMO_EFFECTS = frozenset(
     {"ambient_variation", "motor_heat", "nonlinear_bearing_heat", "sensor_lag", "thermal_bending"}
@@ -328,62 +208,19 @@ DEMO_EFFECTS = frozenset(
 """Effects switched on in the demo campaigns (never written to the campaign files)."""
 
 
-def check_effects(effects: Iterable[str]) -> frozenset[str]:
-    """Return the names as a frozenset; raise KeyError naming any unknown effect.
-
-    Raises
-    ------
-    KeyError
-        ``unknown effect 'x'; known effects: ...``.
-    """
-    if isinstance(effects, str):
-        raise TypeError(
-            f"effects must be a collection of names, not the string '{effects}'; "
-            f"write frozenset({{'{effects}'}})"
-        )
-    names = frozenset(effects)
-    for name in sorted(names):
-        if name not in EFFECTS:
-            raise KeyError(f"unknown effect '{name}'; known effects: {', '.join(sorted(EFFECTS))}")
-    return names
-
-
 def model_terms(machine: str, effects: Iterable[str]) -> tuple[Term, ...]:
-    """Assemble the terms of ``machine`` with the given effects switched on.
+    """Assemble the generator's terms of ``machine`` with the given effects switched on.
 
     Parameters
     ----------
     machine : str
         ``"spindle"`` or ``"axis"``.
     effects : iterable of str
-        Effect names from :data:`EFFECTS`; effects that do not apply to ``machine`` are
-        skipped (logged at debug level).
+        Effect names from :data:`pipeline.thermal.effects.EFFECTS`.
 
     Returns
     -------
     tuple of Term
-        Baseline terms, with replaced ones swapped and added ones appended in the order of
-        :data:`EFFECTS`.
+        In the order of :func:`pipeline.thermal.effects.term_names`.
     """
-    if machine not in BASELINE_TERMS:
-        raise KeyError(f"unknown machine '{machine}'; known: {', '.join(BASELINE_TERMS)}")
-    names = check_effects(effects)
-    terms = list(BASELINE_TERMS[machine])
-    for name, effect in EFFECTS.items():
-        if name not in names:
-            continue
-        if machine not in effect.machines:
-            logger.debug("effect %s does not apply to the %s twin; skipped", name, machine)
-            continue
-        if effect.replaces is None:
-            terms.append(effect.term)
-        else:
-            terms = [effect.term if t.name == effect.replaces else t for t in terms]
-    return tuple(terms)
-
-
-def slot_terms(terms: Iterable[Term], slot: str) -> tuple[Term, ...]:
-    """Return the terms of one slot, in model order."""
-    if slot not in SLOTS:
-        raise KeyError(f"unknown slot '{slot}'; slots are {SLOTS}")
-    return tuple(t for t in terms if t.slot == slot)
+    return tuple(TERMS[name] for name in term_names(machine, effects))

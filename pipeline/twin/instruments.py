@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.signal import lfilter
 
-from pipeline.twin.program import Program
+from pipeline.thermal.program import Program
 
 AIR = "ambient"
 """Pseudo-node name of the workshop air the structure sees (column ``ambient_degC``)."""

@@ -104,7 +104,7 @@ class LateralTerm:
         What it is, in a machine-tool engineer's words.
     func : callable ``(params, lateral, rise_K) -> ndarray of shape (n_t,)``, um
     effect : str or None
-        Effect of :data:`pipeline.twin.effects.EFFECTS` that switches it (None = always on).
+        Effect of :data:`pipeline.thermal.effects.EFFECTS` that switches it (None = always on).
     """
 
     name: str

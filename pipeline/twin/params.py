@@ -20,7 +20,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from pipeline.twin.network import ThermalNetwork
+from pipeline.thermal.network import ThermalNetwork
 
 ALPHA_STEEL_PER_K = 11.5e-6
 """Linear expansion coefficient of steel (spindle, ball screws), 1/K."""

@@ -1,10 +1,10 @@
-"""Run a thermal network under a program and an ambient: the engine shared by both twins.
+"""Run the generator's thermal network under a program and an ambient.
 
 The machine stands idle (drive 0) for ``preroll_h`` hours before the start, following the
 ambient law of the model, so that at t = 0 the structure carries the realistic lag of the
 workshop's daily cycle; with a constant ambient it is simply at the air temperature.
 Temperatures are then integrated exactly (first-order-hold matrix exponential, see
-:mod:`pipeline.twin.network`) on a grid made of the requested instants and the program's
+:mod:`pipeline.thermal.stepping`) on a grid made of the requested instants and the program's
 breakpoints; ``method="Radau"`` (or ``"BDF"``, ``"LSODA"``) uses ``scipy.integrate.solve_ivp``.
 """
 
@@ -13,15 +13,18 @@ from __future__ import annotations
 import logging
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
+from functools import partial
 from typing import Any
 
 import numpy as np
 import pandas as pd
 
-from pipeline.twin.effects import Term, check_effects, model_terms, slot_terms
-from pipeline.twin.network import build_system, integrate_foh, integrate_ivp
+from pipeline.thermal.effects import Term, check_effects, slot_terms
+from pipeline.thermal.network import LinearSystem, build_system
+from pipeline.thermal.program import Program
+from pipeline.thermal.stepping import integrate_foh, integrate_ivp, time_grid
+from pipeline.twin.effects import model_terms
 from pipeline.twin.params import SensorSpec
-from pipeline.twin.program import Program
 
 logger = logging.getLogger(__name__)
 
@@ -74,17 +77,129 @@ def sensor_time_constants(value: Any, n_sensors: int) -> np.ndarray:
     return taus
 
 
-def _grid(times: np.ndarray, breaks: np.ndarray, max_step_s: float) -> np.ndarray:
-    t_end = times[-1]
-    pts = np.concatenate([[0.0], times, breaks[(breaks > 0) & (breaks < t_end)]])
-    grid = np.unique(pts)
-    gaps = np.diff(grid)
-    extra = [
-        np.linspace(a, b, int(np.ceil(h / max_step_s)) + 1)[1:-1]
-        for a, b, h in zip(grid[:-1], grid[1:], gaps, strict=True)
-        if h > max_step_s
-    ]
-    return np.unique(np.concatenate([grid, *extra])) if extra else grid
+@dataclass(frozen=True)
+class _Model:
+    """A machine's network with the terms of its model and its ambient, ready to integrate.
+
+    Attributes
+    ----------
+    params : SpindleParams or AxisParams
+    heat_terms : tuple of Term
+    ambient_term : Term
+    ambient : object with ``at(t_s)``
+    system : LinearSystem
+        Nodes plus one state per lagged sensor; inputs ``[T_amb, q_1..q_n]``.
+    sensor_nodes : tuple of int
+        Node each sensor reads, -1 for the air.
+    lagged : tuple of int
+        Sensors read through a lag (positions in ``params.sensors``), in state order.
+    method : str
+        ``"expm"`` or a ``solve_ivp`` method.
+    """
+
+    params: Any
+    heat_terms: tuple[Term, ...]
+    ambient_term: Term
+    ambient: Any
+    system: LinearSystem
+    sensor_nodes: tuple[int, ...]
+    lagged: tuple[int, ...]
+    method: str
+
+    @classmethod
+    def build(cls, params: Any, terms: tuple[Term, ...], ambient: Any, method: str) -> _Model:
+        """Assemble the state space of ``params.network`` with the lags of the sensor term."""
+        net = params.network
+        (ambient_term,) = slot_terms(terms, "ambient")
+        (sensor_term,) = slot_terms(terms, "sensor")
+        sensors: tuple[SensorSpec, ...] = params.sensors
+        sensor_nodes = tuple(-1 if s.node == "ambient" else net.index(s.node) for s in sensors)
+        taus = sensor_time_constants(sensor_term.func(params), len(sensors))
+        lagged = tuple(j for j, tau in enumerate(taus) if tau > 0)
+        system = build_system(
+            net,
+            tuple(sensor_nodes[j] for j in lagged),
+            tuple(float(taus[j]) for j in lagged),
+        )
+        heat_terms = slot_terms(terms, "heat")
+        return cls(params, heat_terms, ambient_term, ambient, system, sensor_nodes, lagged, method)
+
+    @property
+    def n_nodes(self) -> int:
+        """Number of network nodes."""
+        return len(self.params.network.nodes)
+
+    def air(self, t: np.ndarray) -> np.ndarray:
+        """Air temperature the structure sees at ``t`` (s), degC."""
+        return self.ambient_term.func(self.ambient, np.asarray(t, dtype=float))
+
+    def heat(self, drive: np.ndarray) -> np.ndarray:
+        """Heat into each node for each drive value, W, shape (k, n_nodes)."""
+        q = np.zeros((np.size(drive), self.n_nodes))
+        for term in self.heat_terms:
+            q = q + term.func(self.params, drive)
+        return q
+
+    def initial(self, t_first: float) -> np.ndarray:
+        """Every state at the air temperature of ``t_first`` (s), degC."""
+        t_air = float(self.air(np.array([t_first]))[0])
+        return np.full(self.system.A.shape[0], t_air)
+
+    def ivp_inputs(self, q: np.ndarray, t: float, k: int) -> np.ndarray:
+        """Return the inputs ``[T_amb(t), q_k]`` on interval ``k`` for ``solve_ivp``."""
+        return np.concatenate([self.air(np.array([t])), q[k]])
+
+    def integrate(self, grid: np.ndarray, x0: np.ndarray, drive: np.ndarray) -> np.ndarray:
+        """States on ``grid`` (s) from ``x0`` with ``drive`` on each interval, (L, n_states)."""
+        q = self.heat(drive)
+        if self.method != "expm":
+            inputs = partial(self.ivp_inputs, q)
+            return integrate_ivp(self.system, x0, grid, inputs, method=self.method)
+        amb = self.air(grid)
+        u_left = np.column_stack([amb[:-1], q])
+        u_right = np.column_stack([amb[1:], q])
+        return integrate_foh(self.system, x0, grid, u_left, u_right)
+
+    def readings(self, x: np.ndarray, amb: np.ndarray) -> np.ndarray:
+        """Noise-free sensor readings from states ``x`` (n_t, n_states) and the air, degC."""
+        n = self.n_nodes
+        readings = np.empty((x.shape[0], len(self.sensor_nodes)))
+        for j, node in enumerate(self.sensor_nodes):
+            readings[:, j] = amb if node < 0 else x[:, node]
+        for k, j in enumerate(self.lagged):
+            readings[:, j] = x[:, n + k]
+        return readings
+
+
+def _check_times(times_s: np.ndarray, method: str) -> np.ndarray:
+    """Return the output instants as floats; raise ValueError for bad instants or method."""
+    times = np.asarray(times_s, dtype=float)
+    if times.ndim != 1 or times.size == 0:
+        raise ValueError("times_s must be a non-empty 1-d array of seconds")
+    if times[0] < 0 or np.any(np.diff(times) <= 0):
+        raise ValueError("times_s must be >= 0 and strictly increasing")
+    if method != "expm" and method not in IVP_METHODS:
+        raise ValueError(f"unknown method '{method}'; use 'expm' or one of {IVP_METHODS}")
+    return times
+
+
+def _start_state(
+    model: _Model, history: Program | None, preroll_h: float, max_step_s: float
+) -> np.ndarray:
+    """State at t = 0 after the pre-roll: the machine's history before the start.
+
+    Idle unless ``history`` says otherwise; only integrated if the air the model sees changes
+    before the start or the machine ran, else every state is at the air temperature at 0.
+    """
+    n_pre = max(int(np.ceil(preroll_h * 3600.0 / max_step_s)), 1)
+    pre = np.linspace(-preroll_h * 3600.0, 0.0, n_pre + 1)
+    past = history if history is not None else Program(())
+    breaks = past.breakpoints_s()
+    pre = np.unique(np.concatenate([pre, breaks[(breaks > pre[0]) & (breaks < 0)]]))
+    pre_drive = past.value_at(pre[:-1])
+    if preroll_h > 0 and (np.ptp(model.air(pre)) > 0 or np.any(pre_drive != 0)):
+        return model.integrate(pre, model.initial(pre[0]), pre_drive)[-1]
+    return model.initial(0.0)
 
 
 def run_network(
@@ -128,87 +243,20 @@ def run_network(
     -------
     NetworkRun
     """
-    times = np.asarray(times_s, dtype=float)
-    if times.ndim != 1 or times.size == 0:
-        raise ValueError("times_s must be a non-empty 1-d array of seconds")
-    if times[0] < 0 or np.any(np.diff(times) <= 0):
-        raise ValueError("times_s must be >= 0 and strictly increasing")
-    if method != "expm" and method not in IVP_METHODS:
-        raise ValueError(f"unknown method '{method}'; use 'expm' or one of {IVP_METHODS}")
-
-    net = params.network
-    n = len(net.nodes)
-    heat_terms = slot_terms(terms, "heat")
-    (ambient_term,) = slot_terms(terms, "ambient")
-    (sensor_term,) = slot_terms(terms, "sensor")
-    sensors: tuple[SensorSpec, ...] = params.sensors
-    sensor_nodes = tuple(-1 if s.node == "ambient" else net.index(s.node) for s in sensors)
-    taus = sensor_time_constants(sensor_term.func(params), len(sensors))
-    lagged = tuple(j for j, tau in enumerate(taus) if tau > 0)
-    system = build_system(
-        net,
-        tuple(sensor_nodes[j] for j in lagged),
-        tuple(float(taus[j]) for j in lagged),
-    )
-
-    def air(t: np.ndarray) -> np.ndarray:
-        return ambient_term.func(ambient, np.asarray(t, dtype=float))
-
-    def heat(drive: np.ndarray) -> np.ndarray:
-        q = np.zeros((np.size(drive), n))
-        for term in heat_terms:
-            q = q + term.func(params, drive)
-        return q
-
-    def initial(t_first: float) -> np.ndarray:
-        t_air = float(air(np.array([t_first]))[0])
-        return np.full(system.A.shape[0], t_air)
-
-    def integrate(grid: np.ndarray, x0: np.ndarray, drive: np.ndarray) -> np.ndarray:
-        amb = air(grid)
-        q = heat(drive)
-        u_left = np.column_stack([amb[:-1], q])
-        u_right = np.column_stack([amb[1:], q])
-        if method == "expm":
-            return integrate_foh(system, x0, grid, u_left, u_right)
-
-        def inputs(t: float, k: int) -> np.ndarray:
-            return np.concatenate([air(np.array([t])), q[k]])
-
-        return integrate_ivp(system, x0, grid, inputs, method=method)
-
-    # pre-roll: the machine's history before t = 0 (idle unless `history` says otherwise);
-    # only needed if the air the model sees changes before the start or the machine ran
-    n_pre = max(int(np.ceil(preroll_h * 3600.0 / max_step_s)), 1)
-    pre = np.linspace(-preroll_h * 3600.0, 0.0, n_pre + 1)
-    past = history if history is not None else Program(())
-    breaks = past.breakpoints_s()
-    pre = np.unique(np.concatenate([pre, breaks[(breaks > pre[0]) & (breaks < 0)]]))
-    pre_drive = past.value_at(pre[:-1])
-    if preroll_h > 0 and (np.ptp(air(pre)) > 0 or np.any(pre_drive != 0)):
-        x0 = integrate(pre, initial(pre[0]), pre_drive)[-1]
-    else:
-        x0 = initial(0.0)
-
-    grid = _grid(times, program.breakpoints_s(), max_step_s)
-    drive_grid = program.value_at(grid[:-1])
-    x = integrate(grid, x0, drive_grid)
-    idx = np.searchsorted(grid, times)
-    nodes = x[idx, :n]
-    amb = air(times)
-    readings = np.empty((times.size, len(sensor_nodes)))
-    for j, node in enumerate(sensor_nodes):
-        readings[:, j] = amb if node < 0 else nodes[:, node]
-    for k, j in enumerate(lagged):
-        readings[:, j] = x[idx, n + k]
+    times = _check_times(times_s, method)
+    model = _Model.build(params, terms, ambient, method)
+    x0 = _start_state(model, history, preroll_h, max_step_s)
+    grid = time_grid(times, program.breakpoints_s(), max_step_s=max_step_s)
+    x = model.integrate(grid, x0, program.value_at(grid[:-1]))[np.searchsorted(grid, times)]
+    amb = model.air(times)
     logger.debug("run_network: %d grid steps, method %s", grid.size - 1, method)
     return NetworkRun(
         times_s=times,
         drive=program.value_at(times),
         ambient_degc=amb,
-        nodes_degc=nodes,
-        start_degc=x0[:n].copy(),
-        sensors_degc=readings,
+        nodes_degc=x[:, : model.n_nodes],
+        start_degc=x0[: model.n_nodes].copy(),
+        sensors_degc=model.readings(x, amb),
     )
 
 

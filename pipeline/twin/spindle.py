@@ -3,7 +3,7 @@
 Nine lumped nodes (front and rear bearing, spindle sleeve, motor, headstock, column front and
 rear, bed, Z screw) heated by the spindle-speed program, convection to the workshop air; the Z
 drift at the spindle nose is the sum of the model's displacement terms. Which terms are in the
-model is set by the effect names (:mod:`pipeline.twin.effects`).
+model is set by the effect names (:mod:`pipeline.thermal.effects`).
 """
 
 from __future__ import annotations
@@ -14,9 +14,9 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from pipeline.twin.effects import slot_terms
+from pipeline.thermal.effects import slot_terms
+from pipeline.thermal.program import Program
 from pipeline.twin.params import SpindleParams
-from pipeline.twin.program import Program
 from pipeline.twin.simulate import machine_frame, simulate_machine
 
 
@@ -38,7 +38,7 @@ def simulate_spindle(
     params : SpindleParams
         Machine parameters.
     effects : iterable of str
-        Effects switched on (names from :data:`pipeline.twin.effects.EFFECTS`); empty = the
+        Effects switched on (names from :data:`pipeline.thermal.effects.EFFECTS`); empty = the
         baseline.
     program : Program, list of dict or float
         Spindle speed, rpm: a :class:`Program`, the contract's ``spindle_program`` list, or a

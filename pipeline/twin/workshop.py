@@ -38,6 +38,8 @@ from datetime import datetime, timedelta
 import numpy as np
 import pandas as pd
 
+from pipeline.thermal.effects import check_effects
+from pipeline.thermal.program import Program, Segment
 from pipeline.twin.ambient import Climate, WeatherAmbient, draw_weather, season_of
 from pipeline.twin.campaigns import (
     CampaignInfo,
@@ -45,7 +47,7 @@ from pipeline.twin.campaigns import (
     provenance_notes,
     read_temperatures,
 )
-from pipeline.twin.effects import DEMO_EFFECTS, check_effects
+from pipeline.twin.effects import DEMO_EFFECTS
 from pipeline.twin.instruments import (
     AIR,
     EddyCurrentProbe,
@@ -55,7 +57,6 @@ from pipeline.twin.instruments import (
 )
 from pipeline.twin.lateral import LateralParams, lateral_drift
 from pipeline.twin.params import DS18B20, SpindleParams
-from pipeline.twin.program import Program, Segment
 from pipeline.twin.spindle import simulate_spindle
 
 logger = logging.getLogger(__name__)

@@ -13,10 +13,10 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from pipeline.thermal.program import Program
 from pipeline.twin.campaigns import AxisCampaign, CampaignInfo, SpindleCampaign
 from pipeline.twin.instruments import PlacedSensor
 from pipeline.twin.params import SensorSpec
-from pipeline.twin.program import Program
 from pipeline.twin.workshop import WorkshopCampaign
 from schemas.contract import FILE_NAMES
 

@@ -1,4 +1,4 @@
-"""Lumped-parameter thermal network and its exact time integration.
+"""Lumped-parameter thermal network and its state-space form with sensor-lag states.
 
 A machine is a set of lumped nodes i with heat capacity C_i (J/K), linked by conductances
 G_ij (W/K) and losing heat to the ambient air through a convection conductance h_i (W/K)::
@@ -6,23 +6,16 @@ G_ij (W/K) and losing heat to the ambient air through a convection conductance h
     C_i dT_i/dt = q_i(t) - sum_j G_ij (T_i - T_j) - h_i (T_i - T_amb(t))
 
 i.e. ``C dT/dt = -K T + h T_amb + q`` with ``K`` the conductance (Laplacian + convection)
-matrix. The system is linear in T for given inputs, so it is integrated exactly: the inputs are
-piecewise linear between grid instants (heat piecewise constant, ambient linear), and each step
-uses the first-order-hold matrix exponential (``scipy.linalg.expm`` of the augmented matrix).
-``scipy.integrate.solve_ivp`` (stiff ``Radau``/``BDF``/``LSODA``) is available as a cross-check.
+matrix. :func:`build_system` writes it as ``dx/dt = A x + B u`` and appends one first-order
+state per lagged sensor; :mod:`pipeline.thermal.discretise` and :mod:`pipeline.thermal.stepping`
+integrate it exactly.
 """
 
 from __future__ import annotations
 
-import logging
-from collections.abc import Callable
 from dataclasses import dataclass, replace
 
 import numpy as np
-from scipy.integrate import solve_ivp
-from scipy.linalg import expm
-
-logger = logging.getLogger(__name__)
 
 
 @dataclass(frozen=True)
@@ -132,7 +125,8 @@ class LinearSystem:
     ----------
     A : ndarray of shape (n_states, n_states), 1/s
     B : ndarray of shape (n_states, n_inputs)
-        Inputs are ``u = [T_amb (degC), q_1 .. q_n (W)]``.
+        Inputs are ``u = [T_amb (degC), q_1 .. q_{n_q}]`` (node heats in W unless
+        :func:`build_system` was given another ``heat_input``).
     """
 
     A: np.ndarray
@@ -143,6 +137,7 @@ def build_system(
     network: ThermalNetwork,
     sensor_nodes: tuple[int, ...] = (),
     sensor_tau_s: tuple[float, ...] = (),
+    heat_input: np.ndarray | None = None,
 ) -> LinearSystem:
     """Assemble the state-space matrices of the network and of first-order sensor lags.
 
@@ -154,22 +149,31 @@ def build_system(
         For each lagged sensor, the node it reads (0..n-1) or -1 for the ambient air.
     sensor_tau_s : tuple of float
         Time constant of each lagged sensor, s (> 0): ``tau dS/dt = T_node - S``.
+    heat_input : ndarray of shape (n, n_q), optional
+        Rate of temperature rise of each node per unit of each heat input, K/s per unit
+        (column j: the share of input j each node receives, in W per unit, divided by the
+        node's heat capacity). None = ``diag(1 / C)``: the heat inputs are the node heats, W.
 
     Returns
     -------
     LinearSystem
-        States ``[T_1..T_n, S_1..S_m]``, inputs ``[T_amb, q_1..q_n]``.
+        States ``[T_1..T_n, S_1..S_m]``, inputs ``[T_amb, q_1..q_{n_q}]``.
     """
     n = len(network.nodes)
     m = len(sensor_nodes)
     if len(sensor_tau_s) != m:
         raise ValueError("build_system: give one time constant per lagged sensor")
     cinv = 1.0 / network.capacities
+    heat = np.diag(cinv) if heat_input is None else np.asarray(heat_input, dtype=float)
+    if heat.ndim != 2 or heat.shape[0] != n:
+        raise ValueError(
+            f"build_system: heat_input has shape {heat.shape}; give one row per node ({n})"
+        )
     A = np.zeros((n + m, n + m))
-    B = np.zeros((n + m, n + 1))
+    B = np.zeros((n + m, 1 + heat.shape[1]))
     A[:n, :n] = -cinv[:, None] * network.conductance_matrix()
     B[:n, 0] = cinv * network.convection
-    B[:n, 1:] = np.diag(cinv)
+    B[:n, 1:] = heat
     for k, (node, tau) in enumerate(zip(sensor_nodes, sensor_tau_s, strict=True)):
         if tau <= 0:
             raise ValueError(f"build_system: sensor time constant must be > 0 s, got {tau}")
@@ -179,101 +183,3 @@ def build_system(
         else:
             A[n + k, node] = 1.0 / tau
     return LinearSystem(A=A, B=B)
-
-
-def _foh_matrices(A: np.ndarray, B: np.ndarray, h: float) -> tuple[np.ndarray, ...]:
-    """Exact discretisation over a step h for inputs linear within the step.
-
-    ``x(t+h) = Phi x(t) + G0 u(t) + G1 (u(t+h) - u(t))`` from the exponential of the augmented
-    matrix ``[[A h, B h, 0], [0, 0, I], [0, 0, 0]]``.
-    """
-    ns, ni = B.shape
-    M = np.zeros((ns + 2 * ni, ns + 2 * ni))
-    M[:ns, :ns] = A * h
-    M[:ns, ns : ns + ni] = B * h
-    M[ns : ns + ni, ns + ni :] = np.eye(ni)
-    E = expm(M)
-    return E[:ns, :ns], E[:ns, ns : ns + ni], E[:ns, ns + ni :]
-
-
-def integrate_foh(
-    system: LinearSystem,
-    x0: np.ndarray,
-    grid_s: np.ndarray,
-    u_left: np.ndarray,
-    u_right: np.ndarray,
-) -> np.ndarray:
-    """Integrate exactly for inputs that are linear on each grid interval.
-
-    Parameters
-    ----------
-    system : LinearSystem
-    x0 : ndarray of shape (n_states,)
-        State at ``grid_s[0]``.
-    grid_s : ndarray of shape (k,), s
-        Strictly increasing instants.
-    u_left, u_right : ndarray of shape (k - 1, n_inputs)
-        Inputs at the start and at the end of each interval (one-sided limits, so a heat step
-        at a grid instant is represented exactly).
-
-    Returns
-    -------
-    ndarray of shape (k, n_states)
-        The state at every grid instant.
-    """
-    grid = np.asarray(grid_s, dtype=float)
-    if np.any(np.diff(grid) <= 0):
-        raise ValueError("integrate_foh: grid instants must be strictly increasing")
-    x = np.empty((grid.size, x0.size))
-    x[0] = x0
-    cache: dict[float, tuple[np.ndarray, ...]] = {}
-    for k, h in enumerate(np.diff(grid)):
-        key = round(float(h), 6)
-        if key not in cache:
-            cache[key] = _foh_matrices(system.A, system.B, key)
-        phi, g0, g1 = cache[key]
-        x[k + 1] = phi @ x[k] + g0 @ u_left[k] + g1 @ (u_right[k] - u_left[k])
-    logger.debug("integrate_foh: %d steps, %d distinct step lengths", grid.size - 1, len(cache))
-    return x
-
-
-def integrate_ivp(
-    system: LinearSystem,
-    x0: np.ndarray,
-    grid_s: np.ndarray,
-    inputs: Callable[[float, int], np.ndarray],
-    method: str = "Radau",
-) -> np.ndarray:
-    """Integrate with ``scipy.integrate.solve_ivp`` interval by interval (cross-check).
-
-    Parameters
-    ----------
-    system : LinearSystem
-    x0 : ndarray of shape (n_states,)
-    grid_s : ndarray of shape (k,), s
-        Instants; heat steps may only occur at these instants.
-    inputs : callable ``(t_s, interval_index) -> ndarray of shape (n_inputs,)``
-        Inputs at time t inside the given interval.
-    method : str
-        A stiff-capable ``solve_ivp`` method: ``"Radau"``, ``"BDF"`` or ``"LSODA"``.
-
-    Returns
-    -------
-    ndarray of shape (k, n_states)
-    """
-    grid = np.asarray(grid_s, dtype=float)
-    x = np.empty((grid.size, x0.size))
-    x[0] = x0
-    A, B = system.A, system.B
-    for k in range(grid.size - 1):
-
-        def rhs(t: float, y: np.ndarray, k: int = k) -> np.ndarray:
-            return A @ y + B @ inputs(t, k)
-
-        sol = solve_ivp(
-            rhs, (grid[k], grid[k + 1]), x[k], method=method, jac=A, rtol=1e-9, atol=1e-9
-        )
-        if not sol.success:
-            raise RuntimeError(f"solve_ivp failed on [{grid[k]}, {grid[k + 1]}] s: {sol.message}")
-        x[k + 1] = sol.y[:, -1]
-    return x
