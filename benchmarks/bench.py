@@ -34,17 +34,31 @@ def copy_repository(root: Path, destination: Path) -> Path:
     """Copy the tracked and the untracked, not ignored files of ``root`` into a new git repo."""
     listed = subprocess.run(
         ["git", "ls-files", "--cached", "--others", "--exclude-standard", "-z"],
-        cwd=root, check=True, capture_output=True, text=True,
-    ).stdout.split("\0")  # fmt: skip
+        cwd=root,
+        check=True,
+        capture_output=True,
+        text=True,
+    ).stdout.split("\0")
     for name in filter(None, listed):
         source = root / name
         if source.is_file():
             target = destination / name
             target.parent.mkdir(parents=True, exist_ok=True)
             shutil.copy2(source, target)
-    for command in (["git", "init", "-q"], ["git", "add", "-A"],
-                    ["git", "-c", "user.name=bench", "-c", "user.email=bench@localhost",
-                     "commit", "-qm", "bench copy"]):  # fmt: skip
+    for command in (
+        ["git", "init", "-q"],
+        ["git", "add", "-A"],
+        [
+            "git",
+            "-c",
+            "user.name=bench",
+            "-c",
+            "user.email=bench@localhost",
+            "commit",
+            "-qm",
+            "bench copy",
+        ],
+    ):
         subprocess.run(command, cwd=destination, check=True)
     return destination
 
@@ -65,8 +79,11 @@ def run_benchmark(root: Path) -> dict:
     path = f"{bin_dir}{os.pathsep}{os.environ.get('PATH', '')}"
     with tempfile.TemporaryDirectory(prefix="thermal-bench-") as folder:
         whole_copy = copy_repository(root, Path(folder) / "whole")
-        env = {**os.environ, "PATH": path,
-               "MLFLOW_TRACKING_URI": f"sqlite:///{whole_copy / 'mlflow.db'}"}  # fmt: skip
+        env = {
+            **os.environ,
+            "PATH": path,
+            "MLFLOW_TRACKING_URI": f"sqlite:///{whole_copy / 'mlflow.db'}",
+        }
         whole = timed([str(bin_dir / "dvc"), "repro"], whole_copy, env)
         # Stages one by one, logging to the store the whole run created (its tables exist, as
         # for every run but a store's first); then track once more into a brand-new store.

@@ -131,8 +131,11 @@ def markdown(results: dict[str, dict[str, Any]], seed: int) -> str:
         )
     for variant, r in results.items():
         if r["quarantined"]:
-            lines += ["", f"Quarantined by validation in `{variant}` and left out: "
-                      f"{', '.join(r['quarantined'])} (see the workflow's log)."]  # fmt: skip
+            lines += [
+                "",
+                f"Quarantined by validation in `{variant}` and left out: "
+                f"{', '.join(r['quarantined'])} (see the workflow's log).",
+            ]
     for variant, r in results.items():
         lines += ["", f"Candidates in the last round of `{variant}` (none passed):", ""]
         lines += [

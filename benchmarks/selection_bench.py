@@ -71,9 +71,17 @@ def compare(m_values=(10, 16, 20), naive_limit: int = 70_000, seed: int = 0) -> 
         same = None
         if not extrapolated:
             same = best_subset_naive(X, y).sensors == fast.sensors
-        rows.append({"m": m, "subsets": 2**m - 1, "fast_s": fast_s, "naive_s": naive_s,
-                     "naive_extrapolated": extrapolated, "ratio": naive_s / fast_s,
-                     "same_winner": same})  # fmt: skip
+        rows.append(
+            {
+                "m": m,
+                "subsets": 2**m - 1,
+                "fast_s": fast_s,
+                "naive_s": naive_s,
+                "naive_extrapolated": extrapolated,
+                "ratio": naive_s / fast_s,
+                "same_winner": same,
+            }
+        )
     return rows
 
 
@@ -86,6 +94,8 @@ def report_lines(rows: list[dict]) -> list[str]:
             if row["naive_extrapolated"]
             else ("same winner" if row["same_winner"] else "DIFFERENT winner")
         )
-        lines.append(f"{row['m']:>3}{row['subsets']:>10}{row['fast_s']:>9.2f}"
-                     f"{row['naive_s']:>10.2f}{row['ratio']:>12.1f}  {note}")  # fmt: skip
+        lines.append(
+            f"{row['m']:>3}{row['subsets']:>10}{row['fast_s']:>9.2f}"
+            f"{row['naive_s']:>10.2f}{row['ratio']:>12.1f}  {note}"
+        )
     return lines

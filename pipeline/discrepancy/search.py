@@ -39,17 +39,12 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from pipeline.thermal.effects import EFFECTS
+
 logger = logging.getLogger(__name__)
 
-CANDIDATE_EFFECTS = (
-    "ambient_variation",
-    "centrifugal_growth",
-    "nonlinear_bearing_heat",
-    "sensor_lag",
-    "thermal_bending",
-    "motor_heat",
-)
-"""The effect vocabulary of issue 4, in the order they are reported."""
+CANDIDATE_EFFECTS = tuple(EFFECTS)
+"""The effect vocabulary of issue 4 (the kernel's registry), in the order they are reported."""
 
 SENSOR_ONLY_EFFECTS = frozenset({"sensor_lag"})
 """Effects that change what the sensors read, not the structure or the displacement."""

@@ -121,12 +121,19 @@ def read_csv_cells(path: Path, report: Report) -> pd.DataFrame | None:
         report(path.name, None, None, "no_data_rows")
         return None
     names = [name or f"unnamed_{position}" for position, name in enumerate(header, start=1)]
-    keep = _first_of_each_name(names, lambda name: report(path.name, None, name,
-                                                          "duplicate_column"))  # fmt: skip
+    keep = _first_of_each_name(
+        names, lambda name: report(path.name, None, name, "duplicate_column")
+    )
     uneven = [i for i, row in enumerate(body) if len(row) != len(names)]
     for index in uneven[:MAX_REPORTED_ROWS]:
-        report(path.name, index + 1, None, "field_count",
-               n_fields=len(body[index]), n_header=len(names))  # fmt: skip
+        report(
+            path.name,
+            index + 1,
+            None,
+            "field_count",
+            n_fields=len(body[index]),
+            n_header=len(names),
+        )
     width = len(names)
     cells = [(row + [""] * width)[:width] for row in body]
     frame = pd.DataFrame(cells, columns=names, dtype="str")

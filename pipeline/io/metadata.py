@@ -24,11 +24,19 @@ from schemas.contract import CONTRACT_FILES
 from schemas.vocabulary import CAMPAIGN_ID_RE, SAMPLE_BASE_COLUMNS
 
 SEASON_BY_MONTH = {
-    12: "winter", 1: "winter", 2: "winter",
-    3: "spring", 4: "spring", 5: "spring",
-    6: "summer", 7: "summer", 8: "summer",
-    9: "autumn", 10: "autumn", 11: "autumn",
-}  # fmt: skip
+    12: "winter",
+    1: "winter",
+    2: "winter",
+    3: "spring",
+    4: "spring",
+    5: "spring",
+    6: "summer",
+    7: "summer",
+    8: "summer",
+    9: "autumn",
+    10: "autumn",
+    11: "autumn",
+}
 REQUIRED_KEYS = {
     "campaign_id": "campaign_id: <the folder name>",
     "kind": "kind: spindle_drift or kind: axis_positioning",
@@ -45,8 +53,14 @@ PROGRAM = "a list of entries {from_min: 0, to_min: 240, rpm: 4000}"
 def read_metadata(path: Path, report: Report) -> dict[str, Any] | None:
     """Return the mapping of ``campaign.yaml``, or None after reporting why there is none."""
     if not path.is_file():
-        report(path.name, None, None, "missing_file", "campaign.yaml is missing",
-               f"add {path} (see docs/data-contract.md) or remove the folder")  # fmt: skip
+        report(
+            path.name,
+            None,
+            None,
+            "missing_file",
+            "campaign.yaml is missing",
+            f"add {path} (see docs/data-contract.md) or remove the folder",
+        )
         return None
     text = read_text(path, report)
     if text is None:
@@ -62,9 +76,13 @@ def read_metadata(path: Path, report: Report) -> dict[str, Any] | None:
         return None
     if not isinstance(content, dict):
         report(
-            path.name, None, None, "unreadable_yaml", "campaign.yaml is not a mapping",
+            path.name,
+            None,
+            None,
+            "unreadable_yaml",
+            "campaign.yaml is not a mapping",
             "write the keys of docs/data-contract.md (campaign_id, kind, sensors, ...)",
-        )  # fmt: skip
+        )
         return None
     return content
 
@@ -204,8 +222,14 @@ def _entries(mapping: dict, key: str, expected: str, report: Report) -> dict[str
     out = {}
     for name, entry in mapping.items():
         if entry is not None and not isinstance(entry, dict):
-            report("campaign.yaml", None, f"{key}.{name}", "wrong_type", expected=expected,
-                   found=_describe(entry))  # fmt: skip
+            report(
+                "campaign.yaml",
+                None,
+                f"{key}.{name}",
+                "wrong_type",
+                expected=expected,
+                found=_describe(entry),
+            )
             entry = None
         out[str(name)] = entry or {}
     return out
@@ -223,8 +247,14 @@ def _stroke(axis: dict[str, Any], report: Report) -> float:
     if value is None:
         return float("nan")
     if isinstance(value, bool) or not isinstance(value, int | float) or not np.isfinite(value):
-        report("campaign.yaml", None, "axis.stroke_mm", "wrong_type",
-               expected="a number of millimetres", found=_describe(value))  # fmt: skip
+        report(
+            "campaign.yaml",
+            None,
+            "axis.stroke_mm",
+            "wrong_type",
+            expected="a number of millimetres",
+            found=_describe(value),
+        )
         return float("nan")
     return float(value)
 

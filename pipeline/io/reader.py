@@ -159,10 +159,17 @@ def _reporter(campaign_id: str, problems: list[Problem]) -> Report:
             if row is not None:
                 line = row if file.endswith(".yaml") else row + 1
                 where += f" row {row} (line {line})"
-            problem, action = word(check, {
-                "campaign": campaign_id, "file": file, "column": column or "?",
-                "rows": "" if row is None else f"row {row}", "where": where, **fields,
-            })  # fmt: skip
+            problem, action = word(
+                check,
+                {
+                    "campaign": campaign_id,
+                    "file": file,
+                    "column": column or "?",
+                    "rows": "" if row is None else f"row {row}",
+                    "where": where,
+                    **fields,
+                },
+            )
         problems.append(Problem(campaign_id, file, row, column, check, problem, action))
 
     return report
@@ -189,8 +196,14 @@ def _read_numeric_csv(path: Path, report: Report, reserved: Callable[[str], bool
     if text is None:
         return None
     if "elapsed_s" not in text.columns:
-        report(path.name, None, "elapsed_s", "missing_column", header=",".join(text.columns),
-               expected="elapsed_s (seconds since start:) as the first column")  # fmt: skip
+        report(
+            path.name,
+            None,
+            "elapsed_s",
+            "missing_column",
+            header=",".join(text.columns),
+            expected="elapsed_s (seconds since start:) as the first column",
+        )
         return None
     frame = pd.DataFrame({"source_row": np.arange(1, len(text) + 1, dtype=np.int64)})
     for column in text.columns:
@@ -223,8 +236,14 @@ def _speed(folder: Path, meta: dict[str, Any], elapsed_s: pd.Series, report) -> 
     """Spindle speed (rpm) at each instant: the measured log if present, else the program."""
     log = _read_numeric_csv(folder / "spindle.csv", report, _reserved_other)
     if log is not None and "rpm" not in log.columns:
-        report("spindle.csv", None, "rpm", "missing_column", header=",".join(log.columns[1:]),
-               expected="the header elapsed_s,rpm")  # fmt: skip
+        report(
+            "spindle.csv",
+            None,
+            "rpm",
+            "missing_column",
+            header=",".join(log.columns[1:]),
+            expected="the header elapsed_s,rpm",
+        )
     elif log is not None:
         order = np.argsort(log["elapsed_s"].to_numpy(), kind="stable")
         times = log["elapsed_s"].to_numpy()[order]
@@ -241,15 +260,22 @@ def _speed(folder: Path, meta: dict[str, Any], elapsed_s: pd.Series, report) -> 
             if not (np.isfinite(begin) and np.isfinite(rpm)):
                 raise ValueError("not finite")
         except (AttributeError, KeyError, TypeError, ValueError):
-            report("campaign.yaml", None, "spindle_program", "bad_spindle_program",
-                   number=number, entry=segment)  # fmt: skip
+            report(
+                "campaign.yaml",
+                None,
+                "spindle_program",
+                "bad_spindle_program",
+                number=number,
+                entry=segment,
+            )
             continue
         speed[(minutes >= begin) & (minutes < end)] = rpm
     return speed
 
 
-def _align_displacement(samples: pd.DataFrame, displacement: pd.DataFrame, max_gap_s: float,
-                        report) -> pd.DataFrame:  # fmt: skip
+def _align_displacement(
+    samples: pd.DataFrame, displacement: pd.DataFrame, max_gap_s: float, report
+) -> pd.DataFrame:
     """Interpolate each displacement axis (um) linearly onto the temperature instants.
 
     Rows without a time are reported (``missing_value``) and left out; without any timed row
@@ -311,13 +337,21 @@ def _read_laser(path: Path, campaign_id: str, report) -> pd.DataFrame | None:
     missing = [c for c in LASER_COLUMNS if c not in text.columns]
     if missing:
         expected = "the header " + ",".join(LASER_COLUMNS)
-        report(path.name, None, ",".join(missing), "missing_column",
-               header=",".join(text.columns), expected=expected)  # fmt: skip
+        report(
+            path.name,
+            None,
+            ",".join(missing),
+            "missing_column",
+            header=",".join(text.columns),
+            expected=expected,
+        )
         return None
-    frame = pd.DataFrame({
-        "campaign_id": campaign_id,
-        "source_row": np.arange(1, len(text) + 1, dtype=np.int64),
-    })  # fmt: skip
+    frame = pd.DataFrame(
+        {
+            "campaign_id": campaign_id,
+            "source_row": np.arange(1, len(text) + 1, dtype=np.int64),
+        }
+    )
     for column in ("elapsed_min", "target_mm", "deviation_um"):
         frame[column] = _numbers(text[column], path.name, column, report)
     frame["run"] = _run_numbers(text["run"], path.name, report)
@@ -332,6 +366,7 @@ def _run_numbers(cells: pd.Series, file: str, report: Report) -> np.ndarray:
     whole[whole] = values[whole] == np.round(values[whole])
     for index in np.flatnonzero(~whole)[:MAX_REPORTED_ROWS]:
         value = cells.iloc[index]
-        report(file, int(index) + 1, "run", "laser_run_number",
-               value=repr(value) if value else "empty")  # fmt: skip
+        report(
+            file, int(index) + 1, "run", "laser_run_number", value=repr(value) if value else "empty"
+        )
     return np.where(whole, values, -1).astype(np.int64)

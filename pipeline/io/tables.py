@@ -68,9 +68,13 @@ def _concat_samples(frames: list[pd.DataFrame]) -> pd.DataFrame:
     """Union of the per-campaign columns: fixed columns first, then sensors, then displacement."""
     if not frames:
         return pd.DataFrame(
-            {"campaign_id": pd.Series(dtype="str"), "source_row": pd.Series(dtype="int64"),
-             "elapsed_s": pd.Series(dtype="float64"), "rpm": pd.Series(dtype="float64")}
-        )  # fmt: skip
+            {
+                "campaign_id": pd.Series(dtype="str"),
+                "source_row": pd.Series(dtype="int64"),
+                "elapsed_s": pd.Series(dtype="float64"),
+                "rpm": pd.Series(dtype="float64"),
+            }
+        )
     combined = pd.concat(frames, ignore_index=True, sort=False)
     fixed = ["campaign_id", "source_row", "elapsed_s", "rpm"]
     displacement = sorted(c for c in combined.columns if c.startswith("disp_"))
@@ -84,8 +88,13 @@ def _concat_samples(frames: list[pd.DataFrame]) -> pd.DataFrame:
 
 def _empty_laser() -> pd.DataFrame:
     return pd.DataFrame(
-        {"campaign_id": pd.Series(dtype="str"), "source_row": pd.Series(dtype="int64"),
-         "elapsed_min": pd.Series(dtype="float64"), "run": pd.Series(dtype="int64"),
-         "direction": pd.Series(dtype="str"), "target_mm": pd.Series(dtype="float64"),
-         "deviation_um": pd.Series(dtype="float64")}
-    )  # fmt: skip
+        {
+            "campaign_id": pd.Series(dtype="str"),
+            "source_row": pd.Series(dtype="int64"),
+            "elapsed_min": pd.Series(dtype="float64"),
+            "run": pd.Series(dtype="int64"),
+            "direction": pd.Series(dtype="str"),
+            "target_mm": pd.Series(dtype="float64"),
+            "deviation_um": pd.Series(dtype="float64"),
+        }
+    )

@@ -368,8 +368,9 @@ def score_campaigns(
         per_pass, on=["campaign_id", "elapsed_min"], how="inner", validate="many_to_one"
     )
     measured = pd.MultiIndex.from_frame(points[["campaign_id", "elapsed_min"]])
-    unmeasured = per_pass[~pd.MultiIndex.from_frame(per_pass[["campaign_id", "elapsed_min"]])
-                          .isin(measured)]  # fmt: skip
+    unmeasured = per_pass[
+        ~pd.MultiIndex.from_frame(per_pass[["campaign_id", "elapsed_min"]]).isin(measured)
+    ]
     if not unmeasured.empty:
         first = unmeasured.iloc[0]
         raise ValueError(

@@ -35,8 +35,9 @@ LOGGER = logging.getLogger(__name__)
 SOURCE = "the patent (seeds/002_391aae131e4de351.txt): sensitive points by best subset, eqs. 1-4"
 
 
-def build(params: dict, slopes: pd.DataFrame, geometric: pd.DataFrame,
-          thermal: pd.DataFrame) -> tuple[dict, dict, pd.DataFrame]:  # fmt: skip
+def build(
+    params: dict, slopes: pd.DataFrame, geometric: pd.DataFrame, thermal: pd.DataFrame
+) -> tuple[dict, dict, pd.DataFrame]:
     """Fit and score the composite model.
 
     Parameters
@@ -87,8 +88,9 @@ def build(params: dict, slopes: pd.DataFrame, geometric: pd.DataFrame,
     if validation.empty:
         LOGGER.warning(
             "no validation axis campaign (split: validation): the composite model is scored on "
-            "its training campaign(s) %s only", _ids(train),
-        )  # fmt: skip
+            "its training campaign(s) %s only",
+            _ids(train),
+        )
     else:
         scored["validation"] = score_campaigns(model, validation, thermal)
     points = pd.concat([p.assign(role=r) for r, p in scored.items()], ignore_index=True)

@@ -109,8 +109,9 @@ def run_all(
         for sensors in [unit_sensors(candidate, unit, selected)]
         if sensors or not MODELS[candidate.model].uses_temperatures
     ]
-    LOGGER.info("%d candidates x %d training units = %d fits", len(candidates), len(units),
-                len(jobs))  # fmt: skip
+    LOGGER.info(
+        "%d candidates x %d training units = %d fits", len(candidates), len(units), len(jobs)
+    )
     # One BLAS thread per process: statsmodels' small Kalman filters and least-squares fits run
     # many times slower with multi-threaded BLAS on a busy machine (joblib workers already
     # limit theirs; this covers n_jobs=1 in the main process).

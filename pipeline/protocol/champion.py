@@ -185,10 +185,17 @@ def choose_champion(
     column = protocol_column(protocol)
     if column is None or column not in rows or not rows[column].notna().any():
         return Decision(
-            axis, protocol, column, none_rows.iloc[:0], none_rows.iloc[0], math.nan, math.nan,
-            False, "a single training campaign leaves no campaign to test a model on: there is "
+            axis,
+            protocol,
+            column,
+            none_rows.iloc[:0],
+            none_rows.iloc[0],
+            math.nan,
+            math.nan,
+            False,
+            "a single training campaign leaves no campaign to test a model on: there is "
             "no held-out score to choose a compensation by",
-        )  # fmt: skip
+        )
     reasons = rows.apply(ineligibility, axis=1, args=(protocol, min_coverage))
     ineligible = {
         tuple(str(row[k]) for k in KEYS): str(reason)
@@ -210,8 +217,17 @@ def _decide(
     models = ranked[ranked["model"] != NO_COMPENSATION]
     name = PROTOCOL_NAMES[protocol]
     if models.empty:
-        return Decision(axis, protocol, column, ranked, none_row, none_score, math.nan, False,
-                        f"no model has a {name} score")  # fmt: skip
+        return Decision(
+            axis,
+            protocol,
+            column,
+            ranked,
+            none_row,
+            none_score,
+            math.nan,
+            False,
+            f"no model has a {name} score",
+        )
     best = models.iloc[0]
     best_score = float(best[column])
     eta = float(best.get(f"{protocol}_eta", 1.0 - best_score / none_score))
@@ -311,11 +327,16 @@ def standing(summary: pd.DataFrame, decision: Decision) -> pd.DataFrame:
         reason = decision.ineligible.get(key, "")
         if not reason and key not in ranks:
             reason = "not ranked: no score on the selection protocol"
-        records.append({
-            "axis": decision.axis, **dict(zip(KEYS, key, strict=True)),
-            "eligible": not reason, "ineligible_reason": reason,
-            "rank": ranks.get(key, 0), "champion": key == champion,
-        })  # fmt: skip
+        records.append(
+            {
+                "axis": decision.axis,
+                **dict(zip(KEYS, key, strict=True)),
+                "eligible": not reason,
+                "ineligible_reason": reason,
+                "rank": ranks.get(key, 0),
+                "champion": key == champion,
+            }
+        )
     return pd.DataFrame(records)
 
 

@@ -132,13 +132,22 @@ def score_row(
     rmse = root_mean_square(residual)
     uncompensated = root_mean_square(np.where(scored, test.target, np.nan))
     return {
-        "axis": test.axis, "model": candidate.model, "selection": candidate.selection,
-        "mode": mode, "scheme": unit.scheme, "train_unit": unit.name,
-        "test_campaign": test.campaign_id, "test_split": test.split,
-        "test_season": test.season, "role": _role(unit, test), "n_samples": n_samples,
-        "rmse_um": rmse, "resid_std_um": residual_std(residual),
-        "uncompensated_rms_um": uncompensated, "eta": compensation_ratio(rmse, uncompensated),
-    }  # fmt: skip
+        "axis": test.axis,
+        "model": candidate.model,
+        "selection": candidate.selection,
+        "mode": mode,
+        "scheme": unit.scheme,
+        "train_unit": unit.name,
+        "test_campaign": test.campaign_id,
+        "test_split": test.split,
+        "test_season": test.season,
+        "role": _role(unit, test),
+        "n_samples": n_samples,
+        "rmse_um": rmse,
+        "resid_std_um": residual_std(residual),
+        "uncompensated_rms_um": uncompensated,
+        "eta": compensation_ratio(rmse, uncompensated),
+    }
 
 
 def fit_and_score(

@@ -166,8 +166,9 @@ def decide(
     min_coverage = float(settings.get("min_coverage", DEFAULT_COVERAGE))
     for item in evaluations:
         item.decision = choose_champion(summary, item.axis, item.protocol, margin, min_coverage)
-        LOGGER.info("axis %s: champion %s: %s", item.axis, item.decision.label,
-                    item.decision.reason)  # fmt: skip
+        LOGGER.info(
+            "axis %s: champion %s: %s", item.axis, item.decision.label, item.decision.reason
+        )
 
 
 def fitted_record(evaluations: list[AxisEvaluation]) -> dict:
@@ -190,9 +191,10 @@ def fitted_record(evaluations: list[AxisEvaluation]) -> dict:
 def find_result(item: AxisEvaluation, model: str, selection: str, unit: str) -> UnitResult:
     """Return the candidate's fit on ``unit``."""
     return next(
-        r for r in item.results
+        r
+        for r in item.results
         if r.unit.name == unit and (r.candidate.model, r.candidate.selection) == (model, selection)
-    )  # fmt: skip
+    )
 
 
 def held_out_prediction(

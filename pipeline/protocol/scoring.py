@@ -132,9 +132,11 @@ def metrics_tree(scores: pd.DataFrame) -> dict:
         [*CANDIDATE_KEYS, "scheme"], sort=True
     ):
         entry = (
-            tree.setdefault(axis, {}).setdefault(model, {}).setdefault(selection, {})
+            tree.setdefault(axis, {})
+            .setdefault(model, {})
+            .setdefault(selection, {})
             .setdefault(mode, {})
-        )  # fmt: skip
+        )
         prefix = SCHEME_PREFIX[scheme]
         entry.update({prefix + key: value for key, value in summarise(group).items()})
         units = entry.setdefault("by_train_unit", {})
@@ -205,8 +207,11 @@ def score_matrix(scores: pd.DataFrame, column: str) -> pd.DataFrame:
     Rows are training units in the order they appear, columns the training campaigns then the
     validation ones.
     """
-    order = list(dict.fromkeys(scores.sort_values(["test_split", "test_campaign"],
-                                                  key=_split_order)["test_campaign"]))  # fmt: skip
+    order = list(
+        dict.fromkeys(
+            scores.sort_values(["test_split", "test_campaign"], key=_split_order)["test_campaign"]
+        )
+    )
     units = list(dict.fromkeys(scores["train_unit"]))
     matrix = scores.pivot_table(
         index="train_unit", columns="test_campaign", values=column, aggfunc="first"
@@ -274,10 +279,15 @@ def group_scores(scores: pd.DataFrame) -> pd.DataFrame:
         rms = float(finite["rmse_um"].mean()) if len(finite) else float("nan")
         raw = float(finite["uncompensated_rms_um"].mean()) if len(finite) else float("nan")
         row = dict(zip(GROUP_COLUMNS, keys, strict=True))
-        rows.append({
-            **row, "n_campaigns": int(group["test_campaign"].nunique()), "rms_um": rms,
-            "uncompensated_rms_um": raw, "eta": compensation_ratio(rms, raw),
-            "name": group_score_name(row["scheme"], row["split"], row["held_out"], "rms_um"),
-        })  # fmt: skip
+        rows.append(
+            {
+                **row,
+                "n_campaigns": int(group["test_campaign"].nunique()),
+                "rms_um": rms,
+                "uncompensated_rms_um": raw,
+                "eta": compensation_ratio(rms, raw),
+                "name": group_score_name(row["scheme"], row["split"], row["held_out"], "rms_um"),
+            }
+        )
     columns = [*GROUP_COLUMNS, "n_campaigns", "rms_um", "uncompensated_rms_um", "eta", "name"]
     return pd.DataFrame(rows, columns=columns)

@@ -116,10 +116,15 @@ def stability_table(
                 counts[sensor] = counts.get(sensor, 0) + 1
         for sensor in inputs:
             chosen = counts.get(sensor, 0)
-            rows.append({
-                "method": method, "sensor": sensor, "times_chosen": chosen,
-                "n_campaigns": len(campaigns), "frequency": chosen / max(len(campaigns), 1),
-            })  # fmt: skip
+            rows.append(
+                {
+                    "method": method,
+                    "sensor": sensor,
+                    "times_chosen": chosen,
+                    "n_campaigns": len(campaigns),
+                    "frequency": chosen / max(len(campaigns), 1),
+                }
+            )
     return pd.DataFrame(rows)
 
 

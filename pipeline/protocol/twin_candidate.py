@@ -334,8 +334,12 @@ def run_twin(
     jobs = [delayed(fit_and_score_twin)(units[i], list(series), setup) for i in order]
     done = dict(zip(order, Parallel(n_jobs=n_jobs)(jobs), strict=True))
     results = [done[i] for i in range(len(units))]
-    LOGGER.info("twin candidate (%s): %d calibrations in %.1f s", setup.effects_source,
-                len(units), time.perf_counter() - start)  # fmt: skip
+    LOGGER.info(
+        "twin candidate (%s): %d calibrations in %.1f s",
+        setup.effects_source,
+        len(units),
+        time.perf_counter() - start,
+    )
     return results
 
 

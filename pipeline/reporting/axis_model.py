@@ -62,10 +62,17 @@ def _draw_campaign(top: plt.Axes, bottom: plt.Axes, rows: pd.DataFrame, band: fl
     colours = plt.cm.plasma(np.linspace(0, 0.85, rows["elapsed_min"].nunique()))
     for colour, (minute, group) in zip(colours, rows.groupby("elapsed_min"), strict=True):
         top.plot(group["target_mm"], group["measured_um"], "o", ms=3, color=colour)
-        top.plot(group["target_mm"], group["predicted_um"], "-", color=colour,
-                 label=f"{minute:g} min")  # fmt: skip
-        bottom.plot(group["target_mm"], group["residual_um"], "o-", ms=3, color=colour,
-                    label=f"{minute:g} min")  # fmt: skip
+        top.plot(
+            group["target_mm"], group["predicted_um"], "-", color=colour, label=f"{minute:g} min"
+        )
+        bottom.plot(
+            group["target_mm"],
+            group["residual_um"],
+            "o-",
+            ms=3,
+            color=colour,
+            label=f"{minute:g} min",
+        )
     for level in (-band, band):
         bottom.axhline(level, color="k", ls="--", lw=1)
     bottom.text(rows["target_mm"].min(), band, f" patent: +-{band:g} um", va="bottom", fontsize=7)

@@ -48,9 +48,11 @@ def score_table(summary: pd.DataFrame, decision: Decision) -> str:
     (as the champion is chosen), then the others (``one_step``, ``twin``), which are never chosen.
     """
     columns = _columns(summary, decision.protocol)
-    header = "| model | selection | mode | " + " | ".join(
-        f"{label} `{name}`" for name, label in columns.items()
-    ) + " |"  # fmt: skip
+    header = (
+        "| model | selection | mode | "
+        + " | ".join(f"{label} `{name}`" for name, label in columns.items())
+        + " |"
+    )
     lines = [header, "|" + "---|" * (3 + len(columns))]
     sort_by = decision.column if decision.column in summary else "Mn_rms_um"
     chosen = eligible(summary).index
@@ -137,10 +139,13 @@ def _protocol_text(decision: Decision, series: Sequence[CampaignSeries]) -> str:
     text = (
         f"Selection protocol: **{PROTOCOL_NAMES[decision.protocol]}** (each fit built on the "
         "training campaigns but "
-        + ("one season's, scored on the ones" if decision.protocol == "loso" else "one, scored "
-           "on the one")
+        + (
+            "one season's, scored on the ones"
+            if decision.protocol == "loso"
+            else "one, scored on the one"
+        )
         + " left out)."
-    )  # fmt: skip
+    )
     runs = {s.run_id for s in train}
     if decision.protocol == "loco" and len(train) > 1 and len(runs) == 1:
         text += (
@@ -244,8 +249,9 @@ def group_table(summary: pd.DataFrame, decision: Decision, groups: pd.DataFrame 
     names = list(dict.fromkeys(mine.sort_values(["split", "held_out"])["name"]))
     if not names:
         return ""
-    table = mine.pivot_table(index=["model", "selection", "mode"], columns="name",
-                             values="rms_um", aggfunc="first")  # fmt: skip
+    table = mine.pivot_table(
+        index=["model", "selection", "mode"], columns="name", values="rms_um", aggfunc="first"
+    )
     lines = [
         "Held-out RMS per group (um): each season (or campaign) predicted by the fit that left "
         "it out, then each validation season by the fit on all training campaigns.",

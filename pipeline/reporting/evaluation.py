@@ -43,10 +43,14 @@ def prediction_panels(item: AxisEvaluation, first: pd.Series, second: pd.Series 
             continue
         two = None if second is None else held_out_prediction(item, second, campaign)
         minutes = campaign.features.index.get_level_values("elapsed_s").to_numpy() / 60.0
-        panels[campaign.campaign_id] = pd.DataFrame({
-            "elapsed_min": minutes, "measured_um": campaign.target, "first_um": one,
-            "second_um": np.full(len(minutes), np.nan) if two is None else two,
-        })  # fmt: skip
+        panels[campaign.campaign_id] = pd.DataFrame(
+            {
+                "elapsed_min": minutes,
+                "measured_um": campaign.target,
+                "first_um": one,
+                "second_um": np.full(len(minutes), np.nan) if two is None else two,
+            }
+        )
     return panels
 
 
@@ -130,8 +134,10 @@ def report_axis(
     second = best_plain_baseline(rows, decision.column)
     panels = prediction_panels(item, first, second)
     figure = paths.COMPARISON_FIGURES / f"heldout_{item.axis}.png"
-    labels = (f"best model: {label(first)}",
-              "no plain baseline" if second is None else f"plain: {label(second)}")  # fmt: skip
+    labels = (
+        f"best model: {label(first)}",
+        "no plain baseline" if second is None else f"plain: {label(second)}",
+    )
     where = (
         "validation campaigns, built on all training campaigns"
         if any(s.split == "validation" for s in item.series)
@@ -142,25 +148,35 @@ def report_axis(
     plots.save_figure(plots.predicted_vs_measured_figure(panels, labels, title, seasons), figure)
     groups = group_scores(item.scores)
     context = comparison_report.AxisContext(
-        item.axis, rows, decision, card, selected["axes"][item.axis], item.series,
-        item.skipped, second, groups,
-    )  # fmt: skip
+        item.axis,
+        rows,
+        decision,
+        card,
+        selected["axes"][item.axis],
+        item.series,
+        item.skipped,
+        second,
+        groups,
+    )
     figures = comparison_report.AxisFigures(
-        figure.relative_to(paths.REPORTS).as_posix(), labels,
+        figure.relative_to(paths.REPORTS).as_posix(),
+        labels,
         [h for h in heatmaps if h.startswith(f"matrices/{item.axis}__")],
-    )  # fmt: skip
+    )
     plot_rows = [
         {
-            "axis": item.axis, "candidate": f"{item.axis}: {label(row)}",
+            "axis": item.axis,
+            "candidate": f"{item.axis}: {label(row)}",
             "heldout_rms_um": row.get(decision.column) if decision.column else np.nan,
             "eta": row.get(f"{item.protocol}_eta") if item.protocol else np.nan,
         }
         for _, row in rows.iterrows()
-    ]  # fmt: skip
+    ]
     predictions = [
-        frame.rename(columns={"first_um": "predicted_um"}).drop(columns="second_um")
+        frame.rename(columns={"first_um": "predicted_um"})
+        .drop(columns="second_um")
         .assign(axis=item.axis, campaign_id=campaign)
         for campaign, frame in panels.items()
-    ]  # fmt: skip
+    ]
     section = comparison_report.axis_section(context, separation, figures, twin_text)
     return AxisReport(section, plot_rows, predictions)

@@ -38,9 +38,11 @@ def bidirectional_mean(laser: pd.DataFrame) -> pd.DataFrame:
     """
     keyed = laser.assign(target_mm=laser["target_mm"].round(3))
     by_direction = keyed.pivot_table(
-        index=["campaign_id", "elapsed_min", "target_mm"], columns="direction",
-        values="deviation_um", aggfunc="mean",
-    )  # fmt: skip
+        index=["campaign_id", "elapsed_min", "target_mm"],
+        columns="direction",
+        values="deviation_um",
+        aggfunc="mean",
+    )
     directions = [d for d in ("+", "-") if d in by_direction.columns]
     result = pd.DataFrame({"measured_um": by_direction[directions].mean(axis=1)})
     result["reversal_um"] = (

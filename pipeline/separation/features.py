@@ -210,9 +210,13 @@ def speed_responses(t_s: np.ndarray, rpm: np.ndarray, spec: SpeedResponses) -> p
     if steps.size:
         speed[:-1] = np.where(steps > MAX_HOLD_INTERVALS * np.median(steps), 0.0, speed[:-1])
     drive = np.column_stack(
-        [np.repeat((np.clip(speed, 0.0, None) / RPM_SCALE) ** a, len(spec.time_constants_min))
-         .reshape(-1, len(spec.time_constants_min)) for a in spec.exponents]
-    )  # fmt: skip
+        [
+            np.repeat(
+                (np.clip(speed, 0.0, None) / RPM_SCALE) ** a, len(spec.time_constants_min)
+            ).reshape(-1, len(spec.time_constants_min))
+            for a in spec.exponents
+        ]
+    )
     taus = np.tile(np.asarray(spec.time_constants_min, dtype=float) * 60.0, len(spec.exponents))
     out = np.zeros((t.size, len(names)))
     decay = np.exp(-np.diff(t)[:, None] / taus[None, :])
@@ -297,8 +301,11 @@ def resample(rows: pd.DataFrame, window_s: float | None) -> pd.DataFrame:
     if np.median(np.diff(t)) >= window_s * 0.999:
         return rows
     window = np.floor((t - t[0]) / window_s).astype(np.int64)
-    numeric = [c for c in rows.columns if c not in ("campaign_id", "source_row")
-               and pd.api.types.is_numeric_dtype(rows[c])]  # fmt: skip
+    numeric = [
+        c
+        for c in rows.columns
+        if c not in ("campaign_id", "source_row") and pd.api.types.is_numeric_dtype(rows[c])
+    ]
     out = rows[numeric].astype(float).groupby(window, sort=True).mean()
     for column in ("source_row", "campaign_id"):
         if column in rows:

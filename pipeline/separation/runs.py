@@ -214,8 +214,13 @@ def _text(value: object) -> str | None:
 def _link(previous: CampaignSpan, span: CampaignSpan, how: str) -> Link:
     gap = (span.begins - previous.ends).total_seconds()
     interval = np.nanmax([previous.interval_s, span.interval_s, 1e-9])
-    return Link(previous.campaign_id, span.campaign_id, how, gap,
-                bool(0 <= gap <= CONTIGUOUS_INTERVALS * interval))  # fmt: skip
+    return Link(
+        previous.campaign_id,
+        span.campaign_id,
+        how,
+        gap,
+        bool(0 <= gap <= CONTIGUOUS_INTERVALS * interval),
+    )
 
 
 def candidate_links(
@@ -253,10 +258,12 @@ def candidate_links(
         if not settings.detect or span.start_state == "cold":
             continue
         before = [
-            p for p in spans
-            if p.machine == span.machine and p.campaign_id != span.campaign_id
+            p
+            for p in spans
+            if p.machine == span.machine
+            and p.campaign_id != span.campaign_id
             and 0.0 <= (span.begins - p.ends).total_seconds() <= settings.max_gap_s
-        ]  # fmt: skip
+        ]
         if before:
             closest = min(before, key=lambda p: (span.begins - p.ends).total_seconds())
             links.append(_link(closest, span, DETECTED))

@@ -120,8 +120,10 @@ def modelled_axes(campaigns: pd.DataFrame, wanted: Sequence[str] | None) -> list
         if missing:
             LOGGER.warning(
                 "params.yaml separate.displacement_axis lists %s, which no valid campaign "
-                "declares; separating %s", missing, [a for a in order if a in wanted]
-            )  # fmt: skip
+                "declares; separating %s",
+                missing,
+                [a for a in order if a in wanted],
+            )
         axes = [a for a in order if a in wanted]
     return axes
 
@@ -174,15 +176,23 @@ def _stitched_displacement(
     record = []
     for link in run.links:
         result = stitch(
-            tables.t_run[link.previous], values[link.previous], tables.t_run[link.campaign],
-            values[link.campaign], link.contiguous, settings.min_stitch_um,
-        )  # fmt: skip
+            tables.t_run[link.previous],
+            values[link.previous],
+            tables.t_run[link.campaign],
+            values[link.campaign],
+            link.contiguous,
+            settings.min_stitch_um,
+        )
         values[link.campaign] = values[link.campaign] + result.offset_um
-        record.append({
-            "axis": axis, "previous": link.previous, "campaign": link.campaign,
-            "jump_um": None if np.isnan(result.jump_um) else round(result.jump_um, 4),
-            "offset_um": round(result.offset_um, 4),
-        })  # fmt: skip
+        record.append(
+            {
+                "axis": axis,
+                "previous": link.previous,
+                "campaign": link.campaign,
+                "jump_um": None if np.isnan(result.jump_um) else round(result.jump_um, 4),
+                "offset_um": round(result.offset_um, 4),
+            }
+        )
     return values, record
 
 
@@ -252,11 +262,12 @@ def spindle_thermal_error(
         if cid in meta
     }
     runs, jumps = (
-        find_runs(campaigns[campaigns["campaign_id"].isin(per_campaign)], per_campaign,
-                  settings.runs)
+        find_runs(
+            campaigns[campaigns["campaign_id"].isin(per_campaign)], per_campaign, settings.runs
+        )
         if per_campaign and axes
         else ([], {})
-    )  # fmt: skip
+    )
     frames, record = [], {"axes": axes, "runs": [], "campaigns": {}}
     for run in runs:
         tables = _run_tables(run, per_campaign)
@@ -275,11 +286,12 @@ def spindle_thermal_error(
                 "reference": _reference_text(run, position, settings.reference, settings.n),
             }
     record["settings"] = {
-        "cold_reference": settings.reference, "cold_n": settings.n,
+        "cold_reference": settings.reference,
+        "cold_n": settings.n,
         "resample_s": settings.resample_s,
         "speed_responses": None if settings.speed is None else settings.speed.to_dict(),
         "runs": vars(settings.runs),
-    }  # fmt: skip
+    }
     if not frames:
         wanted = "any axis" if settings.axes is None else f"the axes {list(settings.axes)}"
         record["axes"] = []
@@ -295,11 +307,21 @@ def spindle_thermal_error(
 def empty_table() -> pd.DataFrame:
     """Return the separated table with its columns and no row (nothing to separate)."""
     columns = {
-        "axis": "str", "campaign_id": "str", "run_id": "str", "source_row": "int64",
-        "elapsed_s": "float64", "run_elapsed_s": "float64", "rpm": "float64", "split": "str",
-        "season": "str", "synthetic": "bool", "warm_start": "bool", "reference": "str",
-        "displacement_um": "float64", "thermal_error_um": "float64",
-    }  # fmt: skip
+        "axis": "str",
+        "campaign_id": "str",
+        "run_id": "str",
+        "source_row": "int64",
+        "elapsed_s": "float64",
+        "run_elapsed_s": "float64",
+        "rpm": "float64",
+        "split": "str",
+        "season": "str",
+        "synthetic": "bool",
+        "warm_start": "bool",
+        "reference": "str",
+        "displacement_um": "float64",
+        "thermal_error_um": "float64",
+    }
     return pd.DataFrame({name: pd.Series(dtype=dtype) for name, dtype in columns.items()})
 
 
@@ -319,13 +341,19 @@ def _inputs_of_run(
     speed = settings.speed
     silent = [c for c, r in zip(run.campaigns, rpm, strict=True) if not np.isfinite(r).any()]
     if speed is not None and silent and len(silent) < len(run.campaigns):
-        notes.append(f"no spindle speed in {', '.join(silent)}: no speed responses in run "
-                     f"{run.run_id}")  # fmt: skip
+        notes.append(
+            f"no spindle speed in {', '.join(silent)}: no speed responses in run {run.run_id}"
+        )
         speed = None
     inputs = run_inputs(
-        np.concatenate([tables.t_run[c] for c in run.campaigns]), frame, np.concatenate(rpm),
-        features="temperature_rise", reference=settings.reference, n=settings.n, speed=speed,
-    )  # fmt: skip
+        np.concatenate([tables.t_run[c] for c in run.campaigns]),
+        frame,
+        np.concatenate(rpm),
+        features="temperature_rise",
+        reference=settings.reference,
+        n=settings.n,
+        speed=speed,
+    )
     if speed is None and settings.speed is not None:
         for name in settings.speed.names():
             inputs[name] = np.nan
@@ -334,8 +362,10 @@ def _inputs_of_run(
     for sensor in late:
         inputs[f"rise_{sensor}"] = np.nan
     if late:
-        notes.append(f"{', '.join(late)} not read in {run.run_id}, the run's first campaign: no "
-                     f"rise in run {run.run_id}")  # fmt: skip
+        notes.append(
+            f"{', '.join(late)} not read in {run.run_id}, the run's first campaign: no "
+            f"rise in run {run.run_id}"
+        )
     return inputs, notes
 
 
@@ -371,12 +401,18 @@ def _axis_frames(
             )
         frames.append(
             _campaign_frame(
-                axis, cid, run, tables, displacement[cid] - cold, displacement[cid],
-                inputs.iloc[bounds[position] : bounds[position + 1]], meta[cid],
+                axis,
+                cid,
+                run,
+                tables,
+                displacement[cid] - cold,
+                displacement[cid],
+                inputs.iloc[bounds[position] : bounds[position + 1]],
+                meta[cid],
                 warm=position > 0 or not run.cold_start or head != run.run_id,
                 reference=reference,
             )
-        )  # fmt: skip
+        )
     return frames, stitches
 
 
@@ -394,22 +430,24 @@ def _campaign_frame(
     reference: str,
 ) -> pd.DataFrame:
     rows = tables.rows[campaign_id]
-    frame = pd.DataFrame({
-        "axis": axis,
-        "campaign_id": campaign_id,
-        "run_id": run.run_id,
-        "source_row": rows["source_row"].to_numpy(dtype=np.int64),
-        "elapsed_s": rows["elapsed_s"].to_numpy(dtype=float),
-        "run_elapsed_s": tables.t_run[campaign_id],
-        "rpm": rows["rpm"].to_numpy(dtype=float),
-        "split": meta["split"],
-        "season": meta["season"],
-        "synthetic": bool(meta["synthetic"]),
-        "warm_start": warm,
-        "reference": reference,
-        "displacement_um": displacement,
-        "thermal_error_um": error,
-    })  # fmt: skip
+    frame = pd.DataFrame(
+        {
+            "axis": axis,
+            "campaign_id": campaign_id,
+            "run_id": run.run_id,
+            "source_row": rows["source_row"].to_numpy(dtype=np.int64),
+            "elapsed_s": rows["elapsed_s"].to_numpy(dtype=float),
+            "run_elapsed_s": tables.t_run[campaign_id],
+            "rpm": rows["rpm"].to_numpy(dtype=float),
+            "split": meta["split"],
+            "season": meta["season"],
+            "synthetic": bool(meta["synthetic"]),
+            "warm_start": warm,
+            "reference": reference,
+            "displacement_um": displacement,
+            "thermal_error_um": error,
+        }
+    )
     own = _sensors(meta)
     for sensor in own:
         frame[sensor] = rows[sensor].to_numpy(dtype=float) if sensor in rows else np.nan
@@ -423,12 +461,17 @@ def _run_record(
     links = []
     for link in run.links:
         jump = jumps[link.campaign]
-        links.append({
-            "previous": link.previous, "campaign": link.campaign, "how": link.how,
-            "gap_s": round(link.gap_s, 1), "contiguous": link.contiguous,
-            "temperature_jump_degC": None if np.isnan(jump) else round(jump, 4),
-            "displacement": [s for s in stitches if s["campaign"] == link.campaign],
-        })  # fmt: skip
+        links.append(
+            {
+                "previous": link.previous,
+                "campaign": link.campaign,
+                "how": link.how,
+                "gap_s": round(link.gap_s, 1),
+                "contiguous": link.contiguous,
+                "temperature_jump_degC": None if np.isnan(jump) else round(jump, 4),
+                "displacement": [s for s in stitches if s["campaign"] == link.campaign],
+            }
+        )
     return {
         "run_id": run.run_id,
         "campaigns": list(run.campaigns),

@@ -176,8 +176,9 @@ def read_twin_setup(table: pd.DataFrame, series: list[CampaignSeries]) -> TwinSe
 def read_discrepancy() -> dict | None:
     """``reports/discrepancy/discrepancy.json``, or None (with a warning) when absent."""
     if not paths.DISCREPANCY_DOCUMENT.is_file():
-        LOGGER.warning("%s not found: the twin candidate is the baseline twin",
-                       paths.DISCREPANCY_DOCUMENT)  # fmt: skip
+        LOGGER.warning(
+            "%s not found: the twin candidate is the baseline twin", paths.DISCREPANCY_DOCUMENT
+        )
         return None
     return json.loads(paths.DISCREPANCY_DOCUMENT.read_text(encoding="utf-8"))
 

@@ -31,7 +31,10 @@ def main(argv: list[str] | None = None) -> int:
         table.to_parquet(args.out / f"{name}.parquet", engine="pyarrow", index=False)
     LOGGER.info(
         "ingested %d campaign folders (%d samples, %d laser rows, %d problems) into %s",
-        len(tables["campaigns"]), len(tables["samples"]), len(tables["laser"]),
-        len(tables["problems"]), args.out,
-    )  # fmt: skip
+        len(tables["campaigns"]),
+        len(tables["samples"]),
+        len(tables["laser"]),
+        len(tables["problems"]),
+        args.out,
+    )
     return 0

@@ -48,16 +48,22 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.parse_args(argv)
     params = load_section("model_axis")
     report, metrics, points = build(
-        params, _read(paths.AXIS_SLOPES), _read(paths.AXIS_GEOMETRIC),
+        params,
+        _read(paths.AXIS_SLOPES),
+        _read(paths.AXIS_GEOMETRIC),
         _read(paths.AXIS_THERMAL_ERROR),
-    )  # fmt: skip
+    )
     write(report, metrics, points)
     if metrics.get("n_validation_points"):
         LOGGER.info(
             "axis model k on %s: validation residual %.2f to %.2f um (max |r| %.2f um, patent "
             "+-%g um), rmse %.2f um over %d points",
-            report["selection"]["selected"], metrics["residual_min_um"],
-            metrics["residual_max_um"], metrics["residual_max_abs_um"],
-            report["patent_band_um"], metrics["rmse_um"], metrics["n_validation_points"],
-        )  # fmt: skip
+            report["selection"]["selected"],
+            metrics["residual_min_um"],
+            metrics["residual_max_um"],
+            metrics["residual_max_abs_um"],
+            report["patent_band_um"],
+            metrics["rmse_um"],
+            metrics["n_validation_points"],
+        )
     return 0

@@ -72,8 +72,9 @@ def write_outputs(
         )
         first = ["axis", "unit"]
         evidence = evidence[[*first, *[c for c in evidence.columns if c not in first]]]
-        evidence.to_csv(paths.SELECTION / f"{method}_evidence.csv", index=False,
-                        float_format="%.6g")  # fmt: skip
+        evidence.to_csv(
+            paths.SELECTION / f"{method}_evidence.csv", index=False, float_format="%.6g"
+        )
     label = "SYNTHETIC data from the physical twin" if synthetic else "measured data"
     tables = [pd.DataFrame(columns=["axis", *STABILITY_COLUMNS])]
     for axis, by_method in selections.items():
@@ -108,9 +109,11 @@ def main(argv: list[str] | None = None) -> int:
         selections[axis] = select_axis(series, units[axis], entries)
         for method, by_unit in selections[axis].items():
             LOGGER.info(
-                "axis %s, %s: all training campaigns -> %s", axis, method,
+                "axis %s, %s: all training campaigns -> %s",
+                axis,
+                method,
                 ", ".join(by_unit["all_training"].sensors),
-            )  # fmt: skip
+            )
     if table.empty:
         LOGGER.warning("no spindle thermal error to select inputs for (see %s)", paths.SPINDLE_RUNS)
     write_outputs(features, selections, units, inputs, bool(table["synthetic"].any()), skipped)

@@ -145,9 +145,15 @@ def integrate_ivp(
     x[0] = x0
     for k in range(grid.size - 1):
         sol = solve_ivp(
-            _linear_rhs, (grid[k], grid[k + 1]), x[k], method=method, jac=system.A,
-            rtol=1e-9, atol=1e-9, args=(system, inputs, k),
-        )  # fmt: skip
+            _linear_rhs,
+            (grid[k], grid[k + 1]),
+            x[k],
+            method=method,
+            jac=system.A,
+            rtol=1e-9,
+            atol=1e-9,
+            args=(system, inputs, k),
+        )
         if not sol.success:
             raise RuntimeError(f"solve_ivp failed on [{grid[k]}, {grid[k + 1]}] s: {sol.message}")
         x[k + 1] = sol.y[:, -1]

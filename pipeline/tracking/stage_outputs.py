@@ -120,9 +120,14 @@ def read_scores(path: Path) -> list[dict[str, Any]]:
             "evaluate` (or `thermal evaluate`) first"
         )
     text_columns = [
-        *records.KEY_COLUMNS, "scheme", "train_unit", "test_campaign", "test_split",
-        "test_season", "role",
-    ]  # fmt: skip
+        *records.KEY_COLUMNS,
+        "scheme",
+        "train_unit",
+        "test_campaign",
+        "test_split",
+        "test_season",
+        "role",
+    ]
     nan_text = ["", "nan", "NaN"]
     table = pd.read_csv(
         path,

@@ -106,9 +106,17 @@ def simulate_axis(
         ``T1``... (noise-free), ``screw_rise_K``, ``slope_um_per_mm`` (k), ``offset_um`` (b).
     """
     machine = simulate_machine(
-        "axis", params, effects, program, "feed_mm_s", ambient, times_s,
-        method=method, preroll_h=preroll_h, history=history,
-    )  # fmt: skip
+        "axis",
+        params,
+        effects,
+        program,
+        "feed_mm_s",
+        ambient,
+        times_s,
+        method=method,
+        preroll_h=preroll_h,
+        history=history,
+    )
     net = params.network
     screw_rise = machine.rise_k[:, net.index("screw")]
     bearing_rise = machine.rise_k[:, net.index("screw_bearing")]

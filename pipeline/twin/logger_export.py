@@ -42,10 +42,12 @@ def logger_table(run: WorkshopRun, hours: float | None = None) -> pd.DataFrame:
     for campaign in run.campaigns:
         offset_s = (campaign.info.start - run.plan.start).total_seconds()
         elapsed = campaign.temperature["elapsed_s"].to_numpy() + offset_s
-        part = pd.DataFrame({
-            "timestamp": [run.plan.start + timedelta(seconds=float(s)) for s in elapsed],
-            "rpm": campaign.spindle["rpm"].to_numpy(),
-        })  # fmt: skip
+        part = pd.DataFrame(
+            {
+                "timestamp": [run.plan.start + timedelta(seconds=float(s)) for s in elapsed],
+                "rpm": campaign.spindle["rpm"].to_numpy(),
+            }
+        )
         for axis, channel in PROBE_CHANNELS.items():
             part[channel] = campaign.displacement[axis].to_numpy()
         for sensor in [c for c in campaign.temperature.columns if c != "elapsed_s"]:

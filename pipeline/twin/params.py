@@ -129,15 +129,20 @@ def _spindle_sensors() -> tuple[SensorSpec, ...]:
         ("T2", "spindle_rear_bearing", "rear bearing housing", "rear_bearing", -0.08, 300.0),
         ("T3", "spindle_motor", "spindle motor casing", "motor", 0.15, 480.0),
         ("T4", "headstock", "headstock side wall", "headstock", -0.17, 720.0),
-        ("T5", "column_front", "column front face, below the Z guideways", "column_front", 0.05,
-         900.0),
+        (
+            "T5",
+            "column_front",
+            "column front face, below the Z guideways",
+            "column_front",
+            0.05,
+            900.0,
+        ),
         ("T6", "column_rear", "column rear face", "column_rear", 0.19, 900.0),
         ("T7", "bed", "bed, under the column", "bed", -0.11, 1200.0),
         ("T8", "ball_screw", "Z ball-screw nut housing", "z_screw", 0.03, 360.0),
-        ("T9", "other", "spindle cartridge sleeve, near the nose", "spindle_sleeve", -0.14,
-         300.0),
+        ("T9", "other", "spindle cartridge sleeve, near the nose", "spindle_sleeve", -0.14, 300.0),
         ("T10", "ambient", "workshop air, 1 m from the machine", "ambient", 0.07, 480.0),
-    )  # fmt: skip
+    )
     return tuple(
         SensorSpec(n, r, loc, node, "DS18B20", off, tau) for n, r, loc, node, off, tau in rows
     )

@@ -66,9 +66,17 @@ def simulate_spindle(
         lists the effects on, ``attrs["terms"]`` the model's term names.
     """
     machine = simulate_machine(
-        "spindle", params, effects, program, "rpm", ambient, times_s,
-        method=method, preroll_h=preroll_h, history=history,
-    )  # fmt: skip
+        "spindle",
+        params,
+        effects,
+        program,
+        "rpm",
+        ambient,
+        times_s,
+        method=method,
+        preroll_h=preroll_h,
+        history=history,
+    )
     z_parts = {
         f"z_{term.name}_um": np.asarray(
             term.func(params, machine.rise_k, machine.run.drive), dtype=float

@@ -86,29 +86,50 @@ def _sensor(
 
 
 WORKSHOP_SENSORS = (
-    _sensor("T1", "column front face, top of the Z guideways",
-            {"column_front": 0.7, "headstock": 0.3}, 18),
+    _sensor(
+        "T1",
+        "column front face, top of the Z guideways",
+        {"column_front": 0.7, "headstock": 0.3},
+        18,
+    ),
     _sensor("T2", "front bearing housing", {"front_bearing": 1.0}, 4),
-    _sensor("T3", "air 0.3 m above the floor (cool layer, follows the floor slab)",
-            {AIR: 0.85, "bed": 0.15}, 10, bias_k=-0.6),
+    _sensor(
+        "T3",
+        "air 0.3 m above the floor (cool layer, follows the floor slab)",
+        {AIR: 0.85, "bed": 0.15},
+        10,
+        bias_k=-0.6,
+    ),
     _sensor("T4", "spindle motor casing", {"motor": 1.0}, 8),
     _sensor("T5", "bed, under the column", {"bed": 1.0}, 30),
     _sensor("T6", "headstock side wall", {"headstock": 1.0}, 15),
-    _sensor("T7", "spindle nose flange, between front bearing and headstock",
-            {"front_bearing": 0.6, "headstock": 0.4}, 6),
+    _sensor(
+        "T7",
+        "spindle nose flange, between front bearing and headstock",
+        {"front_bearing": 0.6, "headstock": 0.4},
+        6,
+    ),
     _sensor("T8", "column rear face", {"column_rear": 1.0}, 20),
     _sensor("T9", "Z ball-screw nut housing", {"z_screw": 1.0}, 5),
     _sensor("T10", "rear bearing housing", {"rear_bearing": 1.0}, 5),
-    _sensor("T11", "air 2.5 m above the floor, in the machine's warm plume",
-            {AIR: 0.95, "motor": 0.05}, 2, bias_k=0.5),
+    _sensor(
+        "T11",
+        "air 2.5 m above the floor, in the machine's warm plume",
+        {AIR: 0.95, "motor": 0.05},
+        2,
+        bias_k=0.5,
+    ),
     _sensor("T12", "motor flange on the headstock", {"motor": 0.5, "headstock": 0.5}, 12),
     _sensor("T13", "spindle cartridge sleeve, near the nose", {"spindle_sleeve": 1.0}, 7),
-    _sensor("T14", "Z-screw upper support bearing on the column",
-            {"z_screw": 0.5, "column_front": 0.5}, 10),
+    _sensor(
+        "T14",
+        "Z-screw upper support bearing on the column",
+        {"z_screw": 0.5, "column_front": 0.5},
+        10,
+    ),
     _sensor("T15", "column foot on the bed, rear", {"column_rear": 0.4, "bed": 0.6}, 25),
-    _sensor("T16", "column side wall, mid-depth",
-            {"column_front": 0.5, "column_rear": 0.5}, 22),
-)  # fmt: skip
+    _sensor("T16", "column side wall, mid-depth", {"column_front": 0.5, "column_rear": 0.5}, 22),
+)
 """The 16 sensors in logger channel order: true place, node mix, mounting lag (min), bias.
 
 Engineering estimates, not measurements: mounting lags from 2 min (a bare probe in the air)
