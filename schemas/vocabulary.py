@@ -23,6 +23,23 @@ the first sample was taken, or not (it ran, or stopped too shortly before)."""
 SEASONS = ("spring", "summer", "autumn", "winter")
 """Known values of ``season:`` in campaign.yaml (or derived from ``start``)."""
 
+SEASON_OF_MONTH = {
+    12: "winter",
+    1: "winter",
+    2: "winter",
+    3: "spring",
+    4: "spring",
+    5: "spring",
+    6: "summer",
+    7: "summer",
+    8: "summer",
+    9: "autumn",
+    10: "autumn",
+    11: "autumn",
+}
+"""The season of a calendar month (northern hemisphere): a campaign's season when campaign.yaml
+gives ``start`` but no ``season``."""
+
 SENSOR_ROLES = (
     "spindle_front_bearing",
     "spindle_rear_bearing",

@@ -37,7 +37,7 @@ from sklearn.linear_model import LinearRegression, Ridge
 from pipeline.models.reference import NoCompensation
 from pipeline.protocol.champion import champion_card, choose_champion
 from pipeline.protocol.cross_season import Candidate, fit_and_score
-from pipeline.protocol.evaluation import champion_metrics, ranked_summary
+from pipeline.protocol.evaluation import champion_metrics, ranked_summary, round_tree
 from pipeline.protocol.scoring import candidate_summary, group_scores, metrics_tree
 from pipeline.protocol.units import (
     INDEX_NAMES,
@@ -270,15 +270,6 @@ def build_outputs() -> EvaluateOutputs:
     return EvaluateOutputs(scores, fitted, selected, cards, estimators)
 
 
-def _json_ready(tree):
-    """Round to 4 decimals, NaN as null: how evaluate writes ``metrics/cross_season.json``."""
-    if isinstance(tree, dict):
-        return {key: _json_ready(value) for key, value in tree.items()}
-    if isinstance(tree, bool | str) or tree is None:
-        return tree
-    return None if not np.isfinite(tree) else round(float(tree), 4)
-
-
 SKIPPED = {"twin/roles": "the twin models the Z drift only"}
 
 
@@ -305,7 +296,7 @@ def write_scores(root: Path, scores: pd.DataFrame, cards: dict) -> None:
         for axis in AXES
     }
     (root / "metrics" / "cross_season.json").write_text(
-        json.dumps(_json_ready(metrics), indent=2, sort_keys=True)
+        json.dumps(round_tree(metrics), indent=2, sort_keys=True)
     )
 
 

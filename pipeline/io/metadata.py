@@ -21,22 +21,8 @@ import yaml
 
 from pipeline.io.files import Report, read_text
 from schemas.contract import CONTRACT_FILES
-from schemas.vocabulary import CAMPAIGN_ID_RE, SAMPLE_BASE_COLUMNS
+from schemas.vocabulary import CAMPAIGN_ID_RE, SAMPLE_BASE_COLUMNS, SEASON_OF_MONTH
 
-SEASON_BY_MONTH = {
-    12: "winter",
-    1: "winter",
-    2: "winter",
-    3: "spring",
-    4: "spring",
-    5: "spring",
-    6: "summer",
-    7: "summer",
-    8: "summer",
-    9: "autumn",
-    10: "autumn",
-    11: "autumn",
-}
 REQUIRED_KEYS = {
     "campaign_id": "campaign_id: <the folder name>",
     "kind": "kind: spindle_drift or kind: axis_positioning",
@@ -119,7 +105,7 @@ def campaign_row(folder: Path, meta: dict[str, Any], report: Report) -> dict[str
     season = meta.get("season")
     season_derived = season is None
     if season_derived:
-        season = SEASON_BY_MONTH[start.month] if not pd.isna(start) else ""
+        season = SEASON_OF_MONTH[start.month] if not pd.isna(start) else ""
     sensors = _sensors(meta, report)
     axis = _typed(meta, "axis", dict, MAPPING, report) or {}
     return {

@@ -294,9 +294,10 @@ def champion_metrics(card: dict) -> dict:
     return {"compensate": card["compensate"], **entry}
 
 
-def _round(tree):
+def round_tree(tree):
+    """Round every number to 4 decimals, NaN as None: the JSON metrics of the stage."""
     if isinstance(tree, dict):
-        return {k: _round(v) for k, v in tree.items()}
+        return {k: round_tree(v) for k, v in tree.items()}
     if isinstance(tree, bool | str) or tree is None:
         return tree
     return None if not np.isfinite(tree) else round(float(tree), 4)
@@ -370,4 +371,4 @@ def evaluation_metrics(
         for e in evaluations
     }
     metrics |= {axis: {"skipped": {"axis": why}} for axis, why in skipped_axes.items()}
-    return _round(metrics)
+    return round_tree(metrics)

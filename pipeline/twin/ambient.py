@@ -15,20 +15,7 @@ from typing import Protocol
 
 import numpy as np
 
-SEASON_OF_MONTH = {
-    12: "winter",
-    1: "winter",
-    2: "winter",
-    3: "spring",
-    4: "spring",
-    5: "spring",
-    6: "summer",
-    7: "summer",
-    8: "summer",
-    9: "autumn",
-    10: "autumn",
-    11: "autumn",
-}
+from schemas.vocabulary import SEASON_OF_MONTH
 
 
 class Ambient(Protocol):
