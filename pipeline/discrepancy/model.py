@@ -171,16 +171,48 @@ class ParamSpec:
 # Generic magnitudes of a mid-size machining centre (mass x specific heat, h A), not fitted:
 # they are the calibration's starting values. Columns: lower, upper, initial.
 
-CAPACITY_SPECS = {
-    group: ParamSpec(
-        f"C_{group}_J_per_K",
-        "J/K",
-        lower,
-        upper,
-        initial,
-        description=f"heat capacity of each {group} node",
-    )
-    for group, (lower, upper, initial) in {
+
+def _group_specs(
+    symbol: str,
+    unit: str,
+    description: str,
+    bounds: dict[str, tuple[float, float, float]],
+    label: Callable[[str], str] = str,
+) -> dict[str, ParamSpec]:
+    """Return one parameter per group, ``<symbol>_<group>_<unit>``, with bounds and initial value.
+
+    Parameters
+    ----------
+    symbol : str
+        ``C`` (capacity), ``h`` (convection) or ``G`` (link conductance).
+    unit : str
+        ``J/K`` or ``W/K``; the name spells it ``J_per_K``, ``W_per_K``.
+    description : str
+        With ``{}`` where the group's label goes.
+    bounds : dict
+        Group -> (lower, upper, initial), in ``unit``.
+    label : callable
+        The group's words in the description.
+    """
+    suffix = unit.replace("/", "_per_")
+    return {
+        group: ParamSpec(
+            f"{symbol}_{group}_{suffix}",
+            unit,
+            lower,
+            upper,
+            initial,
+            description=description.format(label(group)),
+        )
+        for group, (lower, upper, initial) in bounds.items()
+    }
+
+
+CAPACITY_SPECS = _group_specs(
+    "C",
+    "J/K",
+    "heat capacity of each {} node",
+    {
         "bearing": (1e3, 1e6, 5e3),
         "spindle_shaft": (1e3, 1e6, 5e3),
         "motor": (1e3, 1e6, 2e4),
@@ -188,40 +220,30 @@ CAPACITY_SPECS = {
         "column": (1e4, 1e7, 3e5),
         "bed": (1e4, 1e7, 1e6),
         "ball_screw": (1e3, 1e6, 5e3),
-    }.items()
-}
+    },
+)
 """Heat capacity of each :data:`CAPACITY_GROUP`, J/K."""
 
-CONVECTION_SPECS = {
-    group: ParamSpec(
-        f"h_{group}_W_per_K",
-        "W/K",
-        lower,
-        upper,
-        initial,
-        description=f"convection to the air of each {group} node",
-    )
-    for group, (lower, upper, initial) in {
+CONVECTION_SPECS = _group_specs(
+    "h",
+    "W/K",
+    "convection to the air of each {} node",
+    {
         "spindle": (0.1, 200.0, 1.0),
         "motor": (0.1, 200.0, 2.0),
         "headstock": (0.1, 200.0, 5.0),
         "column": (0.1, 200.0, 10.0),
         "bed": (0.1, 200.0, 20.0),
         "ball_screw": (0.1, 200.0, 1.0),
-    }.items()
-}
+    },
+)
 """Convection conductance to the air of each :data:`CONVECTION_GROUP`, W/K."""
 
-LINK_SPECS = {
-    group: ParamSpec(
-        f"G_{group}_W_per_K",
-        "W/K",
-        lower,
-        upper,
-        initial,
-        description=f"conductance {group.replace('_', ' - ', 1)}",
-    )
-    for group, (lower, upper, initial) in {
+LINK_SPECS = _group_specs(
+    "G",
+    "W/K",
+    "conductance {}",
+    {
         "bearing_shaft": (0.1, 500.0, 5.0),
         "bearing_headstock": (0.1, 500.0, 5.0),
         "shaft_headstock": (0.1, 500.0, 5.0),
@@ -232,8 +254,9 @@ LINK_SPECS = {
         "headstock_bed": (0.1, 500.0, 10.0),
         "screw_headstock": (0.1, 500.0, 2.0),
         "screw_column": (0.1, 500.0, 2.0),
-    }.items()
-}
+    },
+    label=lambda group: group.replace("_", " - ", 1),
+)
 """Conductance of each link kind (the third field of :attr:`TwinModel.links`), W/K."""
 
 BEARING_SHARE_SPEC = ParamSpec(
