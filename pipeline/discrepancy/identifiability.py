@@ -1,0 +1,553 @@
+"""Can these campaigns show each candidate effect? Identifiability at the calibrated baseline.
+
+The forward search (:mod:`pipeline.discrepancy.search`) names an effect only when the data
+show it; "nothing named" then reads the same whether an effect is absent or invisible in the
+campaigns. This module tells the two apart. At the baseline twin calibrated on the searched
+campaigns (:attr:`SearchResult.baseline`), for each candidate effect whose sensor roles are
+present:
+
+1. **Sensitivities.** The twin with the effect added is run at the baseline's calibrated values
+   and the effect's initial ones (:class:`~pipeline.discrepancy.model.ParamSpec` ``initial``);
+   forward differences give the change of every predicted temperature and Z of every campaign
+   per change of each parameter (in the calibration's coordinates: the log of a positive
+   parameter), weighted by the calibration's noise floors
+   (:func:`pipeline.discrepancy.calibrate.weighted_residuals`: K / sigma_T, um / sigma_Z, the Z
+   of each campaign about its mean). ``ambient_variation`` has no parameter: its column is the
+   change of the outputs when it is switched on.
+2. **Collinearity index** of Brun, Reichert and Künsch (2001, Water Resour. Res. 37(4),
+   1015-1030), ``gamma = 1 / sqrt(min eigenvalue of S_n^T S_n)`` with the columns of ``S``
+   scaled to unit length (:mod:`pipeline.discrepancy.collinearity`), of the effect's parameters
+   together with an orthonormal basis of the baseline parameters' sensitivities (the
+   combinations of baseline parameters the data move; the baseline's own collinearity, e.g. a
+   node's heat capacity against its cooling, would otherwise mark every effect). Brun's index
+   of the baseline and effect parameters as they are is reported too
+   (``collinearity_index_all_parameters``).
+3. **Visible signal.** The response of the outputs to the effect at a plausible size (the twin
+   with the effect at :attr:`IdentifiabilitySettings.plausible` minus the calibrated baseline;
+   ``ambient_variation``: switched on) is projected, by least squares, off the column space of
+   the baseline's sensitivities: what is left is the part of the effect the baseline cannot
+   absorb by moving its own parameters (to first order). Its RMS over the measured samples, in
+   units of the noise floor and in um (Z) and K (temperatures), is the visible signal; the
+   larger of the Z and temperature figures counts (the temperatures alone for ``sensor_lag``,
+   which the search names on its temperature evidence only).
+
+Each candidate ends in exactly one class (:data:`CLASSES`): ``untestable`` (a sensor role it
+needs is absent), ``named`` (the search named it), ``not_identifiable`` (visible signal below
+``min_signal_sigma`` noise sigmas or collinearity index above ``max_collinearity_index``: the
+campaigns cannot show it, so not naming it does not mean it is absent), else ``not_needed``
+(the campaigns would show it and the search did not name it).
+
+Calibration of the thresholds (``params.yaml`` ``discrepancy.identifiability``): run the
+workflow on the hidden-effect trial campaigns (:mod:`benchmarks.discrepancy_trials`
+``write_hidden_campaigns``; nothing hidden, and each effect hidden alone) and read the figures
+of every effect: the thresholds must put the effects the search names when they are hidden
+above them, and those it never names when hidden (there: ``sensor_lag`` and
+``thermal_bending``) below (README, "Identifiability").
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from pipeline.discrepancy.calibrate import (
+    NoiseFloor,
+    ResidualRows,
+    estimate_noise,
+    weighted_residuals,
+)
+from pipeline.discrepancy.collinearity import (
+    collinearity_index,
+    effect_collinearity_index,
+    orthonormal_basis,
+    project_out,
+)
+from pipeline.discrepancy.data import MeasuredCampaign
+from pipeline.discrepancy.model import TwinModel, build_model
+from pipeline.discrepancy.search import SENSOR_ONLY_EFFECTS, SearchResult, campaign_roles
+
+logger = logging.getLogger(__name__)
+
+NAMED = "named"
+NOT_NEEDED = "not_needed"
+NOT_IDENTIFIABLE = "not_identifiable"
+UNTESTABLE = "untestable"
+CLASSES = (NAMED, NOT_NEEDED, NOT_IDENTIFIABLE, UNTESTABLE)
+"""The class of every candidate effect, exactly one each."""
+
+PLAUSIBLE = {
+    "centrifugal_um_per_krpm2": -0.15,
+    "bearing_exponent": 5.0 / 3.0,
+    "sensor_lag_s": 600.0,
+    "bending_um_per_K": 5.0,
+    "q_motor_W_per_krpm": 15.0,
+}
+"""Default plausible value of each effect parameter (``params.yaml`` overrides, with sources)."""
+
+LINEARISED_AT = {"q_motor_W_per_krpm": 0.0}
+"""Effect parameters whose sensitivities are taken where the effect vanishes instead of at the
+calibration's initial value: at the initial 5 W/krpm the motor's loss, its node's heat capacity
+and its cooling scale together (collinearity index 7e4 on the demo), a collinearity of the
+parameters, not of the effect. The other effects start where they vanish (0, or the exponent 1)
+except ``sensor_lag`` (120 s; it vanishes at 0 s, outside its bounds)."""
+
+RELATIVE_STEP = 1e-6
+"""Forward-difference step of the sensitivities, relative (``max(1, |x|)``) in the coordinates
+of the calibration (log of a positive parameter)."""
+
+
+@dataclass(frozen=True)
+class IdentifiabilitySettings:
+    """Thresholds and effect sizes (``params.yaml`` ``discrepancy.identifiability``).
+
+    Attributes
+    ----------
+    min_signal_sigma : float
+        Smallest visible signal, RMS in noise sigmas, of an identifiable effect.
+    max_collinearity_index : float
+        Largest collinearity index (Brun et al. 2001) of an identifiable effect.
+    plausible : dict of str to float
+        Effect parameter -> the value at which its visible signal is measured, in its unit.
+    """
+
+    min_signal_sigma: float = 2.0
+    max_collinearity_index: float = 20.0
+    plausible: dict[str, float] = field(default_factory=lambda: dict(PLAUSIBLE))
+
+    @classmethod
+    def from_params(cls, section: Mapping[str, Any] | None) -> IdentifiabilitySettings:
+        """Build from the ``identifiability`` mapping; an unknown parameter raises KeyError."""
+        section = dict(section or {})
+        plausible = {
+            **PLAUSIBLE,
+            **{k: float(v) for k, v in (section.get("plausible") or {}).items()},
+        }
+        unknown = sorted(set(plausible) - set(PLAUSIBLE))
+        if unknown:
+            raise KeyError(
+                f"params.yaml discrepancy.identifiability.plausible: unknown parameter(s) "
+                f"{unknown}; the effects' parameters are {sorted(PLAUSIBLE)}"
+            )
+        return cls(
+            min_signal_sigma=float(section.get("min_signal_sigma", cls.min_signal_sigma)),
+            max_collinearity_index=float(
+                section.get("max_collinearity_index", cls.max_collinearity_index)
+            ),
+            plausible=plausible,
+        )
+
+    def thresholds(self) -> dict[str, float]:
+        """Return the two thresholds, JSON-ready."""
+        return {
+            "min_signal_sigma": self.min_signal_sigma,
+            "max_collinearity_index": self.max_collinearity_index,
+        }
+
+
+@dataclass(frozen=True)
+class Visibility:
+    """What the campaigns show of one effect beyond what the calibrated baseline absorbs.
+
+    Attributes
+    ----------
+    collinearity_index : float
+        Brun et al.'s index of the effect's parameters with an orthonormal basis of the
+        baseline's sensitivities, >= 1 (inf: the baseline reproduces the effect exactly).
+    collinearity_index_all_parameters : float
+        Brun et al.'s index of every baseline parameter and the effect's, as they are.
+    signal_sigma : float
+        The visible signal that counts, RMS in noise sigmas: the larger of the Z and the
+        temperature figures (the temperatures alone for a sensor-only effect).
+    signal_z_sigma, signal_t_sigma : float
+        RMS of the visible part over the measured Z samples and temperature readings, in
+        noise sigmas.
+    signal_z_um : float
+        The same on Z, um.
+    signal_t_k : float
+        The same on the temperatures, K.
+    response_z_um, response_t_k : float
+        RMS of the whole response to the effect at the plausible size, before the baseline
+        absorbs a part of it, um and K.
+    values : dict of str to (float, str)
+        The effect's parameters at the plausible size: name -> (value, unit).
+    """
+
+    collinearity_index: float
+    collinearity_index_all_parameters: float
+    signal_sigma: float
+    signal_z_sigma: float
+    signal_t_sigma: float
+    signal_z_um: float
+    signal_t_k: float
+    response_z_um: float
+    response_t_k: float
+    values: dict[str, tuple[float, str]]
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready figures (4 significant digits; None when not finite)."""
+        return {
+            "collinearity_index": _num(self.collinearity_index),
+            "collinearity_index_all_parameters": _num(self.collinearity_index_all_parameters),
+            "signal_sigma": _num(self.signal_sigma),
+            "signal_Z_sigma": _num(self.signal_z_sigma),
+            "signal_T_sigma": _num(self.signal_t_sigma),
+            "signal_Z_um": _num(self.signal_z_um),
+            "signal_T_K": _num(self.signal_t_k),
+            "response_Z_um": _num(self.response_z_um),
+            "response_T_K": _num(self.response_t_k),
+            "plausible_values": {
+                k: {"value": _num(v), "unit": u} for k, (v, u) in self.values.items()
+            },
+        }
+
+
+def _num(x: float) -> float | None:
+    """Return ``x`` to 4 significant digits, or None when not finite (JSON has no NaN)."""
+    x = float(x)
+    return float(f"{x:.4g}") if np.isfinite(x) else None
+
+
+@dataclass
+class BaselinePoint:
+    """The calibrated baseline twin the effects are measured against, and its sensitivities.
+
+    Attributes
+    ----------
+    roles : frozenset of str
+        Sensor roles the twins are built for.
+    values : dict of str to float
+        Calibrated baseline parameters, name -> value (their units).
+    campaigns : list of MeasuredCampaign
+        The campaigns of the calibration.
+    noise : NoiseFloor
+        The calibration's noise floors.
+    residual : ndarray of shape (n_residuals,)
+        The baseline's noise-weighted residuals on the campaigns (measured minus twin).
+    sensitivities : ndarray of shape (n_residuals, n_params)
+        Change of the weighted outputs per change of each baseline parameter, in the
+        calibration's coordinates (log of a positive parameter).
+    basis : ndarray of shape (n_residuals, r)
+        Orthonormal basis of the column space of ``sensitivities``: what the baseline can
+        absorb by moving its parameters (to first order).
+    """
+
+    roles: frozenset[str]
+    values: dict[str, float]
+    campaigns: list[MeasuredCampaign]
+    noise: NoiseFloor
+    residual: np.ndarray
+    sensitivities: np.ndarray
+    basis: np.ndarray
+
+
+def baseline_point(
+    campaigns: Sequence[MeasuredCampaign],
+    values: Mapping[str, float],
+    roles: set[str] | None = None,
+    noise: NoiseFloor | None = None,
+) -> BaselinePoint:
+    """Return the calibrated baseline on ``campaigns`` with its residuals and sensitivities.
+
+    Parameters
+    ----------
+    campaigns : sequence of MeasuredCampaign
+        The campaigns of the calibration.
+    values : mapping of str to float
+        Calibrated baseline parameters by name (every parameter of the baseline twin).
+    roles : set of str, optional
+        Roles of the twin; default the campaigns' roles.
+    noise : NoiseFloor, optional
+        Default: estimated from the campaigns, as :func:`~pipeline.discrepancy.calibrate
+        .calibrate` does.
+
+    Returns
+    -------
+    BaselinePoint
+    """
+    roles = frozenset(roles if roles is not None else campaign_roles(campaigns))
+    noise = noise or estimate_noise(campaigns)
+    model = build_model(roles)
+    theta = np.array([float(values[name]) for name in model.names])
+    perturbed, steps = _perturbed(model, theta, np.ones(theta.size, dtype=bool))
+    r, _ = weighted_residuals(model, np.vstack([theta, perturbed]), campaigns, noise)
+    sensitivities = _sensitivities(r, steps)
+    return BaselinePoint(
+        roles=roles,
+        values={name: float(values[name]) for name in model.names},
+        campaigns=list(campaigns),
+        noise=noise,
+        residual=r[0],
+        sensitivities=sensitivities,
+        basis=orthonormal_basis(sensitivities),
+    )
+
+
+def _perturbed(
+    model: TwinModel, theta: np.ndarray, moved: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Return one forward-difference parameter vector per moved parameter, and the steps.
+
+    Steps are :data:`RELATIVE_STEP` in the calibration's coordinates (log of a positive
+    parameter), taken backwards where the forward one would leave the upper bound.
+
+    Parameters
+    ----------
+    model : TwinModel
+    theta : ndarray of shape (n_params,)
+    moved : ndarray of bool, shape (n_params,)
+        The parameters to move.
+
+    Returns
+    -------
+    thetas : ndarray of shape (n_moved, n_params)
+        ``theta`` with one moved parameter changed per row, in order.
+    steps : ndarray of shape (n_moved,)
+        The steps in the calibration's coordinates.
+    """
+    logs = np.array([p.log for p in model.param_specs])
+    _, hi = model.bounds()
+    x = np.where(logs, np.log(np.where(logs, theta, 1.0)), theta)
+    x_hi = np.where(logs, np.log(np.where(logs, hi, 1.0)), hi)
+    h = RELATIVE_STEP * np.maximum(1.0, np.abs(x))
+    h = np.where(x + h > x_hi, -h, h)
+    xs = (x + np.diag(h))[moved]
+    return np.where(logs, np.exp(np.where(logs, xs, 0.0)), xs), h[moved]
+
+
+def _sensitivities(residuals: np.ndarray, steps: np.ndarray) -> np.ndarray:
+    """Return the output sensitivities from the residuals at a point and its perturbations.
+
+    ``residuals`` (1 + k, n) holds the weighted residuals (measured minus twin) at the point,
+    then at each of the ``k`` perturbed points; the twin's outputs rise as the residuals fall.
+    Returns an ndarray of shape (n, k).
+    """
+    return ((residuals[0] - residuals[1:]) / steps[:, None]).T
+
+
+def _rms(values: np.ndarray, mask: np.ndarray) -> float:
+    """RMS of ``values`` where ``mask``, in their unit; NaN if none."""
+    return float(np.sqrt(np.mean(values[mask] ** 2))) if mask.any() else float("nan")
+
+
+def _signals(
+    effect: str, visible: np.ndarray, response: np.ndarray, rows: ResidualRows
+) -> dict[str, float]:
+    """Return the RMS figures of the visible part and of the whole response (sigma, um, K)."""
+    z = rows.is_z & rows.observed
+    t = ~rows.is_z & rows.observed
+    z_sigma, t_sigma = _rms(visible, z), _rms(visible, t)
+    counted = [t_sigma] if effect in SENSOR_ONLY_EFFECTS else [z_sigma, t_sigma]
+    finite = [v for v in counted if np.isfinite(v)]
+    return {
+        "signal_sigma": max(finite) if finite else float("nan"),
+        "signal_z_sigma": z_sigma,
+        "signal_t_sigma": t_sigma,
+        "signal_z_um": _rms(visible * rows.sigma, z),
+        "signal_t_k": _rms(visible * rows.sigma, t),
+        "response_z_um": _rms(response * rows.sigma, z),
+        "response_t_k": _rms(response * rows.sigma, t),
+    }
+
+
+def _effect_values(model: TwinModel, point: BaselinePoint, own: Mapping[str, float]) -> np.ndarray:
+    """Return the twin's parameter vector: the baseline's values, ``own`` for the effect's.
+
+    An effect parameter missing from ``own`` takes its spec's initial value.
+    """
+    return np.array(
+        [point.values.get(p.name, own.get(p.name, p.initial)) for p in model.param_specs]
+    )
+
+
+def visibility(effect: str, point: BaselinePoint, settings: IdentifiabilitySettings) -> Visibility:
+    """Measure what the campaigns show of ``effect`` at the calibrated baseline.
+
+    One batched run of the twin with the effect, at the baseline's values and the effect's
+    :data:`LINEARISED_AT` (or initial) values, each effect parameter moved in turn (its
+    sensitivities), and at its plausible size (the response). See the module docstring.
+
+    Raises
+    ------
+    ValueError
+        If a plausible value lies outside its parameter's bounds, or the effect needs a role
+        the twin lacks.
+    """
+    model = build_model(point.roles, frozenset({effect}))
+    own = np.array([p.effect is not None for p in model.param_specs])
+    theta0 = _effect_values(model, point, LINEARISED_AT)
+    sized = model.check_theta(_effect_values(model, point, settings.plausible))
+    perturbed, steps = _perturbed(model, theta0, own)
+    r, rows = weighted_residuals(
+        model, np.vstack([theta0, perturbed, sized]), point.campaigns, point.noise
+    )
+    response = point.residual - r[-1]
+    if own.any():
+        effect_cols = _sensitivities(r[:-1], steps)
+    else:  # a switch without a parameter: its column is what switching it on changes
+        effect_cols = (point.residual - r[0])[:, None]
+    visible = project_out(response, point.basis)
+    return Visibility(
+        collinearity_index=effect_collinearity_index(point.basis, effect_cols),
+        collinearity_index_all_parameters=collinearity_index(
+            np.hstack([point.sensitivities, effect_cols])
+        ),
+        **_signals(effect, visible, response, rows),
+        values={
+            p.name: (float(v), p.unit)
+            for p, v in zip(model.param_specs, sized, strict=True)
+            if p.effect is not None
+        },
+    )
+
+
+def shortfalls(figures: Visibility, settings: IdentifiabilitySettings) -> list[str]:
+    """Return the thresholds an effect misses: ``"signal"``, ``"collinearity"`` (empty: none).
+
+    A figure that is not a number (no measured sample) misses its threshold.
+    """
+    missed = []
+    if not figures.signal_sigma >= settings.min_signal_sigma:
+        missed.append("signal")
+    if not figures.collinearity_index <= settings.max_collinearity_index:
+        missed.append("collinearity")
+    return missed
+
+
+def classify(
+    effect: str,
+    named: Sequence[str],
+    missing: Sequence[str],
+    figures: Visibility | None,
+    settings: IdentifiabilitySettings,
+) -> str:
+    """Return the class of one candidate effect, one of :data:`CLASSES`.
+
+    Parameters
+    ----------
+    effect : str
+    named : sequence of str
+        Effects the search named.
+    missing : sequence of str
+        Sensor roles the effect needs that no campaign has.
+    figures : Visibility or None
+        Its figures (None when untestable).
+    settings : IdentifiabilitySettings
+    """
+    if missing or figures is None:
+        return UNTESTABLE
+    if effect in named:
+        return NAMED
+    return NOT_IDENTIFIABLE if shortfalls(figures, settings) else NOT_NEEDED
+
+
+@dataclass(frozen=True)
+class EffectIdentifiability:
+    """The class of one candidate effect and the figures behind it.
+
+    Attributes
+    ----------
+    effect : str
+    status : str
+        One of :data:`CLASSES`.
+    figures : Visibility or None
+        None when untestable.
+    missing_roles : tuple of str
+        Sensor roles it needs that no campaign has (untestable).
+    shortfalls : tuple of str
+        Thresholds it misses (:func:`shortfalls`).
+    """
+
+    effect: str
+    status: str
+    figures: Visibility | None = None
+    missing_roles: tuple[str, ...] = ()
+    shortfalls: tuple[str, ...] = ()
+
+    def to_dict(self, settings: IdentifiabilitySettings) -> dict[str, Any]:
+        """JSON-ready entry: ``class``, the figures or the missing roles, the thresholds."""
+        out: dict[str, Any] = {"class": self.status}
+        if self.figures is None:
+            out["missing_roles"] = list(self.missing_roles)
+        else:
+            out["shortfalls"] = list(self.shortfalls)
+            out.update(self.figures.to_dict())
+        out["thresholds"] = settings.thresholds()
+        return out
+
+
+def assess_effects(
+    point: BaselinePoint,
+    candidates: Sequence[str],
+    named: Sequence[str],
+    untestable: Mapping[str, Sequence[str]],
+    settings: IdentifiabilitySettings,
+) -> dict[str, EffectIdentifiability]:
+    """Class and figures of every candidate effect, in the order of ``candidates``.
+
+    Parameters
+    ----------
+    point : BaselinePoint
+    candidates : sequence of str
+        The effects offered to the search.
+    named : sequence of str
+        The effects it named.
+    untestable : mapping of str to sequence of str
+        Effect -> sensor roles it needs that are absent.
+    settings : IdentifiabilitySettings
+    """
+    out = {}
+    for effect in candidates:
+        missing = tuple(untestable.get(effect, ()))
+        figures = None if missing else visibility(effect, point, settings)
+        status = classify(effect, named, missing, figures, settings)
+        missed = tuple(shortfalls(figures, settings)) if figures is not None else ()
+        out[effect] = EffectIdentifiability(effect, status, figures, missing, missed)
+        if figures is not None:
+            logger.info(
+                "identifiability of %-22s %s: %.2f sigma beyond the baseline (Z %.3f um, "
+                "T %.4f K), collinearity index %.3g",
+                effect,
+                status,
+                figures.signal_sigma,
+                figures.signal_z_um,
+                figures.signal_t_k,
+                figures.collinearity_index,
+            )
+    return out
+
+
+def identifiability(
+    campaigns: Sequence[MeasuredCampaign],
+    result: SearchResult,
+    candidates: Sequence[str],
+    settings: IdentifiabilitySettings,
+) -> dict[str, EffectIdentifiability]:
+    """Class and figures of every candidate effect on the campaigns of a search.
+
+    The baseline point is the search's baseline calibration
+    (``result.baseline.full``) on the campaigns it searched (those of ``result.folds``), with
+    the twin built for the roles of all ``campaigns``, as the search's evaluator builds it.
+
+    Parameters
+    ----------
+    campaigns : sequence of MeasuredCampaign
+        Every campaign given to the search (validation ones included).
+    result : SearchResult
+    candidates : sequence of str
+        The effects offered to the search.
+    settings : IdentifiabilitySettings
+
+    Returns
+    -------
+    dict of str to EffectIdentifiability
+    """
+    searched = {cid for fold in result.folds for cid in fold}
+    values = {name: value for name, (value, _) in result.baseline.full.params.items()}
+    point = baseline_point(
+        [c for c in campaigns if c.campaign_id in searched], values, campaign_roles(campaigns)
+    )
+    return assess_effects(point, candidates, result.named_effects, result.untestable, settings)
