@@ -235,16 +235,19 @@ def _evidence_lines(doc: Mapping[str, Any]) -> list[str]:
 
 def _size(values: Mapping[str, Any]) -> str:
     """Return the plausible size of an effect in words: its parameters, or switched on."""
-    shown = [f"{name} = {v['value']:g} {v['unit']}" for name, v in values.items()]
-    return ", ".join(shown) if shown else "switched on"
+    shown = [
+        f"{name} = {v['value']:g}" + (f" {v['unit']}" if v["unit"] != "1" else "")
+        for name, v in values.items()
+    ]
+    return f"at {', '.join(shown)}" if shown else "switched on"
 
 
 def _beyond(entry: Mapping[str, Any]) -> str:
     """Return the visible signal of an effect in words, with its threshold and its parts."""
     limit = entry["thresholds"]["min_signal_sigma"]
     return (
-        "its effect on Z and temperatures beyond what the baseline absorbs is "
-        f"{_fmt(entry['signal_sigma'], 1)} sigma (threshold {limit:g}): "
+        f"{_size(entry['plausible_values'])}, its effect on Z and temperatures beyond what the "
+        f"baseline absorbs is {_fmt(entry['signal_sigma'], 1)} sigma (threshold {limit:g}): "
         f"{_fmt(entry['signal_Z_um'], 3)} um on Z and {_fmt(entry['signal_T_K'], 3)} K on the "
         f"temperatures, of {_fmt(entry['response_Z_um'], 3)} um and "
         f"{_fmt(entry['response_T_K'], 3)} K before the baseline absorbs a part"
@@ -266,7 +269,6 @@ def _identifiability_line(effect: str, entry: Mapping[str, Any]) -> str:
         return (
             f"- `{effect}`: untestable: no sensor with role {' / '.join(entry['missing_roles'])}."
         )
-    size = _size(entry["plausible_values"])
     if status == "not_identifiable":
         reasons = []
         if "signal" in entry["shortfalls"]:
@@ -274,15 +276,21 @@ def _identifiability_line(effect: str, entry: Mapping[str, Any]) -> str:
         if "collinearity" in entry["shortfalls"]:
             reasons.append(f"the baseline's parameters mimic it: {_collinear(entry)}")
         return (
-            f"- `{effect}`: not identifiable with these campaigns: {'; and '.join(reasons)} "
-            f"(at {size}). Not naming it does not mean it is absent."
+            f"- `{effect}`: **not identifiable with these campaigns**: {'; and '.join(reasons)}. "
+            "Not naming it does not mean it is absent."
         )
-    verdict = (
-        "named"
-        if status == "named"
-        else "tested and not needed: these campaigns would show it, and the search did not name it"
-    )
-    return f"- `{effect}`: {verdict}; {_beyond(entry)}; {_collinear(entry)} (at {size})."
+    verdict = {
+        "named": "named",
+        "not_needed": "tested and not needed: these campaigns would show it and the search "
+        "did not name it",
+    }[status]
+    line = f"- `{effect}`: {verdict}; {_beyond(entry)}; {_collinear(entry)}."
+    if entry["shortfalls"]:
+        line += (
+            " Near the baseline's calibration the baseline absorbs it; the search saw it once "
+            "the twin was recalibrated with it."
+        )
+    return line
 
 
 def _identifiability_lines(entries: Mapping[str, Mapping[str, Any]]) -> list[str]:
