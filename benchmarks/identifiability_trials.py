@@ -13,7 +13,8 @@ the trials where the thresholds put a hidden effect on the wrong side.
 
 ``python -m benchmarks.identifiability_trials --seeds 1 2 3 --out reports/identifiability_trials``
 (about 25 min on 2 cores) writes ``figures.csv`` (one row per trial and candidate) and
-``thresholds.md``.
+``thresholds.md``. With ``--quick`` only the baseline is calibrated (no search; ``named`` is left
+empty): the figures in a few minutes, to read against the search's outcomes of ``make trials``.
 """
 
 from __future__ import annotations
@@ -29,7 +30,21 @@ import pandas as pd
 
 from benchmarks.discrepancy_trials import run_workflow, write_hidden_campaigns
 from pipeline.config import DEFAULT_PARAMS, load_section
-from pipeline.discrepancy.search import CANDIDATE_EFFECTS
+from pipeline.discrepancy.calibrate import calibrate
+from pipeline.discrepancy.identifiability import (
+    IdentifiabilitySettings,
+    assess_effects,
+    baseline_point,
+)
+from pipeline.discrepancy.model import build_model
+from pipeline.discrepancy.search import (
+    CANDIDATE_EFFECTS,
+    SearchSettings,
+    campaign_roles,
+    split_for_search,
+    untestable_effects,
+)
+from pipeline.discrepancy.workflow import read_raw
 
 logger = logging.getLogger(__name__)
 
@@ -38,6 +53,29 @@ SINGLE_CASES: tuple[frozenset, ...] = (frozenset(), *(frozenset({e}) for e in CA
 
 FIGURES = ("signal_sigma", "signal_Z_um", "signal_T_K", "collinearity_index")
 """Figures of an identifiability entry recorded per trial."""
+
+
+def baseline_document(raw: Path, section: dict, params_file: Path = DEFAULT_PARAMS) -> dict:
+    """Return the ``identifiability`` of a raw folder at its calibrated baseline, no search.
+
+    The baseline twin is calibrated on the campaigns the search would use, as its first fit;
+    the document has ``named_effects`` None (not searched) and ``identifiability``.
+    """
+    gap = float(load_section("ingest", params_file)["max_alignment_gap_s"])
+    campaigns, _, _ = read_raw(raw, gap, load_section("validate", params_file))
+    settings = SearchSettings.from_params(section)
+    searched, _ = split_for_search(campaigns, settings)
+    roles = campaign_roles(campaigns)
+    fit = calibrate(build_model(roles), searched)
+    ident = IdentifiabilitySettings.from_params(section.get("identifiability"))
+    values = {k: v for k, (v, _) in fit.params.items()}
+    point = baseline_point(searched, values, roles, prior_log_sd=ident.prior_log_sd)
+    untestable = untestable_effects(settings.candidates, roles)
+    classes = assess_effects(point, settings.candidates, [], untestable, ident)
+    return {
+        "named_effects": None,
+        "identifiability": {e: c.to_dict(ident) for e, c in classes.items()},
+    }
 
 
 def trial_rows(doc: dict, hidden: frozenset, seed: int) -> list[dict]:
@@ -55,7 +93,7 @@ def trial_rows(doc: dict, hidden: frozenset, seed: int) -> list[dict]:
                 "hidden": case,
                 "effect": effect,
                 "is_hidden": effect in hidden,
-                "named": effect in doc["named_effects"],
+                "named": None if doc["named_effects"] is None else effect in doc["named_effects"],
                 "class": entry["class"],
                 **{name: entry.get(name) for name in FIGURES},
             }
@@ -67,6 +105,8 @@ def _group(row: pd.Series) -> str:
     """Return the group of a row: hidden and named, hidden and not named, or not hidden."""
     if not row["is_hidden"]:
         return "not hidden (nothing hidden)"
+    if pd.isna(row["named"]):
+        return "hidden"
     return "hidden, named" if row["named"] else "hidden, not named"
 
 
@@ -85,7 +125,8 @@ def misplaced(figures: pd.DataFrame) -> pd.DataFrame:
     invisibility; hidden, not named and identifiable (``not_needed``) would be an effect called
     absent that the campaigns should have shown.
     """
-    hidden = figures[figures["is_hidden"]]
+    hidden = figures[figures["is_hidden"] & figures["named"].notna()]
+    hidden = hidden.assign(named=hidden["named"].astype(bool))
     wrong_named = hidden["named"] & (hidden["class"] == "not_identifiable")
     wrong_missed = ~hidden["named"] & (hidden["class"] == "not_needed")
     return hidden[wrong_named | wrong_missed]
@@ -133,6 +174,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--out", type=Path, default=Path("reports/identifiability_trials"))
     parser.add_argument("--campaigns", type=int, default=8, help="campaigns per trial")
     parser.add_argument("--params", type=Path, default=DEFAULT_PARAMS)
+    parser.add_argument("--quick", action="store_true", help="calibrate the baseline only")
     args = parser.parse_args(argv)
     section = load_section("discrepancy", args.params)
     args.out.mkdir(parents=True, exist_ok=True)
@@ -140,8 +182,12 @@ def main(argv: list[str] | None = None) -> int:
     for seed in args.seeds:
         for case in SINGLE_CASES:
             with tempfile.TemporaryDirectory() as tmp:
-                write_hidden_campaigns(Path(tmp) / "raw", case, seed, args.campaigns)
-                doc = run_workflow(Path(tmp) / "raw", Path(tmp) / "out", section, args.params)
+                raw = Path(tmp) / "raw"
+                write_hidden_campaigns(raw, case, seed, args.campaigns)
+                if args.quick:
+                    doc = baseline_document(raw, section, args.params)
+                else:
+                    doc = run_workflow(raw, Path(tmp) / "out", section, args.params)
             rows += trial_rows(doc, case, seed)
             pd.DataFrame(rows).to_csv(args.out / "figures.csv", index=False)
             logger.info("seed %d, hidden %s: named %s", seed, sorted(case), doc["named_effects"])

@@ -27,6 +27,7 @@ from pipeline.discrepancy.collinearity import (
     effect_collinearity_index,
     orthonormal_basis,
     project_out,
+    with_prior,
 )
 from pipeline.discrepancy.identifiability import (
     CLASSES,
@@ -34,6 +35,7 @@ from pipeline.discrepancy.identifiability import (
     NOT_IDENTIFIABLE,
     NOT_NEEDED,
     PLAUSIBLE,
+    RISE_SIZED,
     UNTESTABLE,
     IdentifiabilitySettings,
     Visibility,
@@ -72,6 +74,21 @@ def test_projection_removes_what_the_baseline_columns_reproduce():
     orthogonal = project_out(rng.normal(size=200), basis)
     assert np.allclose(base.T @ orthogonal, 0.0, atol=1e-9)
     assert np.allclose(project_out(combination + orthogonal, basis), orthogonal)
+
+
+def test_prior_rows_make_the_projection_a_ridge_fit():
+    rng = np.random.default_rng(4)
+    base = rng.normal(size=(120, 3)) * np.array([0.01, 1.0, 30.0])
+    response = rng.normal(size=120)
+    padded = np.concatenate([response, np.zeros(3)])
+    left = project_out(padded, orthonormal_basis(with_prior(base)))[:120]
+    ridge = np.linalg.solve(base.T @ base + np.eye(3), base.T @ response)
+    assert np.allclose(left, response - base @ ridge)
+    # a parameter the outputs barely feel absorbs a response along it only without the prior
+    faint = 1e-4 * response[:, None]
+    assert np.linalg.norm(project_out(response, orthonormal_basis(faint))) < 1e-9
+    kept = project_out(np.append(response, 0.0), orthonormal_basis(with_prior(faint)))[:120]
+    assert np.linalg.norm(kept) > 0.99 * np.linalg.norm(response)
 
 
 def test_collinearity_index_is_brun_et_al_s():
@@ -132,11 +149,15 @@ def test_every_candidate_ends_in_exactly_one_class():
 
 def test_settings_give_every_effect_parameter_a_size_within_its_bounds():
     names = {p.name: p for row in EFFECT_SPECS.values() for p in row.params}
-    assert set(SETTINGS.plausible) == set(names)
-    for name, value in SETTINGS.plausible.items():
-        spec = names[name]
-        assert spec.lower <= value <= spec.upper, name
-    with pytest.raises(KeyError, match="unknown parameter"):
+    by_rise = {size: name for name, (size, _, _) in RISE_SIZED.items()}
+    sized = {by_rise.get(size, size) for size in SETTINGS.plausible}
+    assert sized == set(names)
+    for size, value in SETTINGS.plausible.items():
+        if size in by_rise:
+            assert value > 0.0, size
+        else:
+            assert names[size].lower <= value <= names[size].upper, size
+    with pytest.raises(KeyError, match="unknown size"):
         IdentifiabilitySettings.from_params({"plausible": {"bearing_exponant": 1.7}})
     tighter = IdentifiabilitySettings.from_params({"min_signal_sigma": 3, "plausible": {}})
     assert tighter.min_signal_sigma == 3.0 and tighter.plausible == PLAUSIBLE
@@ -236,6 +257,22 @@ def test_speed_steps_show_the_same_laws(speed_steps):
         assert figures.collinearity_index <= SETTINGS.max_collinearity_index
         assert figures.signal_z_um <= figures.response_z_um  # the projection only removes
     assert len(classes) == len(EFFECTS)
+
+
+def test_the_motor_loss_is_sized_by_the_rise_it_gives_its_node(speed_steps):
+    """q = rise x (h + G) at the baseline's motor cooling and link (clipped into its bounds)."""
+    campaigns, model, fit, roles = speed_steps
+    values = {k: v for k, (v, _) in fit.params.items()}
+    point = baseline_point(campaigns, values, roles)
+    (spec,) = EFFECT_SPECS["motor_heat"].params
+    for rise in (0.02, 0.5, 50.0):
+        settings = replace(
+            SETTINGS, plausible={**SETTINGS.plausible, "motor_rise_K_per_krpm": rise}
+        )
+        shown = assess_effects(point, ["motor_heat"], [], {}, settings)["motor_heat"].figures.values
+        heat = rise * (values["h_motor_W_per_K"] + values["G_motor_headstock_W_per_K"])
+        assert shown["motor_rise_K_per_krpm"] == (rise, "K/krpm")
+        assert shown["q_motor_W_per_krpm"] == (pytest.approx(min(heat, spec.upper)), "W/krpm")
 
 
 def test_the_centrifugal_response_is_its_z_law_in_um(speed_steps):

@@ -90,6 +90,28 @@ def orthonormal_basis(sensitivities: np.ndarray, rcond: float = RANK_RCOND) -> n
     return u[:, sv > rcond * sv[0]]
 
 
+def with_prior(sensitivities: np.ndarray) -> np.ndarray:
+    """Return the sensitivities with one prior row per parameter appended (the identity).
+
+    With the columns scaled by each parameter's prior standard deviation (Brun et al.'s
+    ``Delta theta``), the least-squares fit of a response ``[r; 0]`` by these columns is the
+    Tikhonov (ridge) fit ``min ||r - S b||^2 + ||b||^2``: the posterior mean of the parameter
+    changes under a unit Gaussian prior. A parameter whose outputs barely move (a link at a
+    bound, a node tied to its neighbour) can then absorb only what a plausible change of it
+    gives, not what an unbounded one would.
+
+    Parameters
+    ----------
+    sensitivities : ndarray of shape (n, p)
+
+    Returns
+    -------
+    ndarray of shape (n + p, p)
+    """
+    s = np.asarray(sensitivities, dtype=float)
+    return np.vstack([s, np.eye(s.shape[1])])
+
+
 def absorbed(response: np.ndarray, basis: np.ndarray) -> np.ndarray:
     """Return the least-squares reproduction of ``response`` by the columns of ``basis``.
 

@@ -6,30 +6,37 @@ campaigns. This module tells the two apart. At the baseline twin calibrated on t
 campaigns (:attr:`SearchResult.baseline`), for each candidate effect whose sensor roles are
 present:
 
-1. **Sensitivities.** The twin with the effect added is run at the baseline's calibrated values
-   and the effect's initial ones (:class:`~pipeline.discrepancy.model.ParamSpec` ``initial``);
-   forward differences give the change of every predicted temperature and Z of every campaign
-   per change of each parameter (in the calibration's coordinates: the log of a positive
-   parameter), weighted by the calibration's noise floors
-   (:func:`pipeline.discrepancy.calibrate.weighted_residuals`: K / sigma_T, um / sigma_Z, the Z
-   of each campaign about its mean). ``ambient_variation`` has no parameter: its column is the
-   change of the outputs when it is switched on.
-2. **Collinearity index** of Brun, Reichert and Künsch (2001, Water Resour. Res. 37(4),
-   1015-1030), ``gamma = 1 / sqrt(min eigenvalue of S_n^T S_n)`` with the columns of ``S``
-   scaled to unit length (:mod:`pipeline.discrepancy.collinearity`), of the effect's parameters
-   together with an orthonormal basis of the baseline parameters' sensitivities (the
-   combinations of baseline parameters the data move; the baseline's own collinearity, e.g. a
-   node's heat capacity against its cooling, would otherwise mark every effect). Brun's index
-   of the baseline and effect parameters as they are is reported too
+1. **Sensitivities.** Forward differences of the twin give the change of every predicted
+   temperature and Z of every campaign per change of each parameter, weighted by the
+   calibration's noise floors (:func:`pipeline.discrepancy.calibrate.weighted_residuals`:
+   K / sigma_T, um / sigma_Z, the Z of each campaign about its mean): of the baseline twin at
+   its calibrated values, and of the twin with the effect at the baseline's values and the
+   effect's initial ones (:class:`~pipeline.discrepancy.model.ParamSpec` ``initial``, or where
+   the effect vanishes, :data:`LINEARISED_AT`). Each column is scaled, as Brun et al. scale by
+   a prior range, by the parameter's prior scale: ``prior_log_sd`` in the log of a positive
+   parameter (1: a factor e), the calibration's scale ``max(|theta|, range / 20)`` for the
+   others. ``ambient_variation`` has no parameter: its column is the change of the outputs
+   when it is switched on.
+2. **Collinearity index** of Brun, Reichert and Künsch (2001, *Practical identifiability
+   analysis of large environmental simulation models*, Water Resour. Res. 37(4), 1015-1030),
+   ``gamma = 1 / sqrt(min eigenvalue of S_n^T S_n)`` with the columns of ``S`` scaled to unit
+   length (:mod:`pipeline.discrepancy.collinearity`), of the effect's parameters together with
+   an orthonormal basis of the baseline's (the combinations of baseline parameters the data
+   move; the baseline's own collinearity, e.g. a node's heat capacity against its cooling,
+   would otherwise mark every effect), each column with its prior row appended
+   (:func:`~pipeline.discrepancy.collinearity.with_prior`; a baseline parameter the outputs
+   barely feel then cannot mimic the effect by an implausibly large move). Brun's index of
+   all baseline and effect parameters as they are, without prior, is reported too
    (``collinearity_index_all_parameters``).
 3. **Visible signal.** The response of the outputs to the effect at a plausible size (the twin
    with the effect at :attr:`IdentifiabilitySettings.plausible` minus the calibrated baseline;
-   ``ambient_variation``: switched on) is projected, by least squares, off the column space of
-   the baseline's sensitivities: what is left is the part of the effect the baseline cannot
-   absorb by moving its own parameters (to first order). Its RMS over the measured samples, in
-   units of the noise floor and in um (Z) and K (temperatures), is the visible signal; the
-   larger of the Z and temperature figures counts (the temperatures alone for ``sensor_lag``,
-   which the search names on its temperature evidence only).
+   ``ambient_variation``: switched on) is fitted by the baseline's sensitivities by least
+   squares with the prior rows (a ridge fit: the baseline moves its parameters by about their
+   prior scales); what is left is the part of the effect the baseline cannot absorb. Its RMS
+   over the measured samples, in units of the noise floor and in um (Z) and K (temperatures),
+   is the visible signal; the larger of the Z and temperature figures counts (the
+   temperatures alone for ``sensor_lag``, which the search names on its temperature evidence
+   only). The motor's loss is sized by the rise it gives its node (:data:`RISE_SIZED`).
 
 Each candidate ends in exactly one class (:data:`CLASSES`): ``untestable`` (a sensor role it
 needs is absent), ``named`` (the search named it), ``not_identifiable`` (visible signal below
@@ -65,6 +72,7 @@ from pipeline.discrepancy.collinearity import (
     effect_collinearity_index,
     orthonormal_basis,
     project_out,
+    with_prior,
 )
 from pipeline.discrepancy.data import MeasuredCampaign
 from pipeline.discrepancy.model import TwinModel, build_model
@@ -84,9 +92,25 @@ PLAUSIBLE = {
     "bearing_exponent": 5.0 / 3.0,
     "sensor_lag_s": 600.0,
     "bending_um_per_K": 5.0,
-    "q_motor_W_per_krpm": 15.0,
+    "motor_rise_K_per_krpm": 0.5,
 }
-"""Default plausible value of each effect parameter (``params.yaml`` overrides, with sources)."""
+"""Default plausible size of each effect (``params.yaml`` overrides, with sources): the value of
+its parameter, in its unit, or for a heat sized by its rise (:data:`RISE_SIZED`) that rise."""
+
+RISE_SIZED = {
+    "q_motor_W_per_krpm": (
+        "motor_rise_K_per_krpm",
+        "K/krpm",
+        ("h_motor_W_per_K", "G_motor_headstock_W_per_K"),
+    )
+}
+"""Heat parameters sized by the steady rise of their node over its surroundings: parameter ->
+(size name, its unit, the node's conductances). The heat is ``rise x (h + G)`` at the
+baseline's conductances, clipped into its bounds. Without a heat of its own, the twin's motor
+node has its cooling and its link to the headstock fitted to a passive reading and known only
+together with its heat capacity (on the demo the link sits at its 500 W/K bound, C at its 1e3 J/K
+bound): a loss in watts would be a different rise on every calibration, while the rise is what
+the motor's sensor reads (the report's own reading of the motor loss, q / (h + G))."""
 
 LINEARISED_AT = {"q_motor_W_per_krpm": 0.0}
 """Effect parameters whose sensitivities are taken where the effect vanishes instead of at the
@@ -110,12 +134,17 @@ class IdentifiabilitySettings:
         Smallest visible signal, RMS in noise sigmas, of an identifiable effect.
     max_collinearity_index : float
         Largest collinearity index (Brun et al. 2001) of an identifiable effect.
+    prior_log_sd : float
+        How far the baseline may move a positive parameter to absorb an effect: the standard
+        deviation of its prior, in its natural log (1: a factor e).
     plausible : dict of str to float
-        Effect parameter -> the value at which its visible signal is measured, in its unit.
+        Size of each effect at which its visible signal is measured: parameter -> value in its
+        unit, or for a heat of :data:`RISE_SIZED` its size name -> the rise, K per 1000 rpm.
     """
 
     min_signal_sigma: float = 2.0
     max_collinearity_index: float = 20.0
+    prior_log_sd: float = 1.0
     plausible: dict[str, float] = field(default_factory=lambda: dict(PLAUSIBLE))
 
     @classmethod
@@ -129,14 +158,15 @@ class IdentifiabilitySettings:
         unknown = sorted(set(plausible) - set(PLAUSIBLE))
         if unknown:
             raise KeyError(
-                f"params.yaml discrepancy.identifiability.plausible: unknown parameter(s) "
-                f"{unknown}; the effects' parameters are {sorted(PLAUSIBLE)}"
+                f"params.yaml discrepancy.identifiability.plausible: unknown size(s) "
+                f"{unknown}; the effects' sizes are {sorted(PLAUSIBLE)}"
             )
         return cls(
             min_signal_sigma=float(section.get("min_signal_sigma", cls.min_signal_sigma)),
             max_collinearity_index=float(
                 section.get("max_collinearity_index", cls.max_collinearity_index)
             ),
+            prior_log_sd=float(section.get("prior_log_sd", cls.prior_log_sd)),
             plausible=plausible,
         )
 
@@ -173,7 +203,8 @@ class Visibility:
         RMS of the whole response to the effect at the plausible size, before the baseline
         absorbs a part of it, um and K.
     values : dict of str to (float, str)
-        The effect's parameters at the plausible size: name -> (value, unit).
+        The effect's plausible size: name -> (value, unit), its parameters' values and, for a
+        heat sized by its rise (:data:`RISE_SIZED`), that rise.
     """
 
     collinearity_index: float
@@ -228,11 +259,14 @@ class BaselinePoint:
     residual : ndarray of shape (n_residuals,)
         The baseline's noise-weighted residuals on the campaigns (measured minus twin).
     sensitivities : ndarray of shape (n_residuals, n_params)
-        Change of the weighted outputs per change of each baseline parameter, in the
-        calibration's coordinates (log of a positive parameter).
-    basis : ndarray of shape (n_residuals, r)
-        Orthonormal basis of the column space of ``sensitivities``: what the baseline can
-        absorb by moving its parameters (to first order).
+        Change of the weighted outputs per prior scale of each baseline parameter
+        (:func:`_prior_scales`).
+    basis : ndarray of shape (n_residuals + n_params, n_params)
+        Orthonormal basis of the column space of ``sensitivities`` with one prior row per
+        parameter appended (:func:`~pipeline.discrepancy.collinearity.with_prior`): what the
+        baseline can absorb by moving its parameters within about their prior scales.
+    prior_log_sd : float
+        Prior scale of a positive parameter, in its natural log (the effect's too).
     """
 
     roles: frozenset[str]
@@ -242,6 +276,7 @@ class BaselinePoint:
     residual: np.ndarray
     sensitivities: np.ndarray
     basis: np.ndarray
+    prior_log_sd: float
 
 
 def baseline_point(
@@ -249,6 +284,7 @@ def baseline_point(
     values: Mapping[str, float],
     roles: set[str] | None = None,
     noise: NoiseFloor | None = None,
+    prior_log_sd: float = 1.0,
 ) -> BaselinePoint:
     """Return the calibrated baseline on ``campaigns`` with its residuals and sensitivities.
 
@@ -263,6 +299,9 @@ def baseline_point(
     noise : NoiseFloor, optional
         Default: estimated from the campaigns, as :func:`~pipeline.discrepancy.calibrate
         .calibrate` does.
+    prior_log_sd : float
+        Prior scale of a positive parameter, in its natural log
+        (:attr:`IdentifiabilitySettings.prior_log_sd`).
 
     Returns
     -------
@@ -272,9 +311,10 @@ def baseline_point(
     noise = noise or estimate_noise(campaigns)
     model = build_model(roles)
     theta = np.array([float(values[name]) for name in model.names])
-    perturbed, steps = _perturbed(model, theta, np.ones(theta.size, dtype=bool))
+    moved = np.ones(theta.size, dtype=bool)
+    perturbed, steps = _perturbed(model, theta, moved)
     r, _ = weighted_residuals(model, np.vstack([theta, perturbed]), campaigns, noise)
-    sensitivities = _sensitivities(r, steps)
+    sensitivities = _sensitivities(r, steps) * _prior_scales(model, theta, moved, prior_log_sd)
     return BaselinePoint(
         roles=roles,
         values={name: float(values[name]) for name in model.names},
@@ -282,7 +322,8 @@ def baseline_point(
         noise=noise,
         residual=r[0],
         sensitivities=sensitivities,
-        basis=orthonormal_basis(sensitivities),
+        basis=orthonormal_basis(with_prior(sensitivities)),
+        prior_log_sd=prior_log_sd,
     )
 
 
@@ -316,6 +357,20 @@ def _perturbed(
     h = np.where(x + h > x_hi, -h, h)
     xs = (x + np.diag(h))[moved]
     return np.where(logs, np.exp(np.where(logs, xs, 0.0)), xs), h[moved]
+
+
+def _prior_scales(
+    model: TwinModel, theta: np.ndarray, moved: np.ndarray, prior_log_sd: float
+) -> np.ndarray:
+    """Return the prior scale of each moved parameter, in the calibration's coordinates.
+
+    ``prior_log_sd`` for a positive parameter (fitted in log space); for the others, the scale
+    the calibration gives them (``max(|theta|, range / 20)``, their unit).
+    """
+    logs = np.array([p.log for p in model.param_specs])
+    lo, hi = model.bounds()
+    linear = np.maximum(np.abs(theta), (hi - lo) / 20.0)
+    return np.where(logs, prior_log_sd, linear)[moved]
 
 
 def _sensitivities(residuals: np.ndarray, steps: np.ndarray) -> np.ndarray:
@@ -363,6 +418,35 @@ def _effect_values(model: TwinModel, point: BaselinePoint, own: Mapping[str, flo
     )
 
 
+def _plausible_size(
+    model: TwinModel, point: BaselinePoint, plausible: Mapping[str, float]
+) -> tuple[np.ndarray, dict[str, tuple[float, str]]]:
+    """Return the parameter vector of the effect at its plausible size, and the size shown.
+
+    A heat of :data:`RISE_SIZED` is its rise times the node's conductances at the baseline,
+    clipped into its bounds; every other effect parameter takes its plausible value.
+
+    Raises
+    ------
+    ValueError
+        If a plausible value lies outside its parameter's bounds.
+    """
+    values, shown = {}, {}
+    for p in model.param_specs:
+        if p.effect is None:
+            continue
+        if p.name in RISE_SIZED:
+            size, unit, conductances = RISE_SIZED[p.name]
+            rise = plausible[size]
+            heat = rise * sum(point.values[g] for g in conductances)
+            values[p.name] = float(np.clip(heat, p.lower, p.upper))
+            shown[size] = (rise, unit)
+        else:
+            values[p.name] = plausible[p.name]
+        shown[p.name] = (values[p.name], p.unit)
+    return model.check_theta(_effect_values(model, point, values)), shown
+
+
 def visibility(effect: str, point: BaselinePoint, settings: IdentifiabilitySettings) -> Visibility:
     """Measure what the campaigns show of ``effect`` at the calibrated baseline.
 
@@ -379,28 +463,29 @@ def visibility(effect: str, point: BaselinePoint, settings: IdentifiabilitySetti
     model = build_model(point.roles, frozenset({effect}))
     own = np.array([p.effect is not None for p in model.param_specs])
     theta0 = _effect_values(model, point, LINEARISED_AT)
-    sized = model.check_theta(_effect_values(model, point, settings.plausible))
+    sized, shown = _plausible_size(model, point, settings.plausible)
     perturbed, steps = _perturbed(model, theta0, own)
     r, rows = weighted_residuals(
         model, np.vstack([theta0, perturbed, sized]), point.campaigns, point.noise
     )
     response = point.residual - r[-1]
     if own.any():
-        effect_cols = _sensitivities(r[:-1], steps)
+        scales = _prior_scales(model, theta0, own, point.prior_log_sd)
+        effect_cols = _sensitivities(r[:-1], steps) * scales
     else:  # a switch without a parameter: its column is what switching it on changes
         effect_cols = (point.residual - r[0])[:, None]
-    visible = project_out(response, point.basis)
+    n_base = point.sensitivities.shape[1]
+    visible = project_out(np.concatenate([response, np.zeros(n_base)]), point.basis)
+    # the effect's own prior rows come after the baseline's, where the baseline has zeros
+    padded = np.vstack([point.basis, np.zeros((effect_cols.shape[1], point.basis.shape[1]))])
+    effect_rows = np.vstack([effect_cols, np.zeros((n_base, effect_cols.shape[1]))])
     return Visibility(
-        collinearity_index=effect_collinearity_index(point.basis, effect_cols),
+        collinearity_index=effect_collinearity_index(padded, with_prior(effect_rows)),
         collinearity_index_all_parameters=collinearity_index(
             np.hstack([point.sensitivities, effect_cols])
         ),
-        **_signals(effect, visible, response, rows),
-        values={
-            p.name: (float(v), p.unit)
-            for p, v in zip(model.param_specs, sized, strict=True)
-            if p.effect is not None
-        },
+        **_signals(effect, visible[: response.size], response, rows),
+        values=shown,
     )
 
 
@@ -548,6 +633,9 @@ def identifiability(
     searched = {cid for fold in result.folds for cid in fold}
     values = {name: value for name, (value, _) in result.baseline.full.params.items()}
     point = baseline_point(
-        [c for c in campaigns if c.campaign_id in searched], values, campaign_roles(campaigns)
+        [c for c in campaigns if c.campaign_id in searched],
+        values,
+        campaign_roles(campaigns),
+        prior_log_sd=settings.prior_log_sd,
     )
     return assess_effects(point, candidates, result.named_effects, result.untestable, settings)
