@@ -81,8 +81,9 @@ def baseline_document(raw: Path, section: dict, params_file: Path = DEFAULT_PARA
 def trial_rows(doc: dict, hidden: frozenset, seed: int) -> list[dict]:
     """Return one row per candidate effect of a trial's ``discrepancy.json``.
 
-    Columns: ``seed``, ``hidden`` (the case), ``effect``, ``is_hidden``, ``named``, ``class``
-    and :data:`FIGURES` (None for an untestable effect).
+    Columns: ``seed``, ``hidden`` (the case), ``effect``, ``is_hidden``, ``named``, ``class``,
+    ``identifiable`` (the figures meet both thresholds, whatever the class) and :data:`FIGURES`
+    (None for an untestable effect).
     """
     case = "+".join(sorted(hidden)) or "none"
     rows = []
@@ -95,6 +96,7 @@ def trial_rows(doc: dict, hidden: frozenset, seed: int) -> list[dict]:
                 "is_hidden": effect in hidden,
                 "named": None if doc["named_effects"] is None else effect in doc["named_effects"],
                 "class": entry["class"],
+                "identifiable": not entry.get("shortfalls", ["untestable"]),
                 **{name: entry.get(name) for name in FIGURES},
             }
         )
@@ -121,15 +123,15 @@ def _span(values: pd.Series, digits: int) -> str:
 def misplaced(figures: pd.DataFrame) -> pd.DataFrame:
     """Return the hidden effects the thresholds put on the wrong side of the search's outcome.
 
-    Named when hidden but classed ``not_identifiable`` by the figures would be a false alarm of
-    invisibility; hidden, not named and identifiable (``not_needed``) would be an effect called
-    absent that the campaigns should have shown.
+    Named when hidden although its figures miss a threshold: a false alarm of invisibility;
+    hidden, not named and identifiable by its figures (``not_needed``): an effect called absent
+    that the campaigns should have shown. Trials without a search (``named`` empty) are left
+    out.
     """
     hidden = figures[figures["is_hidden"] & figures["named"].notna()]
-    hidden = hidden.assign(named=hidden["named"].astype(bool))
-    wrong_named = hidden["named"] & (hidden["class"] == "not_identifiable")
-    wrong_missed = ~hidden["named"] & (hidden["class"] == "not_needed")
-    return hidden[wrong_named | wrong_missed]
+    named = hidden["named"].astype(bool)
+    identifiable = hidden["identifiable"].astype(bool)
+    return hidden[(named & ~identifiable) | (~named & identifiable)]
 
 
 def thresholds_markdown(figures: pd.DataFrame, thresholds: dict, seeds: Sequence[int]) -> str:
@@ -158,7 +160,8 @@ def thresholds_markdown(figures: pd.DataFrame, thresholds: dict, seeds: Sequence
     wrong = misplaced(figures)
     lines += ["", f"Hidden effects on the wrong side of the thresholds: {len(wrong)}."]
     lines += [
-        f"- seed {r['seed']}, {r['effect']} hidden: named {r['named']}, class {r['class']}, "
+        f"- seed {r['seed']}, {r['effect']} hidden: named {r['named']}, identifiable "
+        f"{r['identifiable']}, "
         f"signal {r['signal_sigma']} sigma, collinearity index {r['collinearity_index']}"
         for _, r in wrong.iterrows()
     ]

@@ -142,8 +142,8 @@ class IdentifiabilitySettings:
         unit, or for a heat of :data:`RISE_SIZED` its size name -> the rise, K per 1000 rpm.
     """
 
-    min_signal_sigma: float = 2.0
-    max_collinearity_index: float = 20.0
+    min_signal_sigma: float = 1.5
+    max_collinearity_index: float = 1000.0
     prior_log_sd: float = 1.0
     plausible: dict[str, float] = field(default_factory=lambda: dict(PLAUSIBLE))
 
