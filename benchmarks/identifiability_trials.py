@@ -31,11 +31,7 @@ import pandas as pd
 from benchmarks.discrepancy_trials import run_workflow, write_hidden_campaigns
 from pipeline.config import DEFAULT_PARAMS, load_section
 from pipeline.discrepancy.calibrate import calibrate
-from pipeline.discrepancy.identifiability import (
-    IdentifiabilitySettings,
-    assess_effects,
-    baseline_point,
-)
+from pipeline.discrepancy.identifiability import IdentifiabilitySettings, assess_effects
 from pipeline.discrepancy.model import build_model
 from pipeline.discrepancy.search import (
     CANDIDATE_EFFECTS,
@@ -44,6 +40,7 @@ from pipeline.discrepancy.search import (
     split_for_search,
     untestable_effects,
 )
+from pipeline.discrepancy.visibility import baseline_point
 from pipeline.discrepancy.workflow import read_raw
 
 logger = logging.getLogger(__name__)

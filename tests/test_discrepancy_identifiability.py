@@ -34,19 +34,16 @@ from pipeline.discrepancy.identifiability import (
     NAMED,
     NOT_IDENTIFIABLE,
     NOT_NEEDED,
-    PLAUSIBLE,
-    RISE_SIZED,
     UNTESTABLE,
     IdentifiabilitySettings,
-    Visibility,
     assess_effects,
-    baseline_point,
     classify,
     identifiability,
 )
 from pipeline.discrepancy.model import EFFECT_SPECS, EFFECTS
 from pipeline.discrepancy.report_text import markdown
 from pipeline.discrepancy.search import FitResult, ModelEvidence, SearchResult
+from pipeline.discrepancy.visibility import PLAUSIBLE, RISE_SIZED, Visibility, baseline_point
 from pipeline.thermal.program import Program, Segment
 from pipeline.twin.campaigns import SpindlePlan, simulate_spindle_campaign
 from pipeline.twin.params import SpindleParams
