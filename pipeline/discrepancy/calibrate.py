@@ -212,6 +212,69 @@ def _weighted(model: TwinModel, thetas: np.ndarray, targets: list[_Target]) -> n
     return np.concatenate(parts, axis=1)
 
 
+@dataclass(frozen=True)
+class ResidualRows:
+    """Where each entry of a weighted residual vector (:func:`weighted_residuals`) comes from.
+
+    Attributes
+    ----------
+    sigma : ndarray of shape (n_residuals,)
+        Noise floor of the entry (its weight is ``1 / sigma``): K for a temperature, um for Z.
+    is_z : ndarray of bool, shape (n_residuals,)
+        True for a Z entry, False for a temperature reading.
+    observed : ndarray of bool, shape (n_residuals,)
+        The entry was measured (finite); an unmeasured entry is 0 in every residual vector.
+    """
+
+    sigma: np.ndarray
+    is_z: np.ndarray
+    observed: np.ndarray
+
+
+def _rows(targets: list[_Target]) -> ResidualRows:
+    """Return the :class:`ResidualRows` of :func:`_weighted`'s vectors, in the same order."""
+    sigma, is_z, observed = [], [], []
+    for t in targets:
+        n = t.measured.shape[0]
+        sigma += [np.tile(1.0 / t.w_t, n), np.full(n, 1.0 / t.w_z)]
+        is_z += [np.zeros(t.mask_t.size, dtype=bool), np.ones(n, dtype=bool)]
+        observed += [t.mask_t.ravel(), t.mask_z]
+    return ResidualRows(np.concatenate(sigma), np.concatenate(is_z), np.concatenate(observed))
+
+
+def weighted_residuals(
+    model: TwinModel,
+    thetas: np.ndarray,
+    campaigns: Sequence[MeasuredCampaign],
+    noise: NoiseFloor,
+) -> tuple[np.ndarray, ResidualRows]:
+    """Return the calibration's noise-weighted residuals for several parameter vectors.
+
+    The vectors :func:`calibrate` minimises (unit weights): per campaign, every temperature
+    residual (K) over its sensor's noise floor, then the Z residual about its mean (um) over
+    the probe's; measured minus twin, 0 where nothing was measured. All parameter vectors are
+    simulated in one batched run.
+
+    Parameters
+    ----------
+    model : TwinModel
+    thetas : ndarray of shape (P, n_params)
+        Parameter vectors in ``model.param_specs`` order, within the bounds.
+    campaigns : sequence of MeasuredCampaign
+    noise : NoiseFloor
+
+    Returns
+    -------
+    residuals : ndarray of shape (P, n_residuals)
+        Dimensionless (units of the noise floor).
+    rows : ResidualRows
+    """
+    targets = _targets(model, campaigns, noise, {})
+    with threadpool_limits(limits=1):  # BLAS threads only slow down these small matrices
+        residuals = _weighted(model, np.atleast_2d(thetas), targets)
+    return residuals, _rows(targets)
+
+
 def _forward_difference_steps(x: np.ndarray, x_hi: np.ndarray) -> np.ndarray:
     """Return the steps of the forward-difference Jacobian, one per parameter.
 

@@ -92,6 +92,7 @@ def build_document(
     synthetic: bool,
     campaign_ids: Sequence[str],
     quarantined: Sequence[str] = (),
+    identifiability: Mapping[str, Any] | None = None,
 ) -> dict[str, Any]:
     """Assemble the content of ``discrepancy.json``.
 
@@ -101,7 +102,9 @@ def build_document(
     ``candidates_by_step`` (evidence of every candidate at every step), ``untestable``
     (effect -> missing roles), ``localisation`` (findings, ambient lag, before and after),
     ``thresholds``, ``campaigns``, ``quarantined``, ``synthetic``, ``validation`` (the named
-    effects checked on the validation campaigns held back from the search, or None).
+    effects checked on the validation campaigns held back from the search, or None), and last,
+    when given, ``identifiability`` (effect -> its class and figures,
+    :meth:`pipeline.discrepancy.identifiability.EffectIdentifiability.to_dict`).
     """
     doc = {"status": STATUS_TESTED, **result.to_dict()}
     doc["localisation"] = {"before": _localisation_fields(before)}
@@ -116,6 +119,8 @@ def build_document(
     doc["campaigns"] = list(campaign_ids)
     doc["quarantined"] = list(quarantined)
     doc["synthetic"] = bool(synthetic)
+    if identifiability is not None:
+        doc["identifiability"] = dict(identifiability)
     return doc
 
 

@@ -2,8 +2,9 @@
 
 One function per section of the report, each returning its Markdown lines: where the baseline
 twin disagrees with the measurements, which effects the search named with what evidence, the
-check on the validation campaigns, what remains, the evidence of every candidate and the effects
-the data cannot test (:func:`markdown`); and the short report of campaigns the twin cannot be
+check on the validation campaigns, what remains, the evidence of every candidate, whether the
+campaigns can show each effect at all (its identifiability class) and the effects the data cannot
+test (:func:`markdown`); and the short report of campaigns the twin cannot be
 compared with (:func:`untestable_markdown`).
 """
 
@@ -232,6 +233,86 @@ def _evidence_lines(doc: Mapping[str, Any]) -> list[str]:
     return lines
 
 
+def _size(values: Mapping[str, Any]) -> str:
+    """Return the plausible size of an effect in words: its parameters, or switched on."""
+    shown = [
+        f"{name} = {v['value']:g}" + (f" {v['unit']}" if v["unit"] != "1" else "")
+        for name, v in values.items()
+    ]
+    return f"at {', '.join(shown)}" if shown else "switched on"
+
+
+def _beyond(entry: Mapping[str, Any]) -> str:
+    """Return the visible signal of an effect in words, with its threshold and its parts."""
+    limit = entry["thresholds"]["min_signal_sigma"]
+    return (
+        f"{_size(entry['plausible_values'])}, its effect on Z and temperatures beyond what the "
+        f"baseline absorbs is {_fmt(entry['signal_sigma'], 1)} sigma (threshold {limit:g}): "
+        f"{_fmt(entry['signal_Z_um'], 3)} um on Z and {_fmt(entry['signal_T_K'], 3)} K on the "
+        f"temperatures, of {_fmt(entry['response_Z_um'], 3)} um and "
+        f"{_fmt(entry['response_T_K'], 3)} K before the baseline absorbs a part"
+    )
+
+
+def _collinear(entry: Mapping[str, Any]) -> str:
+    """Return the collinearity index of an effect in words, with its threshold."""
+    return (
+        f"collinearity index with the baseline {_fmt(entry['collinearity_index'], 1)} "
+        f"(threshold {entry['thresholds']['max_collinearity_index']:g})"
+    )
+
+
+def _identifiability_line(effect: str, entry: Mapping[str, Any]) -> str:
+    """Return the bullet of one candidate effect: its class, in words, and the numbers."""
+    status = entry["class"]
+    if status == "untestable":
+        return (
+            f"- `{effect}`: untestable: no sensor with role {' / '.join(entry['missing_roles'])}."
+        )
+    if status == "not_identifiable":
+        reasons = []
+        if "signal" in entry["shortfalls"]:
+            reasons.append(_beyond(entry))
+        if "collinearity" in entry["shortfalls"]:
+            reasons.append(f"the baseline's parameters mimic it: {_collinear(entry)}")
+        return (
+            f"- `{effect}`: **not identifiable with these campaigns**: {'; and '.join(reasons)}. "
+            "Not naming it does not mean it is absent."
+        )
+    verdict = {
+        "named": "named",
+        "not_needed": "tested and not needed: these campaigns would show it and the search "
+        "did not name it",
+    }[status]
+    line = f"- `{effect}`: {verdict}; {_beyond(entry)}; {_collinear(entry)}."
+    if entry["shortfalls"]:
+        line += (
+            " Near the baseline's calibration the baseline absorbs it; the search saw it once "
+            "the twin was recalibrated with it."
+        )
+    return line
+
+
+def _identifiability_lines(entries: Mapping[str, Mapping[str, Any]]) -> list[str]:
+    """Return what the campaigns can show of each candidate, one bullet per effect."""
+    tested = [e for e in entries.values() if "shortfalls" in e]
+    rule = (
+        f" below {tested[0]['thresholds']['min_signal_sigma']:g} sigma or above collinearity "
+        f"index {tested[0]['thresholds']['max_collinearity_index']:g}"
+        if tested
+        else ""
+    )
+    return [
+        "What the searched campaigns would show of each effect at a plausible size, beyond what "
+        "the calibrated baseline absorbs by moving its own parameters (RMS over the measured "
+        "samples, in noise sigmas, um and K), and how collinear its sensitivities are with the "
+        f"baseline's (Brun et al. 2001). An effect{rule} is not identifiable with these "
+        "campaigns: the search cannot name it even if it is there.",
+        "",
+        *(_identifiability_line(effect, entry) for effect, entry in entries.items()),
+    ]
+
+
 def _untestable_lines(untestable: Mapping[str, Sequence[str]]) -> list[str]:
     """Return one bullet per effect that lacks a sensor role (effect -> roles it needs)."""
     return [
@@ -257,6 +338,10 @@ def markdown(doc: Mapping[str, Any], figures: Sequence[str]) -> str:
             [f"- {f}" for f in findings["after"]["findings"]],
         )
     lines += _section("Evidence of every candidate", _evidence_lines(doc))
+    if doc.get("identifiability"):
+        lines += _section(
+            "Can these campaigns show each effect?", _identifiability_lines(doc["identifiability"])
+        )
     if doc["untestable"]:
         lines += _section(
             "Effects that cannot be tested on these data", _untestable_lines(doc["untestable"])

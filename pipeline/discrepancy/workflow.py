@@ -2,12 +2,14 @@
 
 :func:`run` calibrates the baseline twin (:mod:`pipeline.discrepancy.model`), names the missing
 effects by forward selection with cross-validation across campaigns
-(:mod:`pipeline.discrepancy.search`), localises the residuals before and after by phase, speed
-level and ambient trend (:mod:`pipeline.discrepancy.localise`) and writes the report
-(:mod:`pipeline.discrepancy.report`); :func:`run_untestable` writes the report of campaigns the
-twin cannot be compared with (:func:`untestable_reason`). The campaigns come from the validated
-spindle tables (:func:`spindle_campaigns`): those of the ``validate`` stage, or those of any raw
-folder read and validated in memory by the same ingest and validation code (:func:`read_raw`).
+(:mod:`pipeline.discrepancy.search`), classes every candidate effect by whether the campaigns
+can show it (:mod:`pipeline.discrepancy.identifiability`), localises the residuals before and
+after by phase, speed level and ambient trend (:mod:`pipeline.discrepancy.localise`) and writes
+the report (:mod:`pipeline.discrepancy.report`); :func:`run_untestable` writes the report of
+campaigns the twin cannot be compared with (:func:`untestable_reason`). The campaigns come from
+the validated spindle tables (:func:`spindle_campaigns`): those of the ``validate`` stage, or
+those of any raw folder read and validated in memory by the same ingest and validation code
+(:func:`read_raw`).
 """
 
 from __future__ import annotations
@@ -18,6 +20,7 @@ from pathlib import Path
 import pandas as pd
 
 from pipeline.discrepancy.data import MeasuredCampaign, campaigns_from_tables
+from pipeline.discrepancy.identifiability import IdentifiabilitySettings, identifiability
 from pipeline.discrepancy.localise import LocaliseSettings, localise
 from pipeline.discrepancy.model import ROLE_NODES
 from pipeline.discrepancy.report import (
@@ -160,7 +163,9 @@ def run(
     """
     settings = SearchSettings.from_params(section)
     loc_settings = LocaliseSettings(**dict(section.get("localise") or {}))
+    ident_settings = IdentifiabilitySettings.from_params(section.get("identifiability"))
     result = search_twin(campaigns, settings)
+    classes = identifiability(campaigns, result, settings.candidates, ident_settings)
     before, after = (
         localise(campaigns, fit.z_residual_um, fit.t_residual_k, loc_settings, label=label)
         for fit, label in (
@@ -176,6 +181,7 @@ def run(
         synthetic=synthetic,
         campaign_ids=[c.campaign_id for c in campaigns],
         quarantined=quarantined or [],
+        identifiability={e: c.to_dict(ident_settings) for e, c in classes.items()},
     )
     files = write_outputs(out_dir, doc, campaigns, result, before)
     logger.info(

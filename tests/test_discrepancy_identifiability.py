@@ -1,0 +1,449 @@
+"""Tests of the identifiability of the candidate effects (pipeline/discrepancy/identifiability.py).
+
+The linear algebra on hand-made matrices (the projection off a column space, Brun et al.'s
+collinearity index), the classification table, the report's words, and the twin on small
+synthetic campaigns of the project's generator (no effect switched on, no heat scatter): at one
+constant speed the bearing-heat exponent and the centrifugal shift cannot be told from the
+baseline and are classed not identifiable; the same effects on programs with speed steps are
+identifiable.
+"""
+
+from __future__ import annotations
+
+import itertools
+from dataclasses import dataclass, replace
+from datetime import datetime
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from benchmarks.discrepancy_trials import SteppedPlan, run_workflow, write_hidden_campaigns
+from pipeline.config import load_section
+from pipeline.discrepancy import MeasuredCampaign, build_model, calibrate
+from pipeline.discrepancy.calibrate import weighted_residuals
+from pipeline.discrepancy.collinearity import (
+    collinearity_index,
+    effect_collinearity_index,
+    orthonormal_basis,
+    project_out,
+    with_prior,
+)
+from pipeline.discrepancy.identifiability import (
+    CLASSES,
+    NAMED,
+    NOT_IDENTIFIABLE,
+    NOT_NEEDED,
+    UNTESTABLE,
+    IdentifiabilitySettings,
+    assess_effects,
+    classify,
+    identifiability,
+)
+from pipeline.discrepancy.model import EFFECT_SPECS, EFFECTS
+from pipeline.discrepancy.report_text import markdown
+from pipeline.discrepancy.search import FitResult, ModelEvidence, SearchResult
+from pipeline.discrepancy.visibility import PLAUSIBLE, RISE_SIZED, Visibility, baseline_point
+from pipeline.thermal.program import Program, Segment
+from pipeline.twin.campaigns import SpindlePlan, simulate_spindle_campaign
+from pipeline.twin.params import SpindleParams
+
+SECTION = load_section("discrepancy")
+SETTINGS = IdentifiabilitySettings.from_params(SECTION.get("identifiability"))
+# no campaign-to-campaign heat scatter: the data are the generator's baseline plus sensor noise
+NO_SCATTER = replace(SpindleParams(), heat_scatter_rel=0.0)
+
+
+# ------------------------------------------------------------------ linear algebra
+
+
+def test_projection_removes_what_the_baseline_columns_reproduce():
+    rng = np.random.default_rng(3)
+    base = rng.normal(size=(200, 4))
+    # a fifth column that is twice the first: the column space keeps rank 4
+    base = np.hstack([base, 2.0 * base[:, :1]])
+    basis = orthonormal_basis(base)
+    assert basis.shape == (200, 4)
+    assert np.allclose(basis.T @ basis, np.eye(4))
+    combination = base @ np.array([1.5, -0.3, 0.0, 2.0, 0.7])
+    assert np.linalg.norm(project_out(combination, basis)) < 1e-10 * np.linalg.norm(combination)
+    # a part orthogonal to every baseline column survives the projection unchanged
+    orthogonal = project_out(rng.normal(size=200), basis)
+    assert np.allclose(base.T @ orthogonal, 0.0, atol=1e-9)
+    assert np.allclose(project_out(combination + orthogonal, basis), orthogonal)
+
+
+def test_prior_rows_make_the_projection_a_ridge_fit():
+    rng = np.random.default_rng(4)
+    base = rng.normal(size=(120, 3)) * np.array([0.01, 1.0, 30.0])
+    response = rng.normal(size=120)
+    padded = np.concatenate([response, np.zeros(3)])
+    left = project_out(padded, orthonormal_basis(with_prior(base)))[:120]
+    ridge = np.linalg.solve(base.T @ base + np.eye(3), base.T @ response)
+    assert np.allclose(left, response - base @ ridge)
+    # a parameter the outputs barely feel absorbs a response along it only without the prior
+    faint = 1e-4 * response[:, None]
+    assert np.linalg.norm(project_out(response, orthonormal_basis(faint))) < 1e-9
+    kept = project_out(np.append(response, 0.0), orthonormal_basis(with_prior(faint)))[:120]
+    assert np.linalg.norm(kept) > 0.99 * np.linalg.norm(response)
+
+
+def test_collinearity_index_is_brun_et_al_s():
+    rng = np.random.default_rng(5)
+    s = rng.normal(size=(50, 3)) * np.array([1e-3, 1.0, 1e4])  # any column scale
+    normalised = s / np.linalg.norm(s, axis=0)
+    expected = 1.0 / np.sqrt(np.linalg.eigvalsh(normalised.T @ normalised).min())
+    assert collinearity_index(s) == pytest.approx(expected, rel=1e-9)
+    assert collinearity_index(np.eye(4)[:, :3]) == pytest.approx(1.0)
+    phi = 0.2
+    pair = np.array([[1.0, np.cos(phi)], [0.0, np.sin(phi)]])
+    assert collinearity_index(pair) == pytest.approx(1.0 / np.sqrt(1.0 - np.cos(phi)))
+    dependent = np.column_stack([s, s[:, 0] - 3.0 * s[:, 2]])
+    assert collinearity_index(dependent) > 1e6
+    assert collinearity_index(np.column_stack([s, np.zeros(50)])) == np.inf
+
+
+def test_the_effect_index_counts_only_the_effect_s_angle_to_the_baseline():
+    plane = np.eye(3)[:, :2]
+    for phi in (0.05, 0.5, 1.2):
+        effect = np.array([[np.cos(phi)], [0.0], [np.sin(phi)]])
+        assert effect_collinearity_index(plane, 7.0 * effect) == pytest.approx(
+            1.0 / np.sqrt(1.0 - np.cos(phi))
+        )
+    assert effect_collinearity_index(plane, np.array([[0.0], [0.0], [1.0]])) == pytest.approx(1.0)
+    assert effect_collinearity_index(plane, np.array([[0.0], [2.0], [0.0]])) > 1e6
+
+
+# ------------------------------------------------------------------ classes
+
+
+def _figures(signal: float, index: float) -> Visibility:
+    return Visibility(index, 1e6, signal, signal, signal / 2, 0.1, 0.01, 1.0, 0.1, {})
+
+
+def test_every_candidate_ends_in_exactly_one_class():
+    low, high = 0.5 * SETTINGS.min_signal_sigma, 2.0 * SETTINGS.min_signal_sigma
+    flat, steep = 0.5 * SETTINGS.max_collinearity_index, 2.0 * SETTINGS.max_collinearity_index
+    seen = set()
+    for named, missing, signal, index in itertools.product(
+        (True, False), ((), ("column_rear",)), (low, high, np.nan), (flat, steep)
+    ):
+        figures = None if missing else _figures(signal, index)
+        named_effects = ["thermal_bending"] if named else []
+        status = classify("thermal_bending", named_effects, missing, figures, SETTINGS)
+        if missing:
+            expected = UNTESTABLE
+        elif named:
+            expected = NAMED
+        elif signal == high and index == flat:
+            expected = NOT_NEEDED
+        else:  # too little signal (or none measured), or collinear with the baseline
+            expected = NOT_IDENTIFIABLE
+        assert status == expected, (named, missing, signal, index)
+        seen.add(status)
+    assert seen == set(CLASSES)
+
+
+def test_settings_give_every_effect_parameter_a_size_within_its_bounds():
+    names = {p.name: p for row in EFFECT_SPECS.values() for p in row.params}
+    by_rise = {size: name for name, (size, _, _) in RISE_SIZED.items()}
+    sized = {by_rise.get(size, size) for size in SETTINGS.plausible}
+    assert sized == set(names)
+    for size, value in SETTINGS.plausible.items():
+        if size in by_rise:
+            assert value > 0.0, size
+        else:
+            assert names[size].lower <= value <= names[size].upper, size
+    with pytest.raises(KeyError, match="unknown size"):
+        IdentifiabilitySettings.from_params({"plausible": {"bearing_exponant": 1.7}})
+    tighter = IdentifiabilitySettings.from_params({"min_signal_sigma": 3, "plausible": {}})
+    assert tighter.min_signal_sigma == 3.0 and tighter.plausible == PLAUSIBLE
+
+
+# ------------------------------------------------------------------ the twin on campaigns
+
+
+@dataclass(frozen=True)
+class ConstantPlan(SpindlePlan):
+    """One speed from the first sample to the last: no step, no stop."""
+
+    def program(self) -> Program:
+        """The constant speed, open-ended."""
+        return Program((Segment(0.0, None, float(self.rpm)),), key="rpm")
+
+
+def _measured(plan: SpindlePlan) -> MeasuredCampaign:
+    campaign = simulate_spindle_campaign(plan, seed=5, params=NO_SCATTER, effects=frozenset())
+    t = campaign.temperature["elapsed_s"].to_numpy()
+    temps = campaign.temperature.drop(columns=["elapsed_s"])
+    z = campaign.displacement["Z"].to_numpy()
+    return MeasuredCampaign(
+        campaign_id=campaign.info.campaign_id,
+        t_s=t,
+        rpm=campaign.program.value_at(t),
+        temperatures=temps,
+        roles={s.name: s.role for s in campaign.sensors if s.name in temps.columns},
+        z_um=z - z[0],
+        program=campaign.program,
+    )
+
+
+def _calibrated(campaigns: list[MeasuredCampaign]):
+    roles = {r for c in campaigns for r in c.roles.values()}
+    model = build_model(roles)
+    fit = calibrate(model, campaigns, max_nfev=60)
+    return model, fit, roles
+
+
+@pytest.fixture(scope="module")
+def constant_speed():
+    plans = [
+        ConstantPlan(f"C{i}", datetime(2024, 3 + i, 5, 8), 4000.0, run_min=240.0, cooldown_min=0)
+        for i in range(3)
+    ]
+    campaigns = [_measured(p) for p in plans]
+    return campaigns, *_calibrated(campaigns)
+
+
+@pytest.fixture(scope="module")
+def speed_steps():
+    plans = [
+        SteppedPlan(
+            f"S{i}",
+            datetime(2024, 3 + i, 5, 8),
+            0.0,
+            run_min=180.0,
+            cooldown_min=60.0,
+            steps=((0.0, 2000.0 + 1000.0 * i), (90.0, 6000.0 - 1000.0 * i)),
+        )
+        for i in range(3)
+    ]
+    campaigns = [_measured(p) for p in plans]
+    return campaigns, *_calibrated(campaigns)
+
+
+def _classes(case) -> dict:
+    campaigns, _, fit, roles = case
+    point = baseline_point(campaigns, {k: v for k, (v, _) in fit.params.items()}, roles)
+    return assess_effects(point, EFFECTS, [], {}, SETTINGS)
+
+
+SPEED_EFFECTS = ("nonlinear_bearing_heat", "centrifugal_growth")
+
+
+def test_one_constant_speed_cannot_show_the_speed_laws(constant_speed, speed_steps):
+    """At one speed the exponent only rescales the bearing heat, which the baseline's own heat
+    parameters absorb; the centrifugal shift never changes from its first sample."""
+    classes = _classes(constant_speed)
+    for effect in SPEED_EFFECTS:
+        assert classes[effect].status == NOT_IDENTIFIABLE, classes[effect]
+        assert "signal" in classes[effect].shortfalls
+    exponent = classes["nonlinear_bearing_heat"].figures
+    assert exponent.response_t_k > 0.05  # the heat does change ...
+    assert exponent.signal_sigma < 0.01  # ... but the baseline reproduces the change
+    # ... with parameters nearly collinear with the exponent, unlike with speed steps
+    stepped = _classes(speed_steps)["nonlinear_bearing_heat"].figures
+    assert exponent.collinearity_index > 20.0 * stepped.collinearity_index
+    assert exponent.collinearity_index_all_parameters > 1e3 * stepped.collinearity_index
+    assert classes["centrifugal_growth"].figures.response_z_um == 0.0
+
+
+def test_speed_steps_show_the_same_laws(speed_steps):
+    classes = _classes(speed_steps)
+    for effect in SPEED_EFFECTS:
+        figures = classes[effect].figures
+        assert classes[effect].status == NOT_NEEDED, classes[effect]
+        assert figures.signal_sigma >= SETTINGS.min_signal_sigma
+        assert figures.collinearity_index <= SETTINGS.max_collinearity_index
+        assert figures.signal_z_um <= figures.response_z_um  # the projection only removes
+    assert len(classes) == len(EFFECTS)
+
+
+def test_the_motor_loss_is_sized_by_the_rise_it_gives_its_node(speed_steps):
+    """q = rise x (h + G) at the baseline's motor cooling and link (clipped into its bounds)."""
+    campaigns, model, fit, roles = speed_steps
+    values = {k: v for k, (v, _) in fit.params.items()}
+    point = baseline_point(campaigns, values, roles)
+    (spec,) = EFFECT_SPECS["motor_heat"].params
+    for rise in (0.02, 0.5, 50.0):
+        settings = replace(
+            SETTINGS, plausible={**SETTINGS.plausible, "motor_rise_K_per_krpm": rise}
+        )
+        shown = assess_effects(point, ["motor_heat"], [], {}, settings)["motor_heat"].figures.values
+        heat = rise * (values["h_motor_W_per_K"] + values["G_motor_headstock_W_per_K"])
+        assert shown["motor_rise_K_per_krpm"] == (rise, "K/krpm")
+        assert shown["q_motor_W_per_krpm"] == (pytest.approx(min(heat, spec.upper)), "W/krpm")
+
+
+def test_the_centrifugal_response_is_its_z_law_in_um(speed_steps):
+    campaigns, _, fit, roles = speed_steps
+    point = baseline_point(campaigns, {k: v for k, (v, _) in fit.params.items()}, roles)
+    figures = assess_effects(point, ["centrifugal_growth"], [], {}, SETTINGS)[
+        "centrifugal_growth"
+    ].figures
+    c = SETTINGS.plausible["centrifugal_um_per_krpm2"]
+    parts = []
+    for campaign in campaigns:
+        r2 = (campaign.rpm / 1000.0) ** 2
+        z = c * (r2 - r2[0])
+        parts.append(z - z.mean())  # each campaign's Z is compared about its mean
+    expected = np.sqrt(np.mean(np.concatenate(parts) ** 2))
+    assert figures.response_z_um == pytest.approx(expected, rel=1e-6)
+    assert figures.values == {"centrifugal_um_per_krpm2": (c, "um/krpm^2")}
+
+
+def test_weighted_residuals_are_the_calibration_s_in_noise_sigmas(speed_steps):
+    campaigns, model, fit, _ = speed_steps
+    weighted, rows = weighted_residuals(model, fit.theta[None, :], campaigns, fit.noise)
+    expected = np.concatenate(
+        [
+            part
+            for c in campaigns
+            for part in (
+                fit.residuals[c.campaign_id]["temperatures_K"].to_numpy().ravel(),
+                fit.residuals[c.campaign_id]["z_um"],
+            )
+        ]
+    )
+    assert weighted.shape == (1, expected.size) == (1, rows.sigma.size)
+    assert np.array_equal(rows.observed, np.isfinite(expected))
+    assert np.allclose(weighted[0] * rows.sigma, np.nan_to_num(expected), atol=1e-9)
+    assert rows.is_z.sum() == sum(c.t_s.size for c in campaigns)
+    assert np.allclose(rows.sigma[rows.is_z], fit.noise.z_um)
+
+
+def test_the_search_s_baseline_and_outcome_give_every_candidate_its_class(speed_steps):
+    campaigns, _, fit, _ = speed_steps
+    searched = [c.campaign_id for c in campaigns[:2]]
+    full = FitResult(fit.bic, fit.aicc, dict(fit.params), {})
+    baseline = ModelEvidence(frozenset(), full, full)
+    result = SearchResult(
+        named_effects=["motor_heat"],
+        baseline=baseline,
+        final=baseline,
+        steps=[],
+        rounds=[],
+        untestable={"thermal_bending": ["column_rear"]},
+        folds=[searched[:1], searched[1:]],
+        seconds=0.0,
+    )
+    classes = identifiability(campaigns, result, EFFECTS, SETTINGS)
+    assert list(classes) == list(EFFECTS)
+    assert classes["motor_heat"].status == NAMED
+    assert classes["thermal_bending"].status == UNTESTABLE
+    assert classes["thermal_bending"].figures is None
+    assert {c.status for c in classes.values()} <= set(CLASSES)
+    entry = classes["thermal_bending"].to_dict(SETTINGS)
+    assert entry["class"] == "untestable" and entry["missing_roles"] == ["column_rear"]
+    # the campaign the search did not use (a validation one) is left out of the figures
+    roles = {r for c in campaigns for r in c.roles.values()}
+    values = {k: v for k, (v, _) in fit.params.items()}
+    point = baseline_point(campaigns[:2], values, roles)
+    alone = assess_effects(point, ["nonlinear_bearing_heat"], [], {}, SETTINGS)
+    ours = classes["nonlinear_bearing_heat"].figures
+    assert ours == alone["nonlinear_bearing_heat"].figures
+
+
+# ------------------------------------------------------------------ the report's words
+
+
+def _entry(status: str, signal: float, index: float, shortfalls: list[str]) -> dict:
+    return {
+        "class": status,
+        "shortfalls": shortfalls,
+        "collinearity_index": index,
+        "collinearity_index_all_parameters": 1e6,
+        "signal_sigma": signal,
+        "signal_Z_sigma": signal,
+        "signal_T_sigma": signal,
+        "signal_Z_um": 0.05,
+        "signal_T_K": 0.012,
+        "response_Z_um": 0.6,
+        "response_T_K": 0.23,
+        "plausible_values": {"sensor_lag_s": {"value": 600.0, "unit": "s"}},
+        "thresholds": SETTINGS.thresholds(),
+    }
+
+
+def test_the_report_says_each_class_in_words():
+    from pipeline.discrepancy.report_text import _identifiability_lines
+
+    entries = {
+        "sensor_lag": _entry("not_identifiable", 0.34, 8.0, ["signal"]),
+        "thermal_bending": _entry("not_identifiable", 5.0, 44.0, ["collinearity"]),
+        "centrifugal_growth": _entry("not_needed", 4.2, 3.0, []),
+        "motor_heat": _entry("named", 9.0, 2.0, []),
+        "ambient_variation": {
+            "class": "untestable",
+            "missing_roles": ["ambient"],
+            "thresholds": SETTINGS.thresholds(),
+        },
+    }
+    text = "\n".join(_identifiability_lines(entries))
+    limit = f"{SETTINGS.min_signal_sigma:g}"
+    assert (
+        "`sensor_lag`: **not identifiable with these campaigns**: at sensor_lag_s = 600 s, its "
+        f"effect on Z and temperatures beyond what the baseline absorbs is 0.3 sigma (threshold "
+        f"{limit})" in text
+    )
+    assert (
+        "`thermal_bending`: **not identifiable" in text and "index with the baseline 44.0" in text
+    )
+    assert "`centrifugal_growth`: tested and not needed" in text and "4.2 sigma" in text
+    assert "`motor_heat`: named;" in text
+    assert "`ambient_variation`: untestable: no sensor with role ambient." in text
+    assert text.count("\n- `") == len(entries)
+
+
+# ------------------------------------------------------------------ the workflow
+
+
+@pytest.mark.slow
+def test_a_hidden_sensor_lag_is_called_not_identifiable_not_absent(tmp_path):
+    """Issue 14: with the lag hidden the search names nothing, as on clean data; the report
+    says the lag is not identifiable with these campaigns instead of leaving it unnamed."""
+    write_hidden_campaigns(tmp_path / "raw", frozenset({"sensor_lag"}), seed=1, n=4)
+    section = {**SECTION, "n_folds": 2, "mlflow": False}
+    doc = run_workflow(tmp_path / "raw", tmp_path / "out", section)
+    assert doc["named_effects"] == []
+    assert list(doc["identifiability"]) == list(SECTION["candidates"])
+    lag = doc["identifiability"]["sensor_lag"]
+    assert lag["class"] == "not_identifiable", lag
+    assert lag["signal_sigma"] < lag["thresholds"]["min_signal_sigma"]
+    md = Path(tmp_path / "out" / "discrepancy.md").read_text(encoding="utf-8")
+    assert "`sensor_lag`: **not identifiable with these campaigns**" in md
+    assert markdown(doc, []).count("## Can these campaigns show each effect?") == 1
+
+
+# ------------------------------------------------------------------ the threshold trials
+
+
+def test_the_threshold_trials_count_hidden_effects_on_the_wrong_side():
+    import pandas as pd
+
+    from benchmarks.identifiability_trials import misplaced, thresholds_markdown, trial_rows
+
+    lag = _entry("not_identifiable", 0.4, 9.0, ["signal"])
+    centrifugal = _entry("named", 3.0, 3.0, [])
+    motor = _entry("named", 0.9, 40.0, ["signal"])
+    doc = {
+        "named_effects": ["centrifugal_growth", "motor_heat"],
+        "identifiability": {
+            "sensor_lag": lag,
+            "centrifugal_growth": centrifugal,
+            "motor_heat": motor,
+            "thermal_bending": {"class": "untestable", "missing_roles": ["column_rear"]},
+        },
+    }
+    rows = trial_rows(doc, frozenset({"sensor_lag", "motor_heat", "centrifugal_growth"}), seed=4)
+    assert [r["identifiable"] for r in rows] == [False, True, False, False]
+    assert rows[3]["signal_sigma"] is None and rows[0]["named"] is False
+    figures = pd.DataFrame(rows)
+    # the lag (hidden, not named, invisible) and the centrifugal shift (named, visible) sit on
+    # the right side; the motor, named although its figures call it invisible, does not
+    assert list(misplaced(figures)["effect"]) == ["motor_heat"]
+    text = thresholds_markdown(figures, SETTINGS.thresholds(), [4])
+    assert "| sensor_lag | hidden, not named | 1 | 0.40 - 0.40 |" in text
+    assert "wrong side of the thresholds: 1." in text and "seed 4, motor_heat hidden" in text
+    quick = pd.DataFrame(trial_rows({**doc, "named_effects": None}, frozenset({"motor_heat"}), 4))
+    assert misplaced(quick).empty
