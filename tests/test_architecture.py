@@ -213,3 +213,19 @@ def test_each_stage_depends_on_exactly_the_code_it_imports(name):
     uncovered = sorted(p.as_posix() for p in code if not covered(p))
     stale = sorted(d.as_posix() for d in deps if not any(p == d or d in p.parents for p in code))
     assert (uncovered, stale) == ([], []), f"dvc.yaml stage {name}: missing deps, stale deps"
+
+
+MAX_FUNCTION_LINES = 80
+"""ARCHITECTURE.md: a function longer than this is split along its sections."""
+
+
+def test_no_function_is_longer_than_the_limit():
+    long = [
+        f"{path.relative_to(ROOT)}::{node.name} ({node.end_lineno - node.lineno + 1} lines)"
+        for folder in ("pipeline", "benchmarks", "schemas", "tests")
+        for path in sorted((ROOT / folder).rglob("*.py"))
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8")))
+        if isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef)
+        and node.end_lineno - node.lineno + 1 > MAX_FUNCTION_LINES
+    ]
+    assert long == []

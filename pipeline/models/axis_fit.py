@@ -84,15 +84,7 @@ def build(
         geometric=mean_geometric(geometric, _ids(train)),
         slope=fit_slope_model(train, selection.sensors, temperature),
     )
-    scored = {"fit": score_campaigns(model, train, thermal)}
-    if validation.empty:
-        LOGGER.warning(
-            "no validation axis campaign (split: validation): the composite model is scored on "
-            "its training campaign(s) %s only",
-            _ids(train),
-        )
-    else:
-        scored["validation"] = score_campaigns(model, validation, thermal)
+    scored = _scored(model, train, validation, thermal)
     points = pd.concat([p.assign(role=r) for r, p in scored.items()], ignore_index=True)
     scores = {role: bands(p) for role, p in scored.items()}
     report = {
@@ -117,6 +109,22 @@ def build(
         worst = scores["validation"]["overall"]["residual_max_abs_um"]
         report["within_patent_band"] = bool(worst <= band)
     return report, _metrics(scores, model), points
+
+
+def _scored(
+    model: CompositeModel, train: pd.DataFrame, validation: pd.DataFrame, thermal: pd.DataFrame
+) -> dict[str, pd.DataFrame]:
+    """Score the model on its training campaigns (``fit``) and the validation ones, if any."""
+    scored = {"fit": score_campaigns(model, train, thermal)}
+    if validation.empty:
+        LOGGER.warning(
+            "no validation axis campaign (split: validation): the composite model is scored on "
+            "its training campaign(s) %s only",
+            _ids(train),
+        )
+    else:
+        scored["validation"] = score_campaigns(model, validation, thermal)
+    return scored
 
 
 def _message(scored: dict[str, pd.DataFrame], train: pd.DataFrame) -> str:
