@@ -53,7 +53,9 @@ def flat():
 
 def _plan_signal(point, plan: tp.TestPlan, effect: str) -> float:
     """The effect's signal on the plan's simulated campaign, recomputed from scratch, sigma."""
-    campaign, roles, values = tp.simulate_plan(plan, point.values, point.roles, 20.0)
+    sensors = tp.plan_sensors(point.campaigns)
+    campaign, roles, values = tp.simulate_plan(plan, point.values, sensors, 20.0)
+    assert set(campaign.temperatures.columns) == set(sensors)  # the campaigns' own sensors
     plan_point = baseline_point([campaign], values, set(roles), point.noise, point.prior_log_sd)
     return visibility(effect, plan_point, SETTINGS.plausible).signal_sigma
 

@@ -12,13 +12,13 @@ under which the effect would be identifiable (:func:`propose_tests`):
    programs with a sensor of that role added.
 2. **The simulated test.** Each plan is one campaign simulated noise-free by the calibrated
    baseline twin (the baseline's parameter values; a node the added sensor brings gets its
-   parameters' initial values), starting cold at the campaigns' ambient with one sensor per
-   role of the campaigns (plus the added one) and the Z probe (:func:`simulate_plan`).
+   parameters' initial values), starting cold at the campaigns' ambient with the campaigns'
+   sensors (plus the added one) and the Z probe (:func:`simulate_plan`).
 3. **Its signal.** The same figures as the identifiability of the campaigns
    (:func:`~pipeline.discrepancy.visibility.visibility`: the effect at its plausible size, the
    part the baseline cannot absorb by moving its parameters within their prior scales, RMS in
-   noise sigmas), on the plan's campaign, with the noise floors of the campaigns. A plan makes
-   the effect visible when it misses no threshold
+   noise sigmas), on the plan's campaign, with the noise floor of each sensor of the campaigns
+   (an added one: their median). A plan makes the effect visible when it misses no threshold
    (:func:`~pipeline.discrepancy.identifiability.shortfalls`).
 4. **Cost.** Test duration in hours plus :data:`SENSOR_COST_H` per added sensor; ties go to the
    campaigns' own sampling interval, then to the grid's order. Plans are tried in order of cost
@@ -225,7 +225,7 @@ def _ambient(campaigns: Sequence[MeasuredCampaign]) -> float:
 def simulate_plan(
     plan: TestPlan,
     values: Mapping[str, float],
-    roles: set[str] | frozenset[str],
+    sensors: Mapping[str, str],
     ambient_c: float,
 ) -> tuple[MeasuredCampaign, frozenset[str], dict[str, float]]:
     """Simulate the plan's campaign with the calibrated baseline twin, noise-free.
@@ -235,24 +235,24 @@ def simulate_plan(
     plan : TestPlan
     values : mapping of str to float
         Calibrated baseline parameters by name (their units).
-    roles : set of str
-        Sensor roles of the campaigns; the plan's added roles join them.
+    sensors : mapping of str to str
+        Sensor name -> role, the campaigns' (:func:`plan_sensors`); a sensor
+        ``added_<role>`` joins them for each role the plan adds.
     ambient_c : float
         Workshop air, constant, degC; every node starts at it.
 
     Returns
     -------
     campaign : MeasuredCampaign
-        One sensor per role (``plan_<role>``), the Z drift, the plan's program.
+        The sensors' readings, the Z drift, the plan's program.
     roles : frozenset of str
         The twin's roles.
     values : dict of str to float
         Every parameter of the twin: the baseline's, the initial value for a new node's.
     """
-    all_roles = frozenset(roles) | frozenset(plan.add_sensors)
+    names = {**dict(sensors), **{f"added_{r}": r for r in plan.add_sensors}}
+    all_roles = frozenset(names.values())
     t = np.arange(0.0, plan.duration_h * 3600.0 + 0.5, plan.sample_interval_s)
-    sensor_roles = sorted(r for r in all_roles if r in ROLE_NODES or r == "ambient")
-    names = {f"plan_{r}": r for r in sensor_roles}
     blank = MeasuredCampaign(
         campaign_id=f"plan {plan.name}",
         t_s=t,
@@ -363,14 +363,33 @@ def plan_text(proposed: ProposedTest) -> str:
 def _plan_point(
     plan: TestPlan,
     values: Mapping[str, float],
-    roles: frozenset[str],
+    sensors: Mapping[str, str],
     ambient_c: float,
     noise: NoiseFloor,
     prior_log_sd: float,
 ) -> BaselinePoint:
-    """Return the baseline point on the plan's simulated campaign, with the given noise."""
-    campaign, all_roles, full = simulate_plan(plan, values, roles, ambient_c)
-    return baseline_point([campaign], full, set(all_roles), noise, prior_log_sd)
+    """Return the baseline point on the plan's simulated campaign, with the campaigns' noise.
+
+    An added sensor reads with the median noise floor of the campaigns' sensors.
+    """
+    campaign, all_roles, full = simulate_plan(plan, values, sensors, ambient_c)
+    typical = float(np.median(list(noise.temperature_K.values()))) if noise.temperature_K else 0.0
+    floors = {f"added_{r}": typical for r in plan.add_sensors}
+    plan_noise = NoiseFloor({**noise.temperature_K, **floors}, noise.z_um)
+    return baseline_point([campaign], full, set(all_roles), plan_noise, prior_log_sd)
+
+
+def plan_sensors(campaigns: Sequence[MeasuredCampaign]) -> dict[str, str]:
+    """Return the campaigns' sensors on a node of the twin or on the air: name -> role.
+
+    The plan's campaign carries the same sensors, so each reads with its own noise floor.
+    """
+    out: dict[str, str] = {}
+    for c in campaigns:
+        for name, role in c.roles.items():
+            if name not in out and (role in ROLE_NODES or role == "ambient"):
+                out[name] = role
+    return out
 
 
 def propose_test(
@@ -443,11 +462,12 @@ def propose_tests(
     """
     ambient_c = _ambient(point.campaigns)
     cache: dict[TestPlan, BaselinePoint] = {}
+    sensors = plan_sensors(point.campaigns)
 
     def point_of(plan: TestPlan) -> BaselinePoint:
         if plan not in cache:
             cache[plan] = _plan_point(
-                plan, point.values, point.roles, ambient_c, point.noise, point.prior_log_sd
+                plan, point.values, sensors, ambient_c, point.noise, point.prior_log_sd
             )
         return cache[plan]
 
