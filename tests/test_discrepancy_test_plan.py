@@ -187,3 +187,22 @@ def test_a_stepped_program_alternates_and_ends_at_the_duration():
     assert np.all(
         program.value_at(np.array([0.0, 2400.0, 4800.0, 7200.0])) == [4000, 2000, 4000, 0]
     )
+
+
+def test_the_plan_s_sensors_read_with_the_campaigns_noise_floors(flat):
+    """Each simulated sensor is weighted by its own floor, an added one by their median: a
+    sensor without a floor would be weighted at the 0.005 K minimum and overstate the signal."""
+    point = flat[0]
+    plan = tp.TestPlan("added", Program.constant(4000.0), 1.0, 180.0, ("column_rear",))
+    plan_point = tp._plan_point(
+        plan, point.values, tp.plan_sensors(point.campaigns), 20.0, point.noise, 1.0
+    )
+    floors = plan_point.noise.temperature_K
+    for name in plan_point.campaigns[0].temperatures.columns:
+        expected = point.noise.temperature_K.get(name)
+        if expected is None:
+            assert name == "added_column_rear"
+            assert floors[name] == np.median(list(point.noise.temperature_K.values()))
+        else:
+            assert floors[name] == expected
+    assert plan_point.campaigns[0].roles["added_column_rear"] == "column_rear"
