@@ -166,7 +166,9 @@ def test_none_visible_reports_the_best_of_the_grid(monkeypatch):
     entry = proposed.to_dict()
     assert entry["visible"] is False and entry["plans_tried"] == len(table)
     assert entry["best_in_grid"]["expected_signal_sigma"] == 1.4
-    assert "None of the 5 test plans" in entry["text"]
+    assert "None of the 5 test plans" in entry["text"] and "added sensors" in entry["text"]
+    no_sensor = {plan: signal for plan, signal in table.items() if not plan.add_sensors}
+    assert "added sensors" not in _propose(monkeypatch, no_sensor).to_dict()["text"]
 
 
 def test_the_report_gives_the_engineer_the_paragraph():

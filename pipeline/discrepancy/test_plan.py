@@ -299,6 +299,8 @@ class ProposedTest:
         ``min_signal_sigma``.
     n_plans : int
         Plans tried.
+    sensors_tried : bool
+        Whether the grid had plans with an added sensor.
     """
 
     effect: str
@@ -308,6 +310,7 @@ class ProposedTest:
     current_sigma: float
     threshold_sigma: float
     n_plans: int
+    sensors_tried: bool = False
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready ``proposed_test``: the plan in the raw contract's terms and its text."""
@@ -351,12 +354,14 @@ def plan_text(proposed: ProposedTest) -> str:
         if proposed.best is not None and proposed.figures is not None
         else ""
     )
+    tried = "speed steps, stops, sampling interval" + (
+        ", added sensors" if proposed.sensors_tried else ""
+    )
     return (
-        f"None of the {proposed.n_plans} test plans tried (speed steps, stops, sampling "
-        f"interval, added sensors) would make {e} visible ({now}, threshold "
-        f"{proposed.threshold_sigma:g}).{best} Its response at a plausible size stays within "
-        "what the baseline absorbs; a longer campaign series, a different sensor mounting or an "
-        "external heat load would be needed."
+        f"None of the {proposed.n_plans} test plans tried ({tried}) would make {e} visible "
+        f"({now}, threshold {proposed.threshold_sigma:g}).{best} Its response at a plausible "
+        "size stays within what the baseline absorbs; a longer campaign series, a different "
+        "sensor mounting or an external heat load would be needed."
     )
 
 
@@ -421,7 +426,8 @@ def propose_test(
         if best is None or signal > best[0]:
             best = (signal, plan, figures)
     figures, top = (best[2], best[1]) if best else (None, None)
-    return _proposed(effect, current, None, figures, top, settings, len(ordered))
+    tried = any(p.add_sensors for p in ordered)
+    return _proposed(effect, current, None, figures, top, settings, len(ordered), tried)
 
 
 def _proposed(
@@ -432,10 +438,13 @@ def _proposed(
     best: TestPlan | None,
     settings: IdentifiabilitySettings,
     n_plans: int,
+    sensors_tried: bool = False,
 ) -> ProposedTest:
     """Build the :class:`ProposedTest` and log it."""
     now = current.figures.signal_sigma if current.figures is not None else float("nan")
-    proposed = ProposedTest(effect, plan, figures, best, now, settings.min_signal_sigma, n_plans)
+    proposed = ProposedTest(
+        effect, plan, figures, best, now, settings.min_signal_sigma, n_plans, sensors_tried
+    )
     logger.info("test plan for %s: %s", effect, plan_text(proposed))
     return proposed
 
