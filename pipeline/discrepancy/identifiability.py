@@ -232,17 +232,44 @@ def assess_effects(
     return out
 
 
+def searched_point(
+    campaigns: Sequence[MeasuredCampaign], result: SearchResult, settings: IdentifiabilitySettings
+) -> BaselinePoint:
+    """Return the search's baseline calibration on its searched campaigns, as a baseline point.
+
+    The baseline point is the search's baseline calibration (``result.baseline.full``) on the
+    campaigns it searched (those of ``result.folds``), with the twin built for the roles of all
+    ``campaigns``, as the search's evaluator builds it.
+
+    Parameters
+    ----------
+    campaigns : sequence of MeasuredCampaign
+        Every campaign given to the search (validation ones included).
+    result : SearchResult
+    settings : IdentifiabilitySettings
+
+    Returns
+    -------
+    BaselinePoint
+    """
+    searched = {cid for fold in result.folds for cid in fold}
+    values = {name: value for name, (value, _) in result.baseline.full.params.items()}
+    return baseline_point(
+        [c for c in campaigns if c.campaign_id in searched],
+        values,
+        campaign_roles(campaigns),
+        prior_log_sd=settings.prior_log_sd,
+    )
+
+
 def identifiability(
     campaigns: Sequence[MeasuredCampaign],
     result: SearchResult,
     candidates: Sequence[str],
     settings: IdentifiabilitySettings,
+    point: BaselinePoint | None = None,
 ) -> dict[str, EffectIdentifiability]:
     """Class and figures of every candidate effect on the campaigns of a search.
-
-    The baseline point is the search's baseline calibration
-    (``result.baseline.full``) on the campaigns it searched (those of ``result.folds``), with
-    the twin built for the roles of all ``campaigns``, as the search's evaluator builds it.
 
     Parameters
     ----------
@@ -252,17 +279,12 @@ def identifiability(
     candidates : sequence of str
         The effects offered to the search.
     settings : IdentifiabilitySettings
+    point : BaselinePoint, optional
+        The baseline point (:func:`searched_point`), when already computed.
 
     Returns
     -------
     dict of str to EffectIdentifiability
     """
-    searched = {cid for fold in result.folds for cid in fold}
-    values = {name: value for name, (value, _) in result.baseline.full.params.items()}
-    point = baseline_point(
-        [c for c in campaigns if c.campaign_id in searched],
-        values,
-        campaign_roles(campaigns),
-        prior_log_sd=settings.prior_log_sd,
-    )
+    point = point if point is not None else searched_point(campaigns, result, settings)
     return assess_effects(point, candidates, result.named_effects, result.untestable, settings)

@@ -275,10 +275,13 @@ def _identifiability_line(effect: str, entry: Mapping[str, Any]) -> str:
             reasons.append(_beyond(entry))
         if "collinearity" in entry["shortfalls"]:
             reasons.append(f"the baseline's parameters mimic it: {_collinear(entry)}")
-        return (
+        line = (
             f"- `{effect}`: **not identifiable with these campaigns**: {'; and '.join(reasons)}. "
             "Not naming it does not mean it is absent."
         )
+        if entry.get("proposed_test"):
+            line += f"\n\n  *Proposed test.* {entry['proposed_test']['text']}\n"
+        return line
     verdict = {
         "named": "named",
         "not_needed": "tested and not needed: these campaigns would show it and the search "

@@ -3,13 +3,14 @@
 :func:`run` calibrates the baseline twin (:mod:`pipeline.discrepancy.model`), names the missing
 effects by forward selection with cross-validation across campaigns
 (:mod:`pipeline.discrepancy.search`), classes every candidate effect by whether the campaigns
-can show it (:mod:`pipeline.discrepancy.identifiability`), localises the residuals before and
-after by phase, speed level and ambient trend (:mod:`pipeline.discrepancy.localise`) and writes
-the report (:mod:`pipeline.discrepancy.report`); :func:`run_untestable` writes the report of
-campaigns the twin cannot be compared with (:func:`untestable_reason`). The campaigns come from
-the validated spindle tables (:func:`spindle_campaigns`): those of the ``validate`` stage, or
-those of any raw folder read and validated in memory by the same ingest and validation code
-(:func:`read_raw`).
+can show it (:mod:`pipeline.discrepancy.identifiability`), proposes for each effect they cannot
+show the cheapest test that would (:mod:`pipeline.discrepancy.test_plan`), localises the
+residuals before and after by phase, speed level and ambient trend
+(:mod:`pipeline.discrepancy.localise`) and writes the report
+(:mod:`pipeline.discrepancy.report`); :func:`run_untestable` writes the report of campaigns the
+twin cannot be compared with (:func:`untestable_reason`). The campaigns come from the validated
+spindle tables (:func:`spindle_campaigns`): those of the ``validate`` stage, or those of any raw
+folder read and validated in memory by the same ingest and validation code (:func:`read_raw`).
 """
 
 from __future__ import annotations
@@ -20,7 +21,11 @@ from pathlib import Path
 import pandas as pd
 
 from pipeline.discrepancy.data import MeasuredCampaign, campaigns_from_tables
-from pipeline.discrepancy.identifiability import IdentifiabilitySettings, identifiability
+from pipeline.discrepancy.identifiability import (
+    IdentifiabilitySettings,
+    identifiability,
+    searched_point,
+)
 from pipeline.discrepancy.localise import LocaliseSettings, localise
 from pipeline.discrepancy.model import ROLE_NODES
 from pipeline.discrepancy.report import (
@@ -30,6 +35,7 @@ from pipeline.discrepancy.report import (
     write_untestable,
 )
 from pipeline.discrepancy.search import SearchResult, SearchSettings, campaign_roles, search_twin
+from pipeline.discrepancy.test_plan import propose_tests
 from pipeline.io.tables import ingest
 from pipeline.validation.checks import validate_tables
 from pipeline.validation.limits import limits_from_params
@@ -165,7 +171,12 @@ def run(
     loc_settings = LocaliseSettings(**dict(section.get("localise") or {}))
     ident_settings = IdentifiabilitySettings.from_params(section.get("identifiability"))
     result = search_twin(campaigns, settings)
-    classes = identifiability(campaigns, result, settings.candidates, ident_settings)
+    point = searched_point(campaigns, result, ident_settings)
+    classes = identifiability(campaigns, result, settings.candidates, ident_settings, point)
+    proposed = propose_tests(point, classes, ident_settings)
+    entries = {e: c.to_dict(ident_settings) for e, c in classes.items()}
+    for effect, test in proposed.items():
+        entries[effect]["proposed_test"] = test.to_dict()
     before, after = (
         localise(campaigns, fit.z_residual_um, fit.t_residual_k, loc_settings, label=label)
         for fit, label in (
@@ -181,7 +192,7 @@ def run(
         synthetic=synthetic,
         campaign_ids=[c.campaign_id for c in campaigns],
         quarantined=quarantined or [],
-        identifiability={e: c.to_dict(ident_settings) for e, c in classes.items()},
+        identifiability=entries,
     )
     files = write_outputs(out_dir, doc, campaigns, result, before)
     logger.info(

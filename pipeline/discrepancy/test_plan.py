@@ -1,0 +1,493 @@
+"""A test plan that would make a not-identifiable effect visible (issue 14).
+
+For each candidate effect the campaigns cannot show
+(:data:`~pipeline.discrepancy.identifiability.NOT_IDENTIFIABLE`), this module searches a small,
+explicit grid of tests a user can run (:func:`candidate_plans`) and proposes the cheapest one
+under which the effect would be identifiable (:func:`propose_tests`):
+
+1. **The grid.** Spindle programs at the campaigns' top speed ``high`` and half of it (speed
+   steps up and down every 20, 40 or 60 min, a stop-and-restart, one constant run), over 4 or
+   8 h, each sampled at the campaigns' own interval and at :data:`FAST_INTERVAL_S`; and, where
+   the effect reads a structure role no campaign has (:data:`ADDED_SENSOR_ROLES`), the same
+   programs with a sensor of that role added.
+2. **The simulated test.** Each plan is one campaign simulated noise-free by the calibrated
+   baseline twin (the baseline's parameter values; a node the added sensor brings gets its
+   parameters' initial values), starting cold at the campaigns' ambient with the campaigns'
+   sensors (plus the added one) and the Z probe (:func:`simulate_plan`).
+3. **Its signal.** The same figures as the identifiability of the campaigns
+   (:func:`~pipeline.discrepancy.visibility.visibility`: the effect at its plausible size, the
+   part the baseline cannot absorb by moving its parameters within their prior scales, RMS in
+   noise sigmas), on the plan's campaign, with the noise floor of each sensor of the campaigns
+   (an added one: their median). A plan makes the effect visible when it misses no threshold
+   (:func:`~pipeline.discrepancy.identifiability.shortfalls`).
+4. **Cost.** Test duration in hours plus :data:`SENSOR_COST_H` per added sensor; ties go to the
+   campaigns' own sampling interval, then to the grid's order. Plans are tried in order of cost
+   and the first visible one is proposed; when none is, the report says so with the best signal
+   the grid reached.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from pipeline.discrepancy.calibrate import NoiseFloor
+from pipeline.discrepancy.data import MeasuredCampaign
+from pipeline.discrepancy.identifiability import (
+    NOT_IDENTIFIABLE,
+    EffectIdentifiability,
+    IdentifiabilitySettings,
+    shortfalls,
+)
+from pipeline.discrepancy.model import ROLE_NODES, build_model
+from pipeline.discrepancy.visibility import BaselinePoint, Visibility, baseline_point, visibility
+from pipeline.thermal.program import Program, Segment
+
+logger = logging.getLogger(__name__)
+
+STEP_PERIODS_MIN = (20.0, 40.0, 60.0)
+"""Period of the speed steps (high, low, high, ...) of the stepped programs, min."""
+
+DURATIONS_H = (4.0, 8.0)
+"""Durations of the tests in the grid, h."""
+
+FAST_INTERVAL_S = 60.0
+"""The sampling interval offered besides the campaigns' own, s."""
+
+SENSOR_COST_H = 2.0
+"""Fixed cost of adding a sensor (mounting, wiring, its role in campaign.yaml), in test hours."""
+
+ADDED_SENSOR_ROLES = {
+    "thermal_bending": ("column_rear", "column_front"),
+    "sensor_lag": ("spindle_front_bearing", "headstock"),
+    "motor_heat": ("spindle_motor",),
+    "nonlinear_bearing_heat": ("spindle_front_bearing",),
+    "centrifugal_growth": ("spindle_front_bearing",),
+}
+"""Structure roles a sensor may be added on, per effect (only those no campaign has are tried):
+bending reads the column's front-to-rear difference, the lag and the bearing laws a fast-moving
+node near the heat."""
+
+
+@dataclass(frozen=True)
+class TestPlan:
+    """One test a user can run.
+
+    Attributes
+    ----------
+    name : str
+        Short label, e.g. ``"steps every 20 min, 4 h"``.
+    program : Program
+        The spindle program, rpm.
+    duration_h : float
+        Length of the test, h.
+    sample_interval_s : float
+        Sampling interval of the loggers, s.
+    add_sensors : tuple of str
+        Sensor roles to add (structure roles of the raw contract).
+    own_interval : bool
+        True when ``sample_interval_s`` is the campaigns' own.
+    """
+
+    __test__ = False  # not a pytest class
+
+    name: str
+    program: Program
+    duration_h: float
+    sample_interval_s: float
+    add_sensors: tuple[str, ...] = ()
+    own_interval: bool = True
+
+    @property
+    def cost(self) -> float:
+        """Cost in test hours: the duration plus :data:`SENSOR_COST_H` per added sensor."""
+        return self.duration_h + SENSOR_COST_H * len(self.add_sensors)
+
+    def to_dict(self, signal_sigma: float) -> dict[str, Any]:
+        """Return the plan in the raw contract's terms, with its expected signal (sigma)."""
+        return {
+            "spindle_program": self.program.to_contract(),
+            "sample_interval_s": float(self.sample_interval_s),
+            "add_sensors": [
+                {"role": role, "location": f"a {role.replace('_', ' ')} sensor"}
+                for role in self.add_sensors
+            ],
+            "duration_h": float(self.duration_h),
+            "cost_h": float(self.cost),
+            "name": self.name,
+            "expected_signal_sigma": float(f"{signal_sigma:.4g}"),
+        }
+
+
+def cheapest_order(plans: Sequence[TestPlan]) -> list[TestPlan]:
+    """Return ``plans`` by cost, then the campaigns' own interval first, then grid order."""
+    return sorted(plans, key=lambda p: (p.cost, not p.own_interval))
+
+
+def stepped_program(high: float, low: float, period_min: float, duration_h: float) -> Program:
+    """Speed steps ``high``, ``low``, ``high``... every ``period_min``, then a stop, rpm."""
+    end = duration_h * 60.0
+    edges = np.arange(0.0, end, period_min)
+    return Program(
+        tuple(
+            Segment(float(a), float(min(a + period_min, end)), high if i % 2 == 0 else low)
+            for i, a in enumerate(edges)
+        ),
+        key="rpm",
+    )
+
+
+def stop_restart_program(high: float, duration_h: float) -> Program:
+    """Run at ``high`` a quarter of the test, stop a quarter, restart, stop: rpm."""
+    q = duration_h * 60.0 / 4.0
+    return Program((Segment(0.0, q, high), Segment(2 * q, 3 * q, high)), key="rpm")
+
+
+def constant_program(high: float, duration_h: float) -> Program:
+    """Run at ``high`` for the first half of the test, then cool down, rpm."""
+    return Program((Segment(0.0, duration_h * 30.0, high),), key="rpm")
+
+
+def _programs(high: float) -> list[tuple[str, Program, float]]:
+    """Return the grid's spindle programs at ``high`` and half of it: (name, program, h)."""
+    low = float(round(high / 2.0))
+    out = []
+    for duration in DURATIONS_H:
+        for period in STEP_PERIODS_MIN:
+            out.append(
+                (
+                    f"speed steps {high:.0f}/{low:.0f} rpm every {period:.0f} min, {duration:g} h",
+                    stepped_program(high, low, period, duration),
+                    duration,
+                )
+            )
+        out.append(
+            (
+                f"stop and restart at {high:.0f} rpm, {duration:g} h",
+                stop_restart_program(high, duration),
+                duration,
+            )
+        )
+    out.append((f"one run at {high:.0f} rpm then cool-down, 4 h", constant_program(high, 4.0), 4.0))
+    return out
+
+
+def own_interval_s(campaigns: Sequence[MeasuredCampaign]) -> float:
+    """Return the campaigns' sampling interval: the median step of their instants, s."""
+    return float(np.median(np.concatenate([np.diff(c.t_s) for c in campaigns])))
+
+
+def candidate_plans(
+    campaigns: Sequence[MeasuredCampaign], effect: str, roles: set[str] | frozenset[str]
+) -> list[TestPlan]:
+    """Return the grid of tests for ``effect`` (see the module docstring), at most 30.
+
+    Parameters
+    ----------
+    campaigns : sequence of MeasuredCampaign
+        The searched campaigns: their top speed and sampling interval set the grid's.
+    effect : str
+    roles : set of str
+        Sensor roles the campaigns have.
+    """
+    high = float(max(np.max(np.abs(c.rpm)) for c in campaigns)) or 3000.0
+    own = own_interval_s(campaigns)
+    intervals = [(own, True)] + ([(FAST_INTERVAL_S, False)] if own > FAST_INTERVAL_S else [])
+    plans = []
+    programs = _programs(high)
+    for name, program, duration in programs:
+        for interval, is_own in intervals:
+            plans.append(TestPlan(name, program, duration, interval, (), is_own))
+    added = [r for r in ADDED_SENSOR_ROLES.get(effect, ()) if r not in roles]
+    for role in added[:1]:
+        for name, program, duration in programs:
+            plans.append(TestPlan(name, program, duration, own, (role,), True))
+    return plans[:30]
+
+
+def _ambient(campaigns: Sequence[MeasuredCampaign]) -> float:
+    """Mean first ambient reading of the campaigns (or first reading of any sensor), degC."""
+    first = []
+    for c in campaigns:
+        cols = c.sensors_with_role("ambient") or list(c.temperatures.columns)
+        values = c.temperatures[cols[0]].to_numpy(dtype=float)
+        ok = np.isfinite(values)
+        if ok.any():
+            first.append(values[ok][0])
+    return float(np.mean(first)) if first else 20.0
+
+
+def simulate_plan(
+    plan: TestPlan,
+    values: Mapping[str, float],
+    sensors: Mapping[str, str],
+    ambient_c: float,
+) -> tuple[MeasuredCampaign, frozenset[str], dict[str, float]]:
+    """Simulate the plan's campaign with the calibrated baseline twin, noise-free.
+
+    Parameters
+    ----------
+    plan : TestPlan
+    values : mapping of str to float
+        Calibrated baseline parameters by name (their units).
+    sensors : mapping of str to str
+        Sensor name -> role, the campaigns' (:func:`plan_sensors`); a sensor
+        ``added_<role>`` joins them for each role the plan adds.
+    ambient_c : float
+        Workshop air, constant, degC; every node starts at it.
+
+    Returns
+    -------
+    campaign : MeasuredCampaign
+        The sensors' readings, the Z drift, the plan's program.
+    roles : frozenset of str
+        The twin's roles.
+    values : dict of str to float
+        Every parameter of the twin: the baseline's, the initial value for a new node's.
+    """
+    names = {**dict(sensors), **{f"added_{r}": r for r in plan.add_sensors}}
+    all_roles = frozenset(names.values())
+    t = np.arange(0.0, plan.duration_h * 3600.0 + 0.5, plan.sample_interval_s)
+    blank = MeasuredCampaign(
+        campaign_id=f"plan {plan.name}",
+        t_s=t,
+        rpm=plan.program.value_at(t),
+        temperatures=pd.DataFrame({s: np.full(t.size, ambient_c) for s in names}),
+        roles=names,
+        z_um=np.zeros(t.size),
+        program=plan.program,
+    )
+    model = build_model(all_roles)
+    full = {p.name: float(values.get(p.name, p.initial)) for p in model.param_specs}
+    sim = model.simulate(np.array([full[n] for n in model.names]), blank)
+    temps = blank.temperatures.copy()
+    for s in sim.temperatures.columns:
+        temps[s] = sim.temperatures[s].to_numpy()
+    campaign = MeasuredCampaign(
+        campaign_id=blank.campaign_id,
+        t_s=t,
+        rpm=blank.rpm,
+        temperatures=temps,
+        roles=names,
+        z_um=np.asarray(sim.z_um, dtype=float) - float(sim.z_um[0]),
+        program=plan.program,
+    )
+    return campaign, all_roles, full
+
+
+@dataclass(frozen=True)
+class ProposedTest:
+    """The plan proposed for one effect, or the best the grid reached when none is visible.
+
+    Attributes
+    ----------
+    effect : str
+    plan : TestPlan or None
+        The cheapest visible plan; None when no plan of the grid makes the effect visible.
+    figures : Visibility or None
+        The effect's figures under ``plan`` (or under ``best`` when none is visible).
+    best : TestPlan or None
+        The plan with the largest signal when none is visible.
+    current_sigma : float
+        The effect's signal on the campaigns, noise sigmas.
+    threshold_sigma : float
+        ``min_signal_sigma``.
+    n_plans : int
+        Plans tried.
+    sensors_tried : bool
+        Whether the grid had plans with an added sensor.
+    """
+
+    effect: str
+    plan: TestPlan | None
+    figures: Visibility | None
+    best: TestPlan | None
+    current_sigma: float
+    threshold_sigma: float
+    n_plans: int
+    sensors_tried: bool = False
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready ``proposed_test``: the plan in the raw contract's terms and its text."""
+        signal = self.figures.signal_sigma if self.figures is not None else float("nan")
+        out: dict[str, Any] = {"visible": self.plan is not None, "plans_tried": self.n_plans}
+        if self.plan is not None:
+            out.update(self.plan.to_dict(signal))
+        elif self.best is not None:
+            out["best_in_grid"] = self.best.to_dict(signal)
+        out["text"] = plan_text(self)
+        return out
+
+
+def _program_words(plan: TestPlan) -> str:
+    """Return the plan's program, sampling and sensors in words."""
+    words = (
+        f"run one {plan.duration_h:g} h test from a cold machine, "
+        f"{plan.name.rsplit(',', 1)[0]} (the `spindle_program` of `proposed_test`), logging "
+        f"every {plan.sample_interval_s:g} s"
+    )
+    if plan.add_sensors:
+        words += f", with a sensor added on role {', '.join(plan.add_sensors)}"
+    return words
+
+
+def plan_text(proposed: ProposedTest) -> str:
+    """One paragraph for the engineer: the test to run and what the twin expects it to show."""
+    e = f"`{proposed.effect}`"
+    now = f"{proposed.current_sigma:.2f} sigma on these campaigns"
+    if proposed.plan is not None and proposed.figures is not None:
+        return (
+            f"To make {e} visible ({now}, threshold {proposed.threshold_sigma:g}), "
+            f"{_program_words(proposed.plan)}. The calibrated twin expects it to leave "
+            f"{proposed.figures.signal_sigma:.2f} noise sigmas beyond what the baseline absorbs "
+            f"(cost {proposed.plan.cost:g} test hours, the cheapest of {proposed.n_plans} plans "
+            "tried); add the campaign to the raw folder and rerun `thermal discrepancy`."
+        )
+    best = (
+        f" The best, to {_program_words(proposed.best)}, reaches "
+        f"{proposed.figures.signal_sigma:.2f} sigma."
+        if proposed.best is not None and proposed.figures is not None
+        else ""
+    )
+    tried = "speed steps, stops, sampling interval" + (
+        ", added sensors" if proposed.sensors_tried else ""
+    )
+    return (
+        f"None of the {proposed.n_plans} test plans tried ({tried}) would make {e} visible "
+        f"({now}, threshold {proposed.threshold_sigma:g}).{best} Its response at a plausible "
+        "size stays within what the baseline absorbs; a longer campaign series, a different "
+        "sensor mounting or an external heat load would be needed."
+    )
+
+
+def _plan_point(
+    plan: TestPlan,
+    values: Mapping[str, float],
+    sensors: Mapping[str, str],
+    ambient_c: float,
+    noise: NoiseFloor,
+    prior_log_sd: float,
+) -> BaselinePoint:
+    """Return the baseline point on the plan's simulated campaign, with the campaigns' noise.
+
+    An added sensor reads with the median noise floor of the campaigns' sensors.
+    """
+    campaign, all_roles, full = simulate_plan(plan, values, sensors, ambient_c)
+    typical = float(np.median(list(noise.temperature_K.values()))) if noise.temperature_K else 0.0
+    floors = {f"added_{r}": typical for r in plan.add_sensors}
+    plan_noise = NoiseFloor({**noise.temperature_K, **floors}, noise.z_um)
+    return baseline_point([campaign], full, set(all_roles), plan_noise, prior_log_sd)
+
+
+def plan_sensors(campaigns: Sequence[MeasuredCampaign]) -> dict[str, str]:
+    """Return the campaigns' sensors on a node of the twin or on the air: name -> role.
+
+    The plan's campaign carries the same sensors, so each reads with its own noise floor.
+    """
+    out: dict[str, str] = {}
+    for c in campaigns:
+        for name, role in c.roles.items():
+            if name not in out and (role in ROLE_NODES or role == "ambient"):
+                out[name] = role
+    return out
+
+
+def propose_test(
+    effect: str,
+    current: EffectIdentifiability,
+    plans: Sequence[TestPlan],
+    point_of: Any,
+    settings: IdentifiabilitySettings,
+) -> ProposedTest:
+    """Try ``plans`` cheapest first; return the first that makes ``effect`` visible.
+
+    Parameters
+    ----------
+    effect : str
+    current : EffectIdentifiability
+        Its class and figures on the campaigns.
+    plans : sequence of TestPlan
+    point_of : callable
+        ``TestPlan -> BaselinePoint`` (cached by the caller: one point serves every effect).
+    settings : IdentifiabilitySettings
+    """
+    best: tuple[float, TestPlan, Visibility] | None = None
+    ordered = cheapest_order(plans)
+    for n, plan in enumerate(ordered, start=1):
+        figures = visibility(effect, point_of(plan), settings.plausible)
+        if not shortfalls(figures, settings):
+            return _proposed(effect, current, plan, figures, None, settings, n)
+        signal = figures.signal_sigma if np.isfinite(figures.signal_sigma) else -1.0
+        if best is None or signal > best[0]:
+            best = (signal, plan, figures)
+    figures, top = (best[2], best[1]) if best else (None, None)
+    tried = any(p.add_sensors for p in ordered)
+    return _proposed(effect, current, None, figures, top, settings, len(ordered), tried)
+
+
+def _proposed(
+    effect: str,
+    current: EffectIdentifiability,
+    plan: TestPlan | None,
+    figures: Visibility | None,
+    best: TestPlan | None,
+    settings: IdentifiabilitySettings,
+    n_plans: int,
+    sensors_tried: bool = False,
+) -> ProposedTest:
+    """Build the :class:`ProposedTest` and log it."""
+    now = current.figures.signal_sigma if current.figures is not None else float("nan")
+    proposed = ProposedTest(
+        effect, plan, figures, best, now, settings.min_signal_sigma, n_plans, sensors_tried
+    )
+    logger.info("test plan for %s: %s", effect, plan_text(proposed))
+    return proposed
+
+
+def propose_tests(
+    point: BaselinePoint,
+    classes: Mapping[str, EffectIdentifiability],
+    settings: IdentifiabilitySettings,
+) -> dict[str, ProposedTest]:
+    """Propose a test plan for every effect classed not identifiable.
+
+    Parameters
+    ----------
+    point : BaselinePoint
+        The calibrated baseline on the searched campaigns (its values, roles, noise floors).
+    classes : mapping of str to EffectIdentifiability
+        The class of every candidate effect.
+    settings : IdentifiabilitySettings
+
+    Returns
+    -------
+    dict of str to ProposedTest
+        Effect -> its proposed test, for the not-identifiable effects, in ``classes`` order.
+    """
+    ambient_c = _ambient(point.campaigns)
+    cache: dict[TestPlan, BaselinePoint] = {}
+    sensors = plan_sensors(point.campaigns)
+
+    def point_of(plan: TestPlan) -> BaselinePoint:
+        if plan not in cache:
+            cache[plan] = _plan_point(
+                plan, point.values, sensors, ambient_c, point.noise, point.prior_log_sd
+            )
+        return cache[plan]
+
+    return {
+        effect: propose_test(
+            effect,
+            entry,
+            candidate_plans(point.campaigns, effect, point.roles),
+            point_of,
+            settings,
+        )
+        for effect, entry in classes.items()
+        if entry.status == NOT_IDENTIFIABLE
+    }
