@@ -47,6 +47,7 @@ from pipeline.discrepancy.visibility import PLAUSIBLE, RISE_SIZED, Visibility, b
 from pipeline.thermal.program import Program, Segment
 from pipeline.twin.campaigns import SpindlePlan, simulate_spindle_campaign
 from pipeline.twin.params import SpindleParams
+from tests.twin_measured import measured_from_twin
 
 SECTION = load_section("discrepancy")
 SETTINGS = IdentifiabilitySettings.from_params(SECTION.get("identifiability"))
@@ -174,18 +175,7 @@ class ConstantPlan(SpindlePlan):
 
 def _measured(plan: SpindlePlan) -> MeasuredCampaign:
     campaign = simulate_spindle_campaign(plan, seed=5, params=NO_SCATTER, effects=frozenset())
-    t = campaign.temperature["elapsed_s"].to_numpy()
-    temps = campaign.temperature.drop(columns=["elapsed_s"])
-    z = campaign.displacement["Z"].to_numpy()
-    return MeasuredCampaign(
-        campaign_id=campaign.info.campaign_id,
-        t_s=t,
-        rpm=campaign.program.value_at(t),
-        temperatures=temps,
-        roles={s.name: s.role for s in campaign.sensors if s.name in temps.columns},
-        z_um=z - z[0],
-        program=campaign.program,
-    )
+    return measured_from_twin(campaign)
 
 
 def _calibrated(campaigns: list[MeasuredCampaign]):

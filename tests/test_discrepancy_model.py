@@ -36,6 +36,7 @@ from pipeline.validation.checks import validate_tables
 from pipeline.validation.limits import limits_from_params
 from pipeline.validation.tables import select_valid
 from schemas.vocabulary import SENSOR_ROLES
+from tests.twin_measured import measured_from_twin
 
 REPO = Path(__file__).resolve().parents[1]
 ALL_ROLES = set(SENSOR_ROLES) - {"nut", "coolant"}
@@ -76,24 +77,9 @@ def _twin_campaign(i: int, effects: frozenset[str] = frozenset(), seed: int = 7)
     return simulate_spindle_campaign(_plan(i), seed=seed, params=NO_SCATTER, effects=effects)
 
 
-def _measured(campaign, drop: tuple[str, ...] = ()) -> MeasuredCampaign:
-    t = campaign.temperature["elapsed_s"].to_numpy()
-    temps = campaign.temperature.drop(columns=["elapsed_s", *drop])
-    z = campaign.displacement["Z"].to_numpy()
-    return MeasuredCampaign(
-        campaign_id=campaign.info.campaign_id,
-        t_s=t,
-        rpm=campaign.program.value_at(t),
-        temperatures=temps,
-        roles={s.name: s.role for s in campaign.sensors if s.name in temps.columns},
-        z_um=z - z[0],
-        program=campaign.program,
-    )
-
-
 @pytest.fixture(scope="module")
 def baseline_campaigns() -> list[MeasuredCampaign]:
-    return [_measured(_twin_campaign(i)) for i in range(4)]
+    return [measured_from_twin(_twin_campaign(i)) for i in range(4)]
 
 
 def _roles(campaigns: list[MeasuredCampaign]) -> set[str]:
@@ -225,7 +211,7 @@ def test_predict_refuses_a_calibration_of_another_model(baseline_campaigns):
     ],
 )
 def test_any_subset_of_roles_builds_simulates_and_fits(drop):
-    campaigns = [_measured(_twin_campaign(i), drop=drop) for i in range(2)]
+    campaigns = [measured_from_twin(_twin_campaign(i), drop=drop) for i in range(2)]
     roles = _roles(campaigns)
     model = build_model(roles, frozenset())
     assert "spindle_shaft" in model.nodes and "headstock" in model.nodes
