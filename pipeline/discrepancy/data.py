@@ -18,6 +18,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from pipeline.thermal.loads import HeatLoad, loads_from_contract
 from pipeline.thermal.program import Program
 
 logger = logging.getLogger(__name__)
@@ -48,6 +49,9 @@ class MeasuredCampaign:
         the speed is then held from each sample to the next.
     season : str or None
     split : str or None
+    heat_loads : tuple of HeatLoad
+        External heat loads of the test (``heat_loads:`` of campaign.yaml), W; empty for a
+        test with only the spindle's own heat.
     """
 
     campaign_id: str
@@ -59,6 +63,7 @@ class MeasuredCampaign:
     program: Program | None = None
     season: str | None = None
     split: str | None = None
+    heat_loads: tuple[HeatLoad, ...] = ()
 
     def __post_init__(self) -> None:
         """Coerce arrays and check that every signal has one value per sample instant."""
@@ -111,7 +116,7 @@ class MeasuredCampaign:
         campaigns_row : mapping or pandas.Series
             One row of ``data/validated/spindle/campaigns.parquet`` (``campaign_id``,
             ``sensors_json``, ``spindle_program_json``, ``has_spindle_log``, ``season``,
-            ``split``).
+            ``split``, ``heat_loads_json`` if the table has it).
         samples : pandas.DataFrame
             ``data/validated/spindle/samples.parquet`` (all campaigns or only this one):
             ``campaign_id``, ``source_row``, ``elapsed_s``, ``rpm``, the sensor columns and
@@ -169,6 +174,7 @@ class MeasuredCampaign:
             program=program,
             season=None if row.get("season") is None else str(row["season"]),
             split=None if row.get("split") is None else str(row["split"]),
+            heat_loads=loads_from_contract(json.loads(row.get("heat_loads_json") or "[]")),
         )
 
 
