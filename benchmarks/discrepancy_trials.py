@@ -11,6 +11,14 @@ after adding them is at most half the baseline's; the *gap halved* when the held
 displacement or temperature RMS at least halved (an effect such as ``motor_heat`` shows in the
 temperatures far more than in Z).
 
+Issue 14: each trial also records the identifiability class of every hidden effect and which
+candidates were classed not identifiable. For a hidden effect classed not identifiable with a
+visible proposed test, the trial runs that test on the same machine (:func:`follow_plan`: the
+same drawn parameters, the effect still hidden, :data:`PLAN_CAMPAIGNS` campaigns of the
+proposed ``spindle_program``, ``sample_interval_s`` and ``heat_loads``), adds them to the
+campaigns, reruns the workflow and records whether the effect is named and how the held-out Z
+gap moved.
+
 ``python -m benchmarks.discrepancy_trials --seeds 1 2 3 --out reports/discrepancy_trials`` runs
 every case over the seeds and writes ``trials.csv`` (one row per case and seed) and ``rates.md``
 (rate of correct naming per case). The slow tests run the same trials with one seed per case.
@@ -20,19 +28,23 @@ from __future__ import annotations
 
 import argparse
 import logging
+import shutil
 import sys
 import tempfile
 import time
 from collections.abc import Iterable, Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from datetime import datetime, timedelta
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pandas as pd
 
 from pipeline.config import DEFAULT_PARAMS, load_section
+from pipeline.discrepancy.identifiability import NOT_IDENTIFIABLE
 from pipeline.discrepancy.search import CANDIDATE_EFFECTS
+from pipeline.thermal.loads import loads_from_contract
 from pipeline.thermal.program import Program, Segment
 from pipeline.twin.campaigns import SpindlePlan, simulate_spindle_campaign
 from pipeline.twin.params import SpindleParams
@@ -62,6 +74,9 @@ PROGRAMS = (
 )
 """Speed steps ((from_min, rpm), ...) of the trial campaigns, 270 min running each."""
 
+PLAN_CAMPAIGNS = 2
+"""Campaigns of a proposed test run per follow-up (the search holds campaigns out)."""
+
 HEAT_SCATTER_REL = 0.02
 """Campaign-to-campaign relative scatter of the bearing and motor heat in the trials (2 %): an
 unmeasured state no twin can know, which sets the floor of the held-out residual."""
@@ -85,6 +100,23 @@ class SteppedPlan(SpindlePlan):
         segments = [Segment(a, b, v) for (a, v), b in zip(self.steps, ends, strict=True)]
         segments.append(Segment(self.run_min, None, 0.0))
         return Program(tuple(segments), key="rpm")
+
+
+@dataclass(frozen=True)
+class ContractPlan(SpindlePlan):
+    """A spindle test whose program is a contract ``spindle_program`` list.
+
+    Attributes
+    ----------
+    entries : tuple of dict
+        ``{from_min, to_min, rpm}`` entries (minutes, rpm).
+    """
+
+    entries: tuple[dict, ...] = ()
+
+    def program(self) -> Program:
+        """Return the contract program."""
+        return Program.from_contract(self.entries, key="rpm")
 
 
 def hidden_params(rng: np.random.Generator, heat_scatter_rel: float = HEAT_SCATTER_REL):
@@ -163,6 +195,129 @@ def write_hidden_campaigns(
         write_campaign(campaign, folder)
 
 
+def write_plan_campaigns(
+    folder: Path, proposed: dict[str, Any], effects: Iterable[str], seed: int, n: int
+) -> None:
+    """Write ``n`` campaigns of a proposed test, same machine as the trial's ``seed``.
+
+    Parameters
+    ----------
+    folder : Path
+        Raw folder to add them to.
+    proposed : dict
+        A visible ``proposed_test`` entry of ``discrepancy.json``: ``spindle_program``,
+        ``sample_interval_s`` (s), ``duration_h`` (h), ``heat_loads``.
+    effects : iterable of str
+        The hidden effects, on in the generating twin.
+    seed : int
+        The trial's seed (its machine parameters).
+    n : int
+        Number of campaigns, 20 days apart from March.
+    """
+    params = hidden_params(np.random.default_rng(seed))
+    start = datetime(2025, 3, 10, 8, 30)
+    for i in range(n):
+        plan = ContractPlan(
+            f"P{i + 1:02d}",
+            start + timedelta(days=int(20 * i)),
+            rpm=0.0,
+            run_min=float(proposed["duration_h"]) * 60.0,
+            cooldown_min=0.0,
+            sample_min=float(proposed["sample_interval_s"]) / 60.0,
+            heat_loads=loads_from_contract(proposed.get("heat_loads") or []),
+            entries=tuple(proposed["spindle_program"]),
+        )
+        campaign = simulate_spindle_campaign(
+            plan, seed=seed, params=params, effects=frozenset(effects), preset="test-plan run"
+        )
+        write_campaign(campaign, folder)
+
+
+@dataclass(frozen=True)
+class PlanFollowUp:
+    """The proposed test of a not-identifiable hidden effect, run on the same machine.
+
+    Attributes
+    ----------
+    effect : str
+    plan : str
+        The proposed plan's name.
+    expected_sigma : float
+        The signal the calibrated twin expected under the plan, noise sigmas.
+    named : tuple of str
+        Effects the rerun named.
+    class_after : str
+        The effect's identifiability class in the rerun.
+    signal_after : float
+        Its visible signal in the rerun, noise sigmas.
+    rmse_um_before, rmse_um_after : float
+        Held-out Z RMS of the rerun's baseline and final twin, um.
+    """
+
+    effect: str
+    plan: str
+    expected_sigma: float
+    named: tuple[str, ...]
+    class_after: str
+    signal_after: float
+    rmse_um_before: float
+    rmse_um_after: float
+
+    @property
+    def effect_named(self) -> bool:
+        """The hidden effect is among the rerun's named effects."""
+        return self.effect in self.named
+
+
+def follow_plan(
+    raw: Path, doc: dict, hidden: Sequence[str], seed: int, section: dict, workdir: Path
+) -> list[PlanFollowUp]:
+    """Run the proposed test of every hidden effect classed not identifiable, then rerun.
+
+    Parameters
+    ----------
+    raw : Path
+        The trial's raw folder (left as it is: the plan campaigns go into a copy).
+    doc : dict
+        The trial's ``discrepancy.json``.
+    hidden : sequence of str
+    seed : int
+    section : dict
+        The ``discrepancy`` params section.
+    workdir : Path
+        Folder for the copies and the reports.
+
+    Returns
+    -------
+    list of PlanFollowUp
+        One per hidden effect classed not identifiable whose proposed test is visible.
+    """
+    out = []
+    for effect in hidden:
+        entry = doc["identifiability"].get(effect) or {}
+        proposed = entry.get("proposed_test") or {}
+        if entry.get("class") != NOT_IDENTIFIABLE or not proposed.get("visible"):
+            continue
+        folder = workdir / f"raw_plan_{effect}"
+        shutil.copytree(raw, folder)
+        write_plan_campaigns(folder, proposed, hidden, seed, PLAN_CAMPAIGNS)
+        after = run_workflow(folder, workdir / f"out_plan_{effect}", section)
+        again = after["identifiability"][effect]
+        out.append(
+            PlanFollowUp(
+                effect=effect,
+                plan=str(proposed["name"]),
+                expected_sigma=float(proposed["expected_signal_sigma"]),
+                named=tuple(after["named_effects"]),
+                class_after=str(again["class"]),
+                signal_after=float(again.get("signal_sigma") or float("nan")),
+                rmse_um_before=float(after["rmse_um_before"]),
+                rmse_um_after=float(after["rmse_um_after"]),
+            )
+        )
+    return out
+
+
 def run_workflow(raw: Path, out: Path, section: dict, params_file: Path = DEFAULT_PARAMS) -> dict:
     """Run the discrepancy workflow (no MLflow) on a raw folder; return ``discrepancy.json``.
 
@@ -192,7 +347,13 @@ class TrialResult:
     rmse_t_k_before, rmse_t_k_after : float
         Held-out temperature RMS of the baseline and of the final twin, K.
     seconds : float
-        Wall time of the workflow, s.
+        Wall time of the workflow (and of its follow-ups), s.
+    classes : tuple of str
+        Identifiability class of each hidden effect, in ``hidden`` order.
+    not_identifiable : tuple of str
+        Every candidate classed not identifiable.
+    follow_ups : tuple of PlanFollowUp
+        The proposed tests of the hidden effects classed not identifiable, run and rerun.
     """
 
     hidden: tuple[str, ...]
@@ -203,6 +364,9 @@ class TrialResult:
     rmse_t_k_before: float
     rmse_t_k_after: float
     seconds: float
+    classes: tuple[str, ...] = ()
+    not_identifiable: tuple[str, ...] = ()
+    follow_ups: tuple[PlanFollowUp, ...] = field(default=())
 
     @property
     def named_correctly(self) -> bool:
@@ -224,8 +388,16 @@ class TrialResult:
         """Issue 4's criterion: named correctly and, if something was hidden, Z halved."""
         return self.named_correctly and self.z_halved
 
+    @property
+    def plan_named(self) -> bool | None:
+        """Every followed-up effect named after its test; None without a follow-up."""
+        if not self.follow_ups:
+            return None
+        return all(f.effect_named for f in self.follow_ups)
+
     def row(self) -> dict:
-        """One row of ``trials.csv``."""
+        """One row of ``trials.csv`` (follow-up columns empty without a follow-up)."""
+        follow = self.follow_ups
         return {
             "hidden": "+".join(self.hidden) or "none",
             "seed": self.seed,
@@ -238,6 +410,14 @@ class TrialResult:
             "z_halved": self.z_halved,
             "gap_halved": self.gap_halved,
             "correct": self.correct,
+            "class": "+".join(self.classes),
+            "not_identifiable": "+".join(self.not_identifiable),
+            "plan": " | ".join(f.plan for f in follow),
+            "plan_expected_sigma": "+".join(f"{f.expected_sigma:.2f}" for f in follow),
+            "plan_named": "+".join("+".join(f.named) or "none" for f in follow),
+            "plan_effect_named": self.plan_named,
+            "plan_rmse_um_before": "+".join(f"{f.rmse_um_before:.3f}" for f in follow),
+            "plan_rmse_um_after": "+".join(f"{f.rmse_um_after:.3f}" for f in follow),
             "seconds": round(self.seconds, 1),
         }
 
@@ -249,6 +429,7 @@ def run_trial(
     workdir: Path,
     n_campaigns: int = 8,
     heat_scatter_rel: float = HEAT_SCATTER_REL,
+    follow_up: bool = True,
 ) -> TrialResult:
     """Generate campaigns with ``hidden`` effects, run the workflow, score it.
 
@@ -262,6 +443,9 @@ def run_trial(
         Empty folder for the raw campaigns and the report.
     n_campaigns : int
     heat_scatter_rel : float
+    follow_up : bool
+        Run the proposed test of each hidden effect classed not identifiable
+        (:func:`follow_plan`).
 
     Returns
     -------
@@ -271,6 +455,10 @@ def run_trial(
     write_hidden_campaigns(workdir / "raw", hidden, seed, n_campaigns, heat_scatter_rel)
     t0 = time.perf_counter()
     doc = run_workflow(workdir / "raw", workdir / "out", section)
+    ident = doc["identifiability"]
+    follow_ups = (
+        follow_plan(workdir / "raw", doc, hidden, seed, section, workdir) if follow_up else []
+    )
     return TrialResult(
         hidden=hidden,
         seed=seed,
@@ -280,6 +468,9 @@ def run_trial(
         rmse_t_k_before=float(doc["rmse_T_K_before"]),
         rmse_t_k_after=float(doc["rmse_T_K_after"]),
         seconds=time.perf_counter() - t0,
+        classes=tuple(ident[e]["class"] for e in hidden),
+        not_identifiable=tuple(e for e, v in ident.items() if v["class"] == NOT_IDENTIFIABLE),
+        follow_ups=tuple(follow_ups),
     )
 
 
@@ -288,11 +479,24 @@ def rates_table(trials: pd.DataFrame) -> pd.DataFrame:
 
     Columns ``hidden``, ``n``; the fractions ``named_correctly``, ``z_halved``, ``gap_halved``
     and ``correct`` (see :class:`TrialResult`); ``rmse_um_before``, ``rmse_um_after`` (medians
-    over the seeds, um).
+    over the seeds, um); ``classes`` (the hidden effects' identifiability classes and how many
+    trials ended in each); ``plans_run`` (trials whose proposed test was run), ``plan_named``
+    (of those, the fraction in which the effect was then named, NaN without any) and
+    ``plan_rmse`` (the rerun's held-out Z RMS before -> after, medians, um).
     """
+    trials = trials.assign(
+        plan=trials["plan"].fillna("").astype(str),
+        plan_effect_named=trials["plan_effect_named"].map(_as_bool),
+    )
     grouped = trials.groupby("hidden", sort=False)
     return pd.DataFrame(
         {
+            "classes": grouped["class"].agg(_counts),
+            "plans_run": grouped["plan"].agg(lambda s: int((s != "").sum())),
+            "plan_named": grouped["plan_effect_named"].agg(
+                lambda s: s.dropna().astype(float).mean()
+            ),
+            "plan_rmse": grouped[["plan_rmse_um_before", "plan_rmse_um_after"]].apply(_plan_rmse),
             "n": grouped.size(),
             "named_correctly": grouped["named_correctly"].mean(),
             "z_halved": grouped["z_halved"].mean(),
@@ -302,6 +506,31 @@ def rates_table(trials: pd.DataFrame) -> pd.DataFrame:
             "rmse_um_after": grouped["rmse_um_after"].median(),
         }
     ).reset_index()
+
+
+def _as_bool(value: Any) -> bool | None:
+    """Return a ``plan_effect_named`` cell (as read back from ``trials.csv``) as a bool or None."""
+    if isinstance(value, bool | np.bool_):
+        return bool(value)
+    text = str(value).strip().lower()
+    return {"true": True, "false": False}.get(text)
+
+
+def _counts(values: pd.Series) -> str:
+    """``"<value> <count>, ..."`` of a column, most frequent first (empty values as none)."""
+    counts = values.fillna("").astype(str).replace("", "none").value_counts()
+    return ", ".join(f"{k} {v}" for k, v in counts.items())
+
+
+def _plan_rmse(rows: pd.DataFrame) -> str:
+    """Median held-out Z RMS before -> after of the follow-up reruns, um ("" without one)."""
+    pairs = rows.dropna().astype(str)
+    pairs = pairs[(pairs.iloc[:, 0] != "") & (pairs.iloc[:, 0] != "nan")]
+    if pairs.empty:
+        return ""
+    before = pairs.iloc[:, 0].str.split("+").explode().astype(float)
+    after = pairs.iloc[:, 1].str.split("+").explode().astype(float)
+    return f"{before.median():.2f} -> {after.median():.2f}"
 
 
 def rates_markdown(rates: pd.DataFrame, trials: pd.DataFrame, seeds: Sequence[int]) -> str:
@@ -315,15 +544,23 @@ def rates_markdown(rates: pd.DataFrame, trials: pd.DataFrame, seeds: Sequence[in
         "halved*: the held-out displacement or temperature RMS at least halved. RMS columns: "
         "medians over the seeds, um.",
         "",
+        "*Class*: the identifiability class each hidden effect ended in (trials per class). "
+        "*Plan run*: trials whose hidden effect was classed not identifiable with a visible "
+        "proposed test, which was then run on the same machine and the workflow rerun; *named "
+        "after plan*: of those, the share that named the effect; *Z after plan*: the rerun's "
+        "held-out Z RMS, baseline -> augmented twin (medians, um).",
+        "",
         "| hidden | trials | named correctly | Z halved | gap halved | correct (issue 4) "
-        "| held-out Z RMS before | after |",
-        "|---|---|---|---|---|---|---|---|",
+        "| held-out Z RMS before | after | class | plan run | named after plan | Z after plan |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for r in rates.itertuples():
+        named_after = "" if not r.plans_run or np.isnan(r.plan_named) else f"{r.plan_named:.0%}"
         lines.append(
             f"| {r.hidden} | {r.n} | {r.named_correctly:.0%} | {r.z_halved:.0%} | "
             f"{r.gap_halved:.0%} | {r.correct:.0%} | {r.rmse_um_before:.2f} | "
-            f"{r.rmse_um_after:.2f} |"
+            f"{r.rmse_um_after:.2f} | {r.classes} | {r.plans_run} | {named_after} | "
+            f"{r.plan_rmse} |"
         )
     wrong = trials[~trials["correct"]]
     if len(wrong):

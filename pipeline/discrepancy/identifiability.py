@@ -41,6 +41,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from pipeline.discrepancy.data import MeasuredCampaign
+from pipeline.discrepancy.model import loaded_roles
 from pipeline.discrepancy.search import SearchResult, campaign_roles
 from pipeline.discrepancy.visibility import (
     PLAUSIBLE,
@@ -259,6 +260,7 @@ def searched_point(
         values,
         campaign_roles(campaigns),
         prior_log_sd=settings.prior_log_sd,
+        load_roles=loaded_roles(campaigns),
     )
 
 

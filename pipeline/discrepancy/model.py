@@ -20,6 +20,8 @@ Baseline physics (``C dT/dt = -K T + h T_amb + q``)::
     z = - alpha_spindle dT_shaft - alpha_headstock dT_headstock - alpha_screw dT_ball_screw
         + alpha_column (dT_column_front + dT_column_rear) / 2          (um; rises since t0)
     reading = first reading + (T_node(t) - T_node(t0))                (direct sensors)
+    q_load          = P(t)                   (a campaign's external heat load, W, known, into
+                                              the node of its role: ``heat_loads:``)
 
 Topology (links exist when both ends exist): bearings - shaft, bearings - headstock (shaft -
 headstock when no bearing node), motor - headstock, headstock - column (front, else rear),
@@ -71,6 +73,7 @@ from pipeline.discrepancy.data import MeasuredCampaign
 from pipeline.thermal.discretise import foh_matrices
 from pipeline.thermal.effects import EFFECTS as EFFECT_REGISTRY
 from pipeline.thermal.network import LinearSystem, ThermalNetwork, build_system
+from pipeline.thermal.program import Program
 from pipeline.thermal.stepping import propagate, time_grid
 
 logger = logging.getLogger(__name__)
@@ -514,6 +517,7 @@ class _Prepared:
     first: dict[str, float]  # sensor -> first valid reading
     role_sensors: dict[str, list[str]]  # node -> sensors of the campaign on it
     rpm_samples: np.ndarray  # (n,)
+    load_steps: np.ndarray  # (n_loads, L - 1) power of each load node's load on each step, W
     x0: np.ndarray | None = None  # (ns,) initial state, degC, set on the first run
 
 
@@ -599,6 +603,9 @@ class TwinModel:
         Baseline parameters first, then each effect's in :data:`EFFECTS` order.
     heat_nodes : dict of str to str
         Bearing heat source -> node it enters (:data:`HEAT_SPECS`).
+    load_nodes : tuple of str
+        Nodes that take an external heat load (``heat_loads:``) in some campaign; one input
+        column each, W.
     """
 
     roles: frozenset[str]
@@ -607,6 +614,7 @@ class TwinModel:
     links: tuple[tuple[str, str, str], ...]
     param_specs: list[ParamSpec]
     heat_nodes: dict[str, str]
+    load_nodes: tuple[str, ...] = ()
     _prepared: dict[int, _Prepared] = field(default_factory=dict, repr=False)
 
     # ------------------------------------------------------------------ parameters
@@ -678,15 +686,18 @@ class TwinModel:
         )
 
     def heat_input(self, p: dict[str, float], network: ThermalNetwork) -> np.ndarray:
-        """Heat input matrix of the kernel's state space, K/s per krpm, shape (n_nodes, 2).
+        """Heat input matrix of the kernel's state space, shape (n_nodes, 2 + n_loads).
 
         Column 0 takes the bearing law (rpm / 1000, or its nonlinear form): each bearing
         source's ``q`` enters its node, a share ``bearing_heat_to_shaft`` of it the shaft;
-        column 1 takes rpm / 1000 into the motor node (``motor_heat``).
+        column 1 takes rpm / 1000 into the motor node (``motor_heat``), both K/s per krpm;
+        column ``2 + j`` takes the external load on :attr:`load_nodes` ``[j]``, K/s per W.
         """
         idx = self.node_index
         cinv = 1.0 / network.capacities
-        heat = np.zeros((len(self.nodes), 2))
+        heat = np.zeros((len(self.nodes), 2 + len(self.load_nodes)))
+        for j, node in enumerate(self.load_nodes):
+            heat[idx[node], 2 + j] = cinv[idx[node]]
         share = p.get("bearing_heat_to_shaft", 0.0)
         shaft = idx["spindle_shaft"]
         for source, node in self.heat_nodes.items():
@@ -698,7 +709,7 @@ class TwinModel:
         return heat
 
     def system(self, p: dict[str, float]) -> LinearSystem:
-        """State space ``dx/dt = A x + B u``, ``u = [T_amb, bearing law, rpm / 1000]``.
+        """State space ``dx/dt = A x + B u``, ``u = [T_amb, bearing law, rpm / 1000, loads]``.
 
         States are the nodes, then one lag state per sensed node with ``sensor_lag``.
         """
@@ -718,6 +729,8 @@ class TwinModel:
         t = campaign.t_s
         program = campaign.program
         breaks = np.zeros(0) if program is None else program.breakpoints_s()
+        loads = self._load_programs(campaign)
+        breaks = np.concatenate([breaks, *(load.breakpoints_s() for load in loads)])
         grid = time_grid(t, breaks, start_s=t[0])
         if program is not None:
             rpm_steps = program.value_at(grid[:-1])
@@ -736,9 +749,34 @@ class TwinModel:
             first=first,
             role_sensors=self._role_sensors(campaign, first),
             rpm_samples=np.abs(campaign.rpm),
+            load_steps=np.array([load.value_at(grid[:-1]) for load in loads]).reshape(
+                len(loads), grid.size - 1
+            ),
         )
         self._prepared[key] = prepared
         return prepared
+
+    def _load_programs(self, campaign: MeasuredCampaign) -> list[Program]:
+        """Power program of each of :attr:`load_nodes` in ``campaign`` (W; empty = no load).
+
+        Raises
+        ------
+        ValueError
+            If the campaign has a load on a role whose node the model lacks.
+        """
+        by_node = {ROLE_NODES.get(load.role): load.program for load in campaign.heat_loads}
+        lacking = sorted(
+            load.role
+            for load in campaign.heat_loads
+            if ROLE_NODES.get(load.role) not in self.load_nodes
+        )
+        if lacking:
+            raise ValueError(
+                f"campaign {campaign.campaign_id}: heat load on role(s) {lacking}, which the twin "
+                f"takes loads on only at {list(self.load_nodes)}; build it with "
+                "load_roles=loaded_roles(campaigns)"
+            )
+        return [by_node.get(node, Program(())) for node in self.load_nodes]
 
     def _role_sensors(
         self, campaign: MeasuredCampaign, first: dict[str, float]
@@ -820,6 +858,7 @@ class TwinModel:
             U[:, :k, c, 1] = self._bearing_law(pr.rpm_steps[None, :], p)
             if motor:
                 U[:, :k, c, 2] = pr.rpm_steps / 1000.0
+            U[:, :k, c, 3:] = pr.load_steps.T
             dU[:k, c, 0] = np.diff(amb)
             if pr.x0 is None:
                 pr.x0 = self._initial_state(pr, ns)
@@ -1017,7 +1056,9 @@ def baseline_specs(
     return specs, heat_nodes
 
 
-def build_model(roles: Iterable[str], effects: Iterable[str] = frozenset()) -> TwinModel:
+def build_model(
+    roles: Iterable[str], effects: Iterable[str] = frozenset(), load_roles: Iterable[str] = ()
+) -> TwinModel:
     """Build the calibratable twin for the sensor roles present and the effects switched on.
 
     Parameters
@@ -1026,6 +1067,9 @@ def build_model(roles: Iterable[str], effects: Iterable[str] = frozenset()) -> T
         Sensor roles of the campaigns (any subset; ``ambient``, ``other`` etc. are not nodes).
     effects : iterable of str
         Names from :data:`EFFECTS`.
+    load_roles : iterable of str
+        Structure roles that take an external heat load in some campaign
+        (:func:`loaded_roles`); a role without a sensor still gets its node.
 
     Returns
     -------
@@ -1056,7 +1100,14 @@ def build_model(roles: Iterable[str], effects: Iterable[str] = frozenset()) -> T
             f"no sensor has a structure role (roles present: {sorted(roles)}); give at least "
             f"one sensor one of {', '.join(ROLE_NODES)} in campaign.yaml"
         )
-    nodes, links = _network(set(roles))
+    unknown = sorted(set(load_roles) - set(ROLE_NODES))
+    if unknown:
+        raise ValueError(
+            f"heat loads on role(s) {unknown}, which are not structure parts of the twin; put "
+            f"a load on one of {', '.join(ROLE_NODES)}"
+        )
+    nodes, links = _network(set(roles) | set(load_roles))
+    load_nodes = tuple(n for n in nodes if _role(n) in set(load_roles))
     specs, heat_nodes = baseline_specs(nodes, links, sensed)
     for e in EFFECTS:
         if e in effects:
@@ -1064,4 +1115,9 @@ def build_model(roles: Iterable[str], effects: Iterable[str] = frozenset()) -> T
     logger.debug(
         "twin model: nodes %s, effects %s, %d parameters", nodes, sorted(effects), len(specs)
     )
-    return TwinModel(roles, effects, nodes, links, specs, heat_nodes)
+    return TwinModel(roles, effects, nodes, links, specs, heat_nodes, load_nodes)
+
+
+def loaded_roles(campaigns: Iterable[MeasuredCampaign]) -> frozenset[str]:
+    """Structure roles that take an external heat load in any of ``campaigns``."""
+    return frozenset(load.role for c in campaigns for load in c.heat_loads)

@@ -652,6 +652,9 @@ class TwinEvaluator:
     def __init__(self, campaigns: Sequence, roles: set[str] | None = None) -> None:
         self.campaigns = {c.campaign_id: c for c in campaigns}
         self.roles = set(roles) if roles is not None else campaign_roles(campaigns)
+        from pipeline.discrepancy.model import loaded_roles
+
+        self.load_roles = loaded_roles(campaigns)
 
     def __call__(
         self, effects: frozenset, train: tuple, test: tuple, start: Mapping | None = None
@@ -660,7 +663,7 @@ class TwinEvaluator:
         from pipeline.discrepancy.calibrate import calibrate
         from pipeline.discrepancy.model import build_model
 
-        model = build_model(self.roles, frozenset(effects))
+        model = build_model(self.roles, frozenset(effects), self.load_roles)
         start = {k: v for k, v in (start or {}).items() if k in set(model.names)} or None
         fit = calibrate(model, [self.campaigns[c] for c in train], start=start)
         z_res, t_res = self._residuals(model, fit.theta, test)
@@ -677,7 +680,7 @@ class TwinEvaluator:
         """Residuals on ``test`` of an existing calibration ``fit`` of ``effects`` (no refit)."""
         from pipeline.discrepancy.model import build_model
 
-        model = build_model(self.roles, frozenset(effects))
+        model = build_model(self.roles, frozenset(effects), self.load_roles)
         theta = np.array([fit.params[name][0] for name in model.names])
         z_res, t_res = self._residuals(model, theta, test)
         return replace(fit, z_residual_um=z_res, t_residual_k=t_res, seconds=0.0)

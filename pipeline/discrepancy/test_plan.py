@@ -9,7 +9,12 @@ under which the effect would be identifiable (:func:`propose_tests`):
    steps up and down every 20, 40 or 60 min, a stop-and-restart, one constant run), over 4 or
    8 h, each sampled at the campaigns' own interval and at :data:`FAST_INTERVAL_S`; and, where
    the effect reads a structure role no campaign has (:data:`ADDED_SENSOR_ROLES`), the same
-   programs with a sensor of that role added.
+   programs with a sensor of that role added; and, where the effect reads a part a heater can
+   load (:data:`HEAT_LOAD_ROLES`, roles the campaigns have a sensor on), an external heat load
+   of :data:`HEATER_POWERS_W` on that part for half the test, with the spindle stopped, or
+   running in the other half (:func:`heater_plans`): a load the spindle does not drive
+   separates what the spindle's heat ties together (the column's front-to-rear difference and
+   its mean rise, a sensor's delay and its node's heat capacity).
 2. **The simulated test.** Each plan is one campaign simulated noise-free by the calibrated
    baseline twin (the baseline's parameter values; a node the added sensor brings gets its
    parameters' initial values), starting cold at the campaigns' ambient with the campaigns'
@@ -20,7 +25,8 @@ under which the effect would be identifiable (:func:`propose_tests`):
    noise sigmas), on the plan's campaign, with the noise floor of each sensor of the campaigns
    (an added one: their median). A plan makes the effect visible when it misses no threshold
    (:func:`~pipeline.discrepancy.identifiability.shortfalls`).
-4. **Cost.** Test duration in hours plus :data:`SENSOR_COST_H` per added sensor; ties go to the
+4. **Cost.** Test duration in hours plus :data:`SENSOR_COST_H` per added sensor and
+   :data:`HEATER_COST_H` per heat load; ties go to the
    campaigns' own sampling interval, then to the grid's order. Plans are tried in order of cost
    and the first visible one is proposed; when none is, the report says so with the best signal
    the grid reached.
@@ -44,8 +50,9 @@ from pipeline.discrepancy.identifiability import (
     IdentifiabilitySettings,
     shortfalls,
 )
-from pipeline.discrepancy.model import ROLE_NODES, build_model
+from pipeline.discrepancy.model import ROLE_NODES, build_model, loaded_roles
 from pipeline.discrepancy.visibility import BaselinePoint, Visibility, baseline_point, visibility
+from pipeline.thermal.loads import POWER_KEY, HeatLoad, loads_to_contract
 from pipeline.thermal.program import Program, Segment
 
 logger = logging.getLogger(__name__)
@@ -73,6 +80,25 @@ ADDED_SENSOR_ROLES = {
 bending reads the column's front-to-rear difference, the lag and the bearing laws a fast-moving
 node near the heat."""
 
+HEATER_COST_H = 2.0
+"""Fixed cost of an external heat load (mounting a heater, its supply, logging its power), in
+test hours."""
+
+HEATER_POWERS_W = (250.0, 500.0)
+"""Heater powers of the grid, W: heater mats and a 500 W halogen lamp a workshop has."""
+
+HEAT_LOAD_ROLES = {
+    "thermal_bending": ("column_rear", "column_front"),
+    "sensor_lag": ("spindle_front_bearing", "headstock", "spindle_motor"),
+}
+"""Structure roles a heater may be put on, per effect (only roles the campaigns have a sensor
+on): bending reads the difference of the column halves, which a load on one half drives
+alone; a sensor's lag shows when its own part is heated directly, its first reading rising
+later than the part's heat capacity allows."""
+
+MAX_PLANS = 60
+"""Most plans tried per effect."""
+
 
 @dataclass(frozen=True)
 class TestPlan:
@@ -92,6 +118,8 @@ class TestPlan:
         Sensor roles to add (structure roles of the raw contract).
     own_interval : bool
         True when ``sample_interval_s`` is the campaigns' own.
+    heat_loads : tuple of HeatLoad
+        External heat loads to apply (W), as ``heat_loads:`` of campaign.yaml will record them.
     """
 
     __test__ = False  # not a pytest class
@@ -102,11 +130,16 @@ class TestPlan:
     sample_interval_s: float
     add_sensors: tuple[str, ...] = ()
     own_interval: bool = True
+    heat_loads: tuple[HeatLoad, ...] = ()
 
     @property
     def cost(self) -> float:
-        """Cost in test hours: the duration plus :data:`SENSOR_COST_H` per added sensor."""
-        return self.duration_h + SENSOR_COST_H * len(self.add_sensors)
+        """Cost in test hours: the duration plus the fixed cost of each sensor and heat load."""
+        return (
+            self.duration_h
+            + SENSOR_COST_H * len(self.add_sensors)
+            + HEATER_COST_H * len(self.heat_loads)
+        )
 
     def to_dict(self, signal_sigma: float) -> dict[str, Any]:
         """Return the plan in the raw contract's terms, with its expected signal (sigma)."""
@@ -117,6 +150,7 @@ class TestPlan:
                 {"role": role, "location": f"a {role.replace('_', ' ')} sensor"}
                 for role in self.add_sensors
             ],
+            "heat_loads": loads_to_contract(self.heat_loads),
             "duration_h": float(self.duration_h),
             "cost_h": float(self.cost),
             "name": self.name,
@@ -177,6 +211,39 @@ def _programs(high: float) -> list[tuple[str, Program, float]]:
     return out
 
 
+def heater(role: str, power_w: float, from_min: float, to_min: float) -> HeatLoad:
+    """Return a ``power_w`` (W) heater on the part of ``role``, on ``from_min``-``to_min``."""
+    program = Program((Segment(from_min, to_min, float(power_w)),), key=POWER_KEY)
+    return HeatLoad(role, program, f"{power_w:g} W heater on the {role.replace('_', ' ')}")
+
+
+def heater_plans(high: float, roles: Sequence[str], interval_s: float) -> list[TestPlan]:
+    """Return the grid's tests with a heater on one of ``roles`` (see the module docstring).
+
+    For each duration of :data:`DURATIONS_H`, role and power of :data:`HEATER_POWERS_W`: the
+    heater on in the first half with the spindle stopped; the spindle at ``high`` (rpm) in the
+    first half and the heater on in the second; the heater in the first half and the spindle
+    in the second. Sampled every ``interval_s`` (s).
+    """
+    plans = []
+    for duration in DURATIONS_H:
+        half = duration * 30.0
+        run_first = constant_program(high, duration)
+        run_second = Program((Segment(half, 2 * half, high),), key="rpm")
+        patterns = (
+            ("spindle stopped", Program((), key="rpm"), 0.0),
+            (f"spindle at {high:.0f} rpm first, heater second", run_first, half),
+            (f"heater first, spindle at {high:.0f} rpm second", run_second, 0.0),
+        )
+        for role in roles:
+            for power in HEATER_POWERS_W:
+                for words, program, on_min in patterns:
+                    load = heater(role, power, on_min, on_min + half)
+                    name = f"{load.what} for {half:g} min, {words}, {duration:g} h"
+                    plans.append(TestPlan(name, program, duration, interval_s, (), True, (load,)))
+    return plans
+
+
 def own_interval_s(campaigns: Sequence[MeasuredCampaign]) -> float:
     """Return the campaigns' sampling interval: the median step of their instants, s."""
     return float(np.median(np.concatenate([np.diff(c.t_s) for c in campaigns])))
@@ -185,7 +252,7 @@ def own_interval_s(campaigns: Sequence[MeasuredCampaign]) -> float:
 def candidate_plans(
     campaigns: Sequence[MeasuredCampaign], effect: str, roles: set[str] | frozenset[str]
 ) -> list[TestPlan]:
-    """Return the grid of tests for ``effect`` (see the module docstring), at most 30.
+    """Return the grid of tests for ``effect`` (module docstring), at most :data:`MAX_PLANS`.
 
     Parameters
     ----------
@@ -207,7 +274,9 @@ def candidate_plans(
     for role in added[:1]:
         for name, program, duration in programs:
             plans.append(TestPlan(name, program, duration, own, (role,), True))
-    return plans[:30]
+    heated = [r for r in HEAT_LOAD_ROLES.get(effect, ()) if r in roles]
+    plans += heater_plans(high, heated[:2], own)
+    return plans[:MAX_PLANS]
 
 
 def _ambient(campaigns: Sequence[MeasuredCampaign]) -> float:
@@ -261,8 +330,9 @@ def simulate_plan(
         roles=names,
         z_um=np.zeros(t.size),
         program=plan.program,
+        heat_loads=plan.heat_loads,
     )
-    model = build_model(all_roles)
+    model = build_model(all_roles, load_roles=loaded_roles([blank]))
     full = {p.name: float(values.get(p.name, p.initial)) for p in model.param_specs}
     sim = model.simulate(np.array([full[n] for n in model.names]), blank)
     temps = blank.temperatures.copy()
@@ -276,6 +346,7 @@ def simulate_plan(
         roles=names,
         z_um=np.asarray(sim.z_um, dtype=float) - float(sim.z_um[0]),
         program=plan.program,
+        heat_loads=plan.heat_loads,
     )
     return campaign, all_roles, full
 
@@ -301,6 +372,8 @@ class ProposedTest:
         Plans tried.
     sensors_tried : bool
         Whether the grid had plans with an added sensor.
+    heaters_tried : bool
+        Whether the grid had plans with a heat load.
     """
 
     effect: str
@@ -311,6 +384,7 @@ class ProposedTest:
     threshold_sigma: float
     n_plans: int
     sensors_tried: bool = False
+    heaters_tried: bool = False
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready ``proposed_test``: the plan in the raw contract's terms and its text."""
@@ -333,7 +407,19 @@ def _program_words(plan: TestPlan) -> str:
     )
     if plan.add_sensors:
         words += f", with a sensor added on role {', '.join(plan.add_sensors)}"
+    if plan.heat_loads:
+        words += " (its `heat_loads`: " + "; ".join(_load_words(load) for load in plan.heat_loads)
+        words += ", each recorded under `heat_loads:` in campaign.yaml)"
     return words
+
+
+def _load_words(load: HeatLoad) -> str:
+    """Return a load in words: what, where, when."""
+    spans = ", ".join(
+        f"{s.from_min:g}-{s.to_min:g} min" if s.to_min is not None else f"from {s.from_min:g} min"
+        for s in load.program.segments
+    )
+    return f"{load.what} (role {load.role}), on {spans}"
 
 
 def plan_text(proposed: ProposedTest) -> str:
@@ -354,15 +440,24 @@ def plan_text(proposed: ProposedTest) -> str:
         if proposed.best is not None and proposed.figures is not None
         else ""
     )
-    tried = "speed steps, stops, sampling interval" + (
-        ", added sensors" if proposed.sensors_tried else ""
+    tried = (
+        "speed steps, stops, sampling interval"
+        + (", added sensors" if proposed.sensors_tried else "")
+        + (", heat loads" if proposed.heaters_tried else "")
     )
     return (
         f"None of the {proposed.n_plans} test plans tried ({tried}) would make {e} visible "
         f"({now}, threshold {proposed.threshold_sigma:g}).{best} Its response at a plausible "
-        "size stays within what the baseline absorbs; a longer campaign series, a different "
-        "sensor mounting or an external heat load would be needed."
+        f"size stays within what the baseline absorbs; {_what_else(proposed)} would be needed."
     )
+
+
+def _what_else(proposed: ProposedTest) -> str:
+    """Return what is left to try when no plan of the grid makes the effect visible."""
+    left = ["a longer campaign series", "a different sensor mounting"]
+    if not proposed.heaters_tried:
+        left.append("an external heat load")
+    return ", ".join(left[:-1]) + " or " + left[-1]
 
 
 def _plan_point(
@@ -426,8 +521,9 @@ def propose_test(
         if best is None or signal > best[0]:
             best = (signal, plan, figures)
     figures, top = (best[2], best[1]) if best else (None, None)
-    tried = any(p.add_sensors for p in ordered)
-    return _proposed(effect, current, None, figures, top, settings, len(ordered), tried)
+    sensors = any(p.add_sensors for p in ordered)
+    heaters = any(p.heat_loads for p in ordered)
+    return _proposed(effect, current, None, figures, top, settings, len(ordered), sensors, heaters)
 
 
 def _proposed(
@@ -439,11 +535,20 @@ def _proposed(
     settings: IdentifiabilitySettings,
     n_plans: int,
     sensors_tried: bool = False,
+    heaters_tried: bool = False,
 ) -> ProposedTest:
     """Build the :class:`ProposedTest` and log it."""
     now = current.figures.signal_sigma if current.figures is not None else float("nan")
     proposed = ProposedTest(
-        effect, plan, figures, best, now, settings.min_signal_sigma, n_plans, sensors_tried
+        effect,
+        plan,
+        figures,
+        best,
+        now,
+        settings.min_signal_sigma,
+        n_plans,
+        sensors_tried,
+        heaters_tried,
     )
     logger.info("test plan for %s: %s", effect, plan_text(proposed))
     return proposed

@@ -60,7 +60,7 @@ from pipeline.discrepancy.collinearity import (
     with_prior,
 )
 from pipeline.discrepancy.data import MeasuredCampaign
-from pipeline.discrepancy.model import TwinModel, build_model
+from pipeline.discrepancy.model import TwinModel, build_model, loaded_roles
 from pipeline.discrepancy.search import SENSOR_ONLY_EFFECTS, campaign_roles
 
 PLAUSIBLE = {
@@ -190,6 +190,8 @@ class BaselinePoint:
         baseline can absorb by moving its parameters within about their prior scales.
     prior_log_sd : float
         Prior scale of a positive parameter, in its natural log (the effect's too).
+    load_roles : frozenset of str
+        Roles that take an external heat load in some campaign.
     """
 
     roles: frozenset[str]
@@ -200,6 +202,7 @@ class BaselinePoint:
     sensitivities: np.ndarray
     basis: np.ndarray
     prior_log_sd: float
+    load_roles: frozenset[str] = frozenset()
 
 
 def baseline_point(
@@ -208,6 +211,7 @@ def baseline_point(
     roles: set[str] | None = None,
     noise: NoiseFloor | None = None,
     prior_log_sd: float = 1.0,
+    load_roles: frozenset[str] | None = None,
 ) -> BaselinePoint:
     """Return the calibrated baseline on ``campaigns`` with its residuals and sensitivities.
 
@@ -225,6 +229,9 @@ def baseline_point(
     prior_log_sd : float
         Prior scale of a positive parameter, in its natural log
         (``params.yaml`` ``discrepancy.identifiability.prior_log_sd``).
+    load_roles : frozenset of str, optional
+        Roles the twin takes an external heat load on; default those of ``campaigns``
+        (:func:`~pipeline.discrepancy.model.loaded_roles`).
 
     Returns
     -------
@@ -232,7 +239,8 @@ def baseline_point(
     """
     roles = frozenset(roles if roles is not None else campaign_roles(campaigns))
     noise = noise or estimate_noise(campaigns)
-    model = build_model(roles)
+    load_roles = frozenset(load_roles if load_roles is not None else loaded_roles(campaigns))
+    model = build_model(roles, load_roles=load_roles)
     theta = np.array([float(values[name]) for name in model.names])
     moved = np.ones(theta.size, dtype=bool)
     perturbed, steps = _perturbed(model, theta, moved)
@@ -247,6 +255,7 @@ def baseline_point(
         sensitivities=sensitivities,
         basis=orthonormal_basis(with_prior(sensitivities)),
         prior_log_sd=prior_log_sd,
+        load_roles=load_roles,
     )
 
 
@@ -383,7 +392,7 @@ def visibility(effect: str, point: BaselinePoint, plausible: Mapping[str, float]
         If a plausible value lies outside its parameter's bounds, or the effect needs a role
         the twin lacks.
     """
-    model = build_model(point.roles, frozenset({effect}))
+    model = build_model(point.roles, frozenset({effect}), point.load_roles)
     own = np.array([p.effect is not None for p in model.param_specs])
     theta0 = _effect_values(model, point, LINEARISED_AT)
     sized, shown = _plausible_size(model, point, plausible)

@@ -48,7 +48,7 @@ from threadpoolctl import threadpool_limits
 
 from pipeline.discrepancy.calibrate import Calibration, calibrate, predict
 from pipeline.discrepancy.data import DISPLACEMENT_COLUMN, MeasuredCampaign
-from pipeline.discrepancy.model import ROLE_NODES, TwinModel, build_model
+from pipeline.discrepancy.model import ROLE_NODES, TwinModel, build_model, loaded_roles
 from pipeline.discrepancy.report import STATUS_UNTESTABLE
 from pipeline.errors import InputDataError, ParamsError
 from pipeline.protocol.cross_season import STATIC, Candidate, UnitResult, score_row
@@ -98,6 +98,11 @@ class TwinSetup:
         """Sensor roles of all campaigns: the machine's sensor layout (no measured values)."""
         return frozenset(r for c in self.campaigns.values() for r in c.roles.values())
 
+    @property
+    def load_roles(self) -> frozenset[str]:
+        """Roles that take an external heat load (``heat_loads:``) in any campaign."""
+        return loaded_roles(self.campaigns.values())
+
 
 @dataclass(frozen=True)
 class CalibratedTwin:
@@ -110,15 +115,18 @@ class CalibratedTwin:
     effects : frozenset of str
     calibration : Calibration
         Parameters (``params``: name -> (value, unit)) and fit diagnostics.
+    load_roles : frozenset of str
+        Roles that take an external heat load in the campaigns it was built for.
     """
 
     roles: frozenset[str]
     effects: frozenset[str]
     calibration: Calibration = field(repr=False)
+    load_roles: frozenset[str] = frozenset()
 
     def model(self) -> TwinModel:
         """Build the twin's network (a fresh instance, without cached campaigns)."""
-        return build_model(self.roles, self.effects)
+        return build_model(self.roles, self.effects, self.load_roles)
 
     def predict_z(self, campaign: MeasuredCampaign) -> np.ndarray:
         """Predicted Z drift since the first sample, ndarray of shape (n,), um."""
@@ -292,10 +300,10 @@ def fit_and_score_twin(
     """
     candidate = Candidate(TWIN_MODEL, TWIN_SELECTION)
     training = [setup.campaigns[c] for c in unit.campaigns]
-    model = build_model(setup.roles, setup.effects)
+    model = build_model(setup.roles, setup.effects, setup.load_roles)
     with threadpool_limits(limits=1):
         calibration = calibrate(model, training, **setup.calibration)
-        fitted = CalibratedTwin(setup.roles, setup.effects, calibration)
+        fitted = CalibratedTwin(setup.roles, setup.effects, calibration, setup.load_roles)
         rows, predictions = [], {}
         for test in series:
             z = predict(model, calibration, setup.campaigns[test.campaign_id]).z_um
