@@ -443,6 +443,22 @@ def test_mlflow_run_holds_the_metrics_and_figures(tmp_path, monkeypatch):
     from pipeline.tracking.discrepancy_run import log_discrepancy_run
 
     doc, files = _fake_report(tmp_path)
+    doc["identifiability"] = {
+        "motor_heat": {"class": "named", "signal_sigma": 5.2},
+        "thermal_bending": {
+            "class": "not_identifiable",
+            "signal_sigma": 0.31,
+            "proposed_test": {"visible": True, "name": "heater", "expected_signal_sigma": 4.5},
+        },
+        "sensor_lag": {
+            "class": "not_identifiable",
+            "signal_sigma": 0.27,
+            "proposed_test": {
+                "visible": False,
+                "best_in_grid": {"name": "steps", "expected_signal_sigma": 0.75},
+            },
+        },
+    }
     uri = f"sqlite:///{(tmp_path / 'mlflow.db').as_posix()}"
     monkeypatch.setenv("MLFLOW_TRACKING_URI", uri)
     run_id = log_discrepancy_run(files, doc, {"experiment": "discrepancy-test"})
@@ -461,6 +477,13 @@ def test_mlflow_run_holds_the_metrics_and_figures(tmp_path, monkeypatch):
     assert run.data.metrics[f"rmse_um_after.{cid}"] == pytest.approx(after)
     names = {a.path for a in client.list_artifacts(run_id, "discrepancy")}
     assert "discrepancy/heldout_fit.png" in names and "discrepancy/discrepancy.md" in names
+    assert run.data.tags["identifiability.motor_heat"] == "named"
+    assert run.data.tags["identifiability.sensor_lag"] == "not_identifiable"
+    assert run.data.metrics["signal_sigma.thermal_bending"] == pytest.approx(0.31)
+    assert run.data.params["proposed_test.thermal_bending"] == "heater"
+    assert run.data.params["proposed_test.sensor_lag"] == "none visible"
+    assert run.data.metrics["proposed_signal_sigma.sensor_lag"] == pytest.approx(0.75)
+    assert "proposed_test.motor_heat" not in run.data.params
 
 
 def test_the_motor_loss_is_reported_with_the_rise_it_fixes():

@@ -230,16 +230,17 @@ def heater_plans(high: float, roles: Sequence[str], interval_s: float) -> list[T
         half = duration * 30.0
         run_first = constant_program(high, duration)
         run_second = Program((Segment(half, 2 * half, high),), key="rpm")
+        spindle = f"the spindle at {high:.0f} rpm for {half:g} min"
         patterns = (
-            ("spindle stopped", Program((), key="rpm"), 0.0),
-            (f"spindle at {high:.0f} rpm first, heater second", run_first, half),
-            (f"heater first, spindle at {high:.0f} rpm second", run_second, 0.0),
+            ("{load} for {half:g} min with the spindle stopped", Program((), key="rpm"), 0.0),
+            (spindle + ", then a {load} for {half:g} min", run_first, half),
+            ("a {load} for {half:g} min, then " + spindle, run_second, 0.0),
         )
         for role in roles:
             for power in HEATER_POWERS_W:
                 for words, program, on_min in patterns:
                     load = heater(role, power, on_min, on_min + half)
-                    name = f"{load.what} for {half:g} min, {words}, {duration:g} h"
+                    name = words.format(load=load.what, half=half) + f", {duration:g} h"
                     plans.append(TestPlan(name, program, duration, interval_s, (), True, (load,)))
     return plans
 
@@ -408,8 +409,8 @@ def _program_words(plan: TestPlan) -> str:
     if plan.add_sensors:
         words += f", with a sensor added on role {', '.join(plan.add_sensors)}"
     if plan.heat_loads:
-        words += " (its `heat_loads`: " + "; ".join(_load_words(load) for load in plan.heat_loads)
-        words += ", each recorded under `heat_loads:` in campaign.yaml)"
+        loads = "; ".join(_load_words(load) for load in plan.heat_loads)
+        words += f", and record the heat load under `heat_loads:` in campaign.yaml ({loads})"
     return words
 
 
@@ -419,7 +420,8 @@ def _load_words(load: HeatLoad) -> str:
         f"{s.from_min:g}-{s.to_min:g} min" if s.to_min is not None else f"from {s.from_min:g} min"
         for s in load.program.segments
     )
-    return f"{load.what} (role {load.role}), on {spans}"
+    powers = "/".join(f"{s.value:g}" for s in load.program.segments)
+    return f"role {load.role}, {spans}, {powers} W"
 
 
 def plan_text(proposed: ProposedTest) -> str:

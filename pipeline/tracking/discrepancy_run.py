@@ -70,6 +70,32 @@ def _log_per_campaign(client: Any, run_id: str, per_campaign: Mapping[str, Any])
                     client.log_metric(run_id, f"{name}_{when}.{cid}", float(value))
 
 
+def _log_identifiability(client: Any, run_id: str, entries: Mapping[str, Any]) -> None:
+    """Log every candidate's identifiability class, signal and proposed test.
+
+    Each effect gets the tag ``identifiability.<effect>`` (its class), the metric
+    ``signal_sigma.<effect>`` (its visible signal, noise sigmas) and, when it is not
+    identifiable, the param ``proposed_test.<effect>`` (the proposed plan's name, or ``none
+    visible``) with the metric ``proposed_signal_sigma.<effect>`` (the signal the plan would
+    leave, or the grid's best).
+    """
+    for effect, entry in entries.items():
+        client.set_tag(run_id, f"identifiability.{effect}", str(entry["class"]))
+        signal = entry.get("signal_sigma")
+        if signal is not None and np.isfinite(signal):
+            client.log_metric(run_id, f"signal_sigma.{effect}", float(signal))
+        proposed = entry.get("proposed_test")
+        if not proposed:
+            continue
+        plan = proposed if proposed.get("visible") else proposed.get("best_in_grid") or {}
+        name = str(plan.get("name", "")) if proposed.get("visible") else "none visible"
+        client.log_param(run_id, f"proposed_test.{effect}", name[:500])
+        if plan.get("expected_signal_sigma") is not None:
+            client.log_metric(
+                run_id, f"proposed_signal_sigma.{effect}", float(plan["expected_signal_sigma"])
+            )
+
+
 def log_discrepancy_run(
     files: Sequence[Path], doc: Mapping[str, Any], settings: Mapping[str, Any]
 ) -> str:
@@ -109,6 +135,7 @@ def log_discrepancy_run(
         for name, value in doc.get("thresholds", {}).items():
             client.log_param(run_id, name, str(value))
         client.log_param(run_id, "campaigns", ",".join(doc["campaigns"])[:500])
+        _log_identifiability(client, run_id, doc.get("identifiability") or {})
         for path in files:
             client.log_artifact(run_id, str(path), artifact_path="discrepancy")
     except BaseException:
