@@ -108,16 +108,45 @@ def test_the_proposed_program_is_in_the_raw_contract_s_terms(flat):
 def test_the_grid_is_small_and_adds_a_sensor_only_where_a_role_is_missing(flat):
     point = flat[0]
     plans = tp.candidate_plans(point.campaigns, "thermal_bending", point.roles)
-    assert 0 < len(plans) <= 30
+    assert 0 < len(plans) <= tp.MAX_PLANS
     assert not any(p.add_sensors for p in plans)  # the campaigns have both column roles
     fewer = frozenset(point.roles) - {"column_rear"}
-    added = [
-        p for p in tp.candidate_plans(point.campaigns, "thermal_bending", fewer) if p.add_sensors
-    ]
+    fewer_plans = tp.candidate_plans(point.campaigns, "thermal_bending", fewer)
+    added = [p for p in fewer_plans if p.add_sensors]
     assert added and all(p.add_sensors == ("column_rear",) for p in added)
     assert all(p.cost == p.duration_h + tp.SENSOR_COST_H for p in added)
     intervals = {p.sample_interval_s for p in plans}
     assert intervals == {tp.own_interval_s(point.campaigns), tp.FAST_INTERVAL_S}
+    # heaters go only on parts with a sensor, one load per plan, at a grid power
+    heated = [p for p in plans if p.heat_loads]
+    assert {p.heat_loads[0].role for p in heated} == {"column_rear", "column_front"}
+    assert {p.heat_loads[0].role for p in fewer_plans if p.heat_loads} == {"column_front"}
+    for p in heated:
+        (load,) = p.heat_loads
+        assert p.cost == p.duration_h + tp.HEATER_COST_H
+        assert {s.value for s in load.program.segments} <= set(tp.HEATER_POWERS_W)
+        assert all(s.to_min <= p.duration_h * 60.0 for s in load.program.segments)
+    assert not any(p.heat_loads for p in tp.candidate_plans(point.campaigns, "motor_heat", fewer))
+
+
+def test_a_heater_on_the_column_rear_separates_bending_from_the_column_s_growth(flat):
+    """Bending reads the column's front-to-rear difference, which the spindle's heat ties to its
+    mean rise: the proposed plan puts a heater on a column half, and the same spindle program
+    without it leaves bending invisible (the entry reads back through ``heat_loads``)."""
+    from pipeline.thermal.loads import loads_from_contract
+
+    point, classes, proposed = flat
+    assert classes["thermal_bending"].status == NOT_IDENTIFIABLE
+    heated = proposed["thermal_bending"].plan
+    assert heated is not None and heated.heat_loads, proposed["thermal_bending"]
+    spindle_only = tp.TestPlan("same program", heated.program, heated.duration_h, 180.0)
+    without = _plan_signal(point, spindle_only, "thermal_bending")
+    with_heater = _plan_signal(point, heated, "thermal_bending")
+    assert without < SETTINGS.min_signal_sigma
+    assert with_heater > max(5.0 * without, SETTINGS.min_signal_sigma), (without, with_heater)
+    entry = heated.to_dict(with_heater)
+    assert loads_from_contract(entry["heat_loads"]) == heated.heat_loads
+    assert all(e["role"] in SENSOR_ROLES and e["power_W"] > 0 for e in entry["heat_loads"])
 
 
 # ------------------------------------------------------------------ cost ordering
