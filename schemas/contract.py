@@ -19,6 +19,7 @@ from schemas.vocabulary import (
     SPINDLE_KIND,
     SPLITS,
     START_STATES,
+    STRUCTURE_ROLES,
 )
 
 VERSION = 1
@@ -131,6 +132,18 @@ CAMPAIGN_KEYS: tuple[Key, ...] = (
         "omitted (open-ended)",
         "the spindle speed when there is no `spindle.csv`",
         "spindle_program_json",
+    ),
+    Key(
+        "heat_loads",
+        OPTIONAL,
+        "list of `{role, from_min, to_min, power_W, what}`: a structure role ("
+        + ", ".join(f"`{r}`" for r in STRUCTURE_ROLES)
+        + "), minutes from `start` (the last `to_min` of a role may be omitted), W, free text; "
+        "loads of one role must not overlap in time",
+        "external heat put into that part during the test (heater, lamp, blower; a draught "
+        "that cools it is negative): a known heat input of the physical twin; the regressions "
+        "ignore it",
+        "heat_loads_json",
     ),
     Key(
         "sensors",

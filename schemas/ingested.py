@@ -150,7 +150,9 @@ class CampaignsModel(StrictModel):
     Nullable text columns are coerced to ``str`` (an all-null column is read back as
     ``object``). ``*_json`` columns hold the yaml mappings as JSON text: ``sensors_json``
     ``{name: {role, location, type}}``, ``displacement_json`` ``{axis: {...}}``,
-    ``spindle_program_json`` a list of ``{from_min, to_min?, rpm}``.
+    ``spindle_program_json`` a list of ``{from_min, to_min?, rpm}``, ``heat_loads_json`` a list
+    of ``{role, from_min, to_min?, power_W, what?}`` (``[]`` when the campaign has none; minutes
+    since ``start``, W).
     """
 
     campaign_id: Series[str]
@@ -168,6 +170,7 @@ class CampaignsModel(StrictModel):
     sensors_json: Series[str]
     displacement_json: Series[str]
     spindle_program_json: Series[str]
+    heat_loads_json: Series[str]
     has_spindle_log: Series[bool]
     source_dir: Series[str]
 
@@ -225,7 +228,7 @@ class CampaignsModel(StrictModel):
         """Check that an axis stroke is positive, mm."""
         return s > 0
 
-    @pa.check("sensors_json", "displacement_json", "spindle_program_json")
+    @pa.check("sensors_json", "displacement_json", "spindle_program_json", "heat_loads_json")
     @classmethod
     def json_readable(cls, s: Series[str]) -> Series[bool]:
         """Check that the yaml mappings were stored as valid JSON."""

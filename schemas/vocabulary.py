@@ -58,6 +58,21 @@ SENSOR_ROLES = (
 
 AMBIENT_ROLE = "ambient"
 
+STRUCTURE_ROLES = (
+    "spindle_front_bearing",
+    "spindle_rear_bearing",
+    "spindle_motor",
+    "headstock",
+    "column_front",
+    "column_rear",
+    "bed",
+    "ball_screw",
+)
+"""Roles that are parts of the machine's structure (spindle bearings and motor, headstock,
+column, bed, ball screw): a node each of the physical twin's thermal network and the parts a
+``heat_loads:`` entry of campaign.yaml may heat. ``nut``, ``coolant``, ``ambient`` and
+``other`` are not."""
+
 DIRECTIONS = ("+", "-")
 """Laser run directions."""
 

@@ -31,7 +31,7 @@ ALLOWED = {
     "config": {"errors"},
     "plots": set(),
     "validation": set(),
-    "io": {"validation"},
+    "io": {"validation", "thermal"},  # the heat-load parser (pipeline/thermal/loads.py)
     "importers": {"io", "cli"},  # `thermal import <source>` reuses the command dispatcher
     "separation": set(),
     "selection": set(),

@@ -81,6 +81,7 @@ def _campaign_row(campaign_id, kind, sensors, displacement, axis_name=None, stro
         "sensors_json": json.dumps(sensors),
         "displacement_json": json.dumps(displacement),
         "spindle_program_json": json.dumps([{"from_min": 0, "rpm": 4000}]),
+        "heat_loads_json": "[]",
         "has_spindle_log": False,
         "source_dir": f"data/raw/{campaign_id}",
     }

@@ -21,4 +21,5 @@ def measured_from_twin(campaign, drop: tuple[str, ...] = ()) -> MeasuredCampaign
         roles={s.name: s.role for s in campaign.sensors if s.name in temps.columns},
         z_um=z - z[0],
         program=campaign.program,
+        heat_loads=campaign.heat_loads,
     )

@@ -2,10 +2,10 @@
 
 Never raises on content: a missing or unreadable file, a missing required key
 (``missing_key``), a value of the wrong type (``wrong_type``: e.g. ``sensors:`` given as a list,
-``spindle_program:`` as a number), an id that is not a plain name (``campaign_id_unsafe``) or
-differs from the folder, an unknown kind or a start that is not ISO 8601 become problems through
-``report`` (:data:`pipeline.io.files.Report`); the row is still built so that validation can
-report every problem of the campaign at once.
+``spindle_program:`` or ``heat_loads:`` as a number), an id that is not a plain name
+(``campaign_id_unsafe``) or differs from the folder, an unknown kind or a start that is not ISO
+8601 become problems through ``report`` (:data:`pipeline.io.files.Report`); the row is still
+built so that validation can report every problem of the campaign at once.
 """
 
 from __future__ import annotations
@@ -34,6 +34,7 @@ REQUIRED_KEYS = {
 
 MAPPING = "a mapping of names to entries (name: {key: value, ...})"
 PROGRAM = "a list of entries {from_min: 0, to_min: 240, rpm: 4000}"
+LOADS = "a list of entries {role: column_rear, from_min: 0, to_min: 120, power_W: 300}"
 
 
 def read_metadata(path: Path, report: Report) -> dict[str, Any] | None:
@@ -126,6 +127,7 @@ def campaign_row(folder: Path, meta: dict[str, Any], report: Report) -> dict[str
         "spindle_program_json": to_json(
             _typed(meta, "spindle_program", list, PROGRAM, report) or []
         ),
+        "heat_loads_json": to_json(_typed(meta, "heat_loads", list, LOADS, report) or []),
         "has_spindle_log": (folder / "spindle.csv").is_file(),
         "source_dir": str(folder),
     }

@@ -6,8 +6,9 @@ The contract (``docs/data-contract.md``) is a public interface: ``campaign.yaml`
 problem found becomes a :class:`Problem` naming the file, row and column, and the rest of the
 campaign is still read, so that the validation stage can report all problems of a campaign at once.
 Raw files are only ever opened for reading. Files are opened and split into cells by
-:mod:`pipeline.io.files`, ``campaign.yaml`` is read by :mod:`pipeline.io.metadata`; the texts of
-the problems are those of :mod:`pipeline.validation.texts`.
+:mod:`pipeline.io.files`, ``campaign.yaml`` is read by :mod:`pipeline.io.metadata` (its
+``heat_loads:`` checked by :mod:`pipeline.io.heat_loads`); the texts of the problems are those
+of :mod:`pipeline.validation.texts`.
 """
 
 from __future__ import annotations
@@ -23,6 +24,7 @@ import numpy as np
 import pandas as pd
 
 from pipeline.io.files import MAX_REPORTED_ROWS, Report, read_csv_cells
+from pipeline.io.heat_loads import check_heat_loads
 from pipeline.io.metadata import campaign_row, read_metadata
 from pipeline.validation.texts import word
 from schemas.contract import CONTRACT_FILES, LASER_COLUMNS
@@ -108,6 +110,7 @@ def read_campaign(folder: Path, max_alignment_gap_s: float) -> RawCampaign:
     if meta_raw is None:
         return result
     result.metadata = campaign_row(folder, meta_raw, report)
+    check_heat_loads(json.loads(result.metadata["heat_loads_json"]), report)
     kind = result.metadata["kind"]
     for name in CONTRACT_FILES.get(kind, ("temperature.csv",)):
         if not (folder / name).is_file():

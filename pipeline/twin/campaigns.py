@@ -32,6 +32,7 @@ import numpy as np
 import pandas as pd
 
 from pipeline.thermal.effects import check_effects
+from pipeline.thermal.loads import HeatLoad
 from pipeline.thermal.program import Program, Segment
 from pipeline.twin.ambient import AmbientProfile, Climate, season_of
 from pipeline.twin.axis import AxisTruth, axis_truth, laser_runs, simulate_axis
@@ -92,6 +93,10 @@ class SpindlePlan:
         Campaign-to-campaign variation of the machine's unmeasured state
         (:mod:`pipeline.twin.conditions`); None = only a small scatter of the heat sources
         (``SpindleParams.heat_scatter_rel``), cold start, no probe offset.
+    heat_loads : tuple of HeatLoad
+        External heat loads applied during the test (a heater mat, a lamp, a blower), W, each
+        into the node read by the sensors of its role; written to campaign.yaml as
+        ``heat_loads:``. Empty = none (the demo).
     """
 
     campaign_id: str
@@ -103,6 +108,7 @@ class SpindlePlan:
     sample_min: float = 3.0
     season: str | None = None
     scatter: StateScatter | None = None
+    heat_loads: tuple[HeatLoad, ...] = ()
 
     def program(self) -> Program:
         """Speed program: ``rpm`` for ``run_min``, then 0 (open-ended)."""
@@ -201,6 +207,8 @@ class SpindleCampaign:
     effects : frozenset of str
     state : CampaignState or None
         The machine state drawn for this campaign (None without a state scatter).
+    heat_loads : tuple of HeatLoad
+        External heat loads of the test, W (the plan's; empty for the demo).
     """
 
     info: CampaignInfo
@@ -213,6 +221,7 @@ class SpindleCampaign:
     params: SpindleParams
     effects: frozenset[str]
     state: CampaignState | None = None
+    heat_loads: tuple[HeatLoad, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -329,6 +338,27 @@ def provenance_notes(seed: int, preset: str, varied: bool = False) -> str:
     return text
 
 
+def _machine_of_the_day(
+    plan: SpindlePlan, params: SpindleParams, season: str, rng: np.random.Generator
+) -> tuple[SpindleParams, CampaignState | None]:
+    """Return the parameters of the campaign's machine and its drawn state (None if not drawn).
+
+    Without a state scatter only the heat sources scatter (3 draws); else the machine state is
+    drawn (:func:`~pipeline.twin.conditions.draw_state`).
+    """
+    if plan.scatter is None:
+        f_front, f_rear, f_motor = _scatter(rng, params.heat_scatter_rel, 3)
+        used = replace(
+            params,
+            front_bearing_heat_w=params.front_bearing_heat_w * f_front,
+            rear_bearing_heat_w=params.rear_bearing_heat_w * f_rear,
+            motor_heat_w=params.motor_heat_w * f_motor,
+        )
+        return used, None
+    state = draw_state(plan.scatter, params, season, rng)
+    return apply_state(params, state), state
+
+
 def simulate_spindle_campaign(
     plan: SpindlePlan,
     *,
@@ -365,21 +395,12 @@ def simulate_spindle_campaign(
     rng = campaign_rng(seed, plan.campaign_id)
     ambient = climate.profile(plan.start, rng)
     season = plan.season or season_of(plan.start)
-    state = None
-    if plan.scatter is None:
-        f_front, f_rear, f_motor = _scatter(rng, params.heat_scatter_rel, 3)
-        used = replace(
-            params,
-            front_bearing_heat_w=params.front_bearing_heat_w * f_front,
-            rear_bearing_heat_w=params.rear_bearing_heat_w * f_rear,
-            motor_heat_w=params.motor_heat_w * f_motor,
-        )
-    else:
-        state = draw_state(plan.scatter, params, season, rng)
-        used = apply_state(params, state)
+    used, state = _machine_of_the_day(plan, params, season, rng)
     times = plan.times_s()
     history = None if state is None else state.history
-    sim = simulate_spindle(used, names, plan.program(), ambient, times, history=history)
+    sim = simulate_spindle(
+        used, names, plan.program(), ambient, times, history=history, heat_loads=plan.heat_loads
+    )
     names_t = [s.name for s in used.sensors]
     read = read_sensors(sim[names_t].to_numpy(), used.sensors, DS18B20, rng)
     temperature = pd.DataFrame(read, columns=names_t)
@@ -408,6 +429,7 @@ def simulate_spindle_campaign(
         params=used,
         effects=names,
         state=state,
+        heat_loads=plan.heat_loads,
     )
 
 

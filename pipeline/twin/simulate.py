@@ -6,6 +6,12 @@ workshop's daily cycle; with a constant ambient it is simply at the air temperat
 Temperatures are then integrated exactly (first-order-hold matrix exponential, see
 :mod:`pipeline.thermal.stepping`) on a grid made of the requested instants and the program's
 breakpoints; ``method="Radau"`` (or ``"BDF"``, ``"LSODA"``) uses ``scipy.integrate.solve_ivp``.
+
+External heat loads (:class:`~pipeline.thermal.loads.HeatLoad`: a heater mat, a lamp, a blower)
+add their power to the node that the machine's sensors of the load's role read (e.g.
+``column_rear`` -> node ``column_rear``, ``ball_screw`` -> ``z_screw``); their switching instants
+are breakpoints of the grid, so the steps are exact. A load whose power is 0 throughout is left
+out: it changes nothing, not even the grid.
 """
 
 from __future__ import annotations
@@ -20,6 +26,7 @@ import numpy as np
 import pandas as pd
 
 from pipeline.thermal.effects import Term, check_effects, slot_terms
+from pipeline.thermal.loads import HeatLoad, loads_from_contract
 from pipeline.thermal.network import LinearSystem, build_system
 from pipeline.thermal.program import Program
 from pipeline.thermal.stepping import integrate_foh, integrate_ivp, time_grid
@@ -95,6 +102,8 @@ class _Model:
         Sensors read through a lag (positions in ``params.sensors``), in state order.
     method : str
         ``"expm"`` or a ``solve_ivp`` method.
+    loads : tuple of (int, HeatLoad)
+        External heat loads that are not 0 throughout, each with the index of its node.
     """
 
     params: Any
@@ -105,9 +114,17 @@ class _Model:
     sensor_nodes: tuple[int, ...]
     lagged: tuple[int, ...]
     method: str
+    loads: tuple[tuple[int, HeatLoad], ...] = ()
 
     @classmethod
-    def build(cls, params: Any, terms: tuple[Term, ...], ambient: Any, method: str) -> _Model:
+    def build(
+        cls,
+        params: Any,
+        terms: tuple[Term, ...],
+        ambient: Any,
+        method: str,
+        loads: Sequence[HeatLoad] = (),
+    ) -> _Model:
         """Assemble the state space of ``params.network`` with the lags of the sensor term."""
         net = params.network
         (ambient_term,) = slot_terms(terms, "ambient")
@@ -122,7 +139,10 @@ class _Model:
             tuple(float(taus[j]) for j in lagged),
         )
         heat_terms = slot_terms(terms, "heat")
-        return cls(params, heat_terms, ambient_term, ambient, system, sensor_nodes, lagged, method)
+        placed = load_nodes(params, loads)
+        return cls(
+            params, heat_terms, ambient_term, ambient, system, sensor_nodes, lagged, method, placed
+        )
 
     @property
     def n_nodes(self) -> int:
@@ -140,6 +160,19 @@ class _Model:
             q = q + term.func(self.params, drive)
         return q
 
+    def load_heat(self, t: np.ndarray) -> np.ndarray:
+        """Heat of the external loads into each node at ``t`` (s), W, shape (k, n_nodes)."""
+        q = np.zeros((np.size(t), self.n_nodes))
+        for node, load in self.loads:
+            q[:, node] += load.power_at(np.asarray(t, dtype=float))
+        return q
+
+    def load_breakpoints_s(self) -> np.ndarray:
+        """Instants where a load switches, s, shape (k,) (empty without loads)."""
+        return np.concatenate(
+            [np.empty(0), *(load.program.breakpoints_s() for _, load in self.loads)]
+        )
+
     def initial(self, t_first: float) -> np.ndarray:
         """Every state at the air temperature of ``t_first`` (s), degC."""
         t_air = float(self.air(np.array([t_first]))[0])
@@ -150,8 +183,14 @@ class _Model:
         return np.concatenate([self.air(np.array([t])), q[k]])
 
     def integrate(self, grid: np.ndarray, x0: np.ndarray, drive: np.ndarray) -> np.ndarray:
-        """States on ``grid`` (s) from ``x0`` with ``drive`` on each interval, (L, n_states)."""
+        """States on ``grid`` (s) from ``x0`` with ``drive`` on each interval, (L, n_states).
+
+        The loads' heat is taken at the start of each interval (constant within it when their
+        breakpoints are on the grid).
+        """
         q = self.heat(drive)
+        if self.loads:
+            q = q + self.load_heat(grid[:-1])
         if self.method != "expm":
             inputs = partial(self.ivp_inputs, q)
             return integrate_ivp(self.system, x0, grid, inputs, method=self.method)
@@ -188,16 +227,18 @@ def _start_state(
 ) -> np.ndarray:
     """State at t = 0 after the pre-roll: the machine's history before the start.
 
-    Idle unless ``history`` says otherwise; only integrated if the air the model sees changes
-    before the start or the machine ran, else every state is at the air temperature at 0.
+    Idle unless ``history`` says otherwise (or a load has a negative ``from_min``); only
+    integrated if the air the model sees changes before the start, the machine ran or a load
+    was on, else every state is at the air temperature at 0.
     """
     n_pre = max(int(np.ceil(preroll_h * 3600.0 / max_step_s)), 1)
     pre = np.linspace(-preroll_h * 3600.0, 0.0, n_pre + 1)
     past = history if history is not None else Program(())
-    breaks = past.breakpoints_s()
+    breaks = np.concatenate([past.breakpoints_s(), model.load_breakpoints_s()])
     pre = np.unique(np.concatenate([pre, breaks[(breaks > pre[0]) & (breaks < 0)]]))
     pre_drive = past.value_at(pre[:-1])
-    if preroll_h > 0 and (np.ptp(model.air(pre)) > 0 or np.any(pre_drive != 0)):
+    loaded = bool(model.loads) and np.any(model.load_heat(pre[:-1]) != 0)
+    if preroll_h > 0 and (np.ptp(model.air(pre)) > 0 or np.any(pre_drive != 0) or loaded):
         return model.integrate(pre, model.initial(pre[0]), pre_drive)[-1]
     return model.initial(0.0)
 
@@ -213,6 +254,7 @@ def run_network(
     preroll_h: float = 72.0,
     max_step_s: float = 600.0,
     history: Program | None = None,
+    loads: Sequence[HeatLoad] = (),
 ) -> NetworkRun:
     """Integrate ``params.network`` under the heat/ambient/sensor terms of a model.
 
@@ -238,15 +280,24 @@ def run_network(
     history : Program, optional
         Drive during the pre-roll, minutes relative to the start (negative ``from_min``),
         e.g. the previous day's work; None = idle.
+    loads : sequence of HeatLoad
+        External heat loads, W, each into the node read by the sensors of its role
+        (:func:`load_nodes`); their switching instants are added to the integration grid.
 
     Returns
     -------
     NetworkRun
+
+    Raises
+    ------
+    ValueError
+        For bad instants or method, or a load whose role no sensor of ``params`` reads.
     """
     times = _check_times(times_s, method)
-    model = _Model.build(params, terms, ambient, method)
+    model = _Model.build(params, terms, ambient, method, loads)
     x0 = _start_state(model, history, preroll_h, max_step_s)
-    grid = time_grid(times, program.breakpoints_s(), max_step_s=max_step_s)
+    breaks = np.concatenate([program.breakpoints_s(), model.load_breakpoints_s()])
+    grid = time_grid(times, breaks, max_step_s=max_step_s)
     x = model.integrate(grid, x0, program.value_at(grid[:-1]))[np.searchsorted(grid, times)]
     amb = model.air(times)
     logger.debug("run_network: %d grid steps, method %s", grid.size - 1, method)
@@ -258,6 +309,53 @@ def run_network(
         start_degc=x0[: model.n_nodes].copy(),
         sensors_degc=model.readings(x, amb),
     )
+
+
+def load_nodes(params: Any, loads: Sequence[HeatLoad]) -> tuple[tuple[int, HeatLoad], ...]:
+    """Pair each load with the index of the network node its role stands for.
+
+    The node of a role is the one the machine's sensors of that role read (``params.sensors``:
+    e.g. ``ball_screw`` -> ``z_screw`` on the spindle twin). Loads whose power is 0 throughout
+    are left out.
+
+    Parameters
+    ----------
+    params : SpindleParams or AxisParams
+        Must have ``network`` and ``sensors``.
+    loads : sequence of HeatLoad
+
+    Returns
+    -------
+    tuple of (int, HeatLoad)
+        Node index and load, in the order of ``loads``.
+
+    Raises
+    ------
+    ValueError
+        If no sensor of a load's role reads a node, or sensors of the role read several nodes.
+    """
+    placed = []
+    for load in loads:
+        if all(segment.value == 0 for segment in load.program.segments):
+            continue
+        nodes = sorted({s.node for s in params.sensors if s.role == load.role} - {"ambient"})
+        if len(nodes) != 1:
+            roles = sorted({s.role for s in params.sensors if s.node != "ambient"})
+            found = "no sensor reads a node" if not nodes else f"sensors read nodes {nodes}"
+            raise ValueError(
+                f"heat load on role {load.role!r}: {found}, so the load has no single node of "
+                f"the network; load one of the roles {roles}"
+            )
+        placed.append((params.network.index(nodes[0]), load))
+    return tuple(placed)
+
+
+def as_loads(loads: Sequence[HeatLoad] | Sequence[Mapping[str, Any]]) -> tuple[HeatLoad, ...]:
+    """Accept :class:`HeatLoad` objects or the contract's ``heat_loads`` list of entries."""
+    items = tuple(loads)
+    if all(isinstance(item, HeatLoad) for item in items):
+        return items
+    return loads_from_contract(items)
 
 
 def as_program(program: Program | Sequence[Mapping[str, Any]] | float, key: str) -> Program:
@@ -306,20 +404,29 @@ def simulate_machine(
     method: str,
     preroll_h: float,
     history: Program | Sequence[Mapping[str, Any]] | None,
+    loads: Sequence[HeatLoad] | Sequence[Mapping[str, Any]] = (),
 ) -> MachineRun:
     """Run the network of ``machine`` ("spindle" or "axis") under its model for ``effects``.
 
     Shared by :func:`pipeline.twin.spindle.simulate_spindle` and
     :func:`pipeline.twin.axis.simulate_axis`, which add their own displacement outputs; the
     arguments are documented there. ``key`` names the program's quantity (``rpm``,
-    ``feed_mm_s``).
+    ``feed_mm_s``); ``loads`` are external heat loads (:func:`run_network`).
     """
     names = check_effects(effects)
     terms = model_terms(machine, names)
     prog = as_program(program, key=key)
     past = None if history is None else as_program(history, key=prog.key)
     run = run_network(
-        params, terms, prog, ambient, times_s, method=method, preroll_h=preroll_h, history=past
+        params,
+        terms,
+        prog,
+        ambient,
+        times_s,
+        method=method,
+        preroll_h=preroll_h,
+        history=past,
+        loads=as_loads(loads),
     )
     columns: dict[str, np.ndarray] = {
         "elapsed_s": run.times_s,

@@ -1,9 +1,10 @@
 """Spindle Z-drift twin of a vertical machining centre.
 
 Nine lumped nodes (front and rear bearing, spindle sleeve, motor, headstock, column front and
-rear, bed, Z screw) heated by the spindle-speed program, convection to the workshop air; the Z
-drift at the spindle nose is the sum of the model's displacement terms. Which terms are in the
-model is set by the effect names (:mod:`pipeline.thermal.effects`).
+rear, bed, Z screw) heated by the spindle-speed program (and any external heat loads),
+convection to the workshop air; the Z drift at the spindle nose is the sum of the model's
+displacement terms. Which terms are in the model is set by the effect names
+(:mod:`pipeline.thermal.effects`).
 """
 
 from __future__ import annotations
@@ -15,6 +16,7 @@ import numpy as np
 import pandas as pd
 
 from pipeline.thermal.effects import slot_terms
+from pipeline.thermal.loads import HeatLoad
 from pipeline.thermal.program import Program
 from pipeline.twin.params import SpindleParams
 from pipeline.twin.simulate import machine_frame, simulate_machine
@@ -30,6 +32,7 @@ def simulate_spindle(
     method: str = "expm",
     preroll_h: float = 72.0,
     history: Program | Sequence[Mapping[str, Any]] | None = None,
+    heat_loads: Sequence[HeatLoad] | Sequence[Mapping[str, Any]] = (),
 ) -> pd.DataFrame:
     """Simulate node temperatures, noise-free sensor readings and the Z drift.
 
@@ -55,6 +58,10 @@ def simulate_spindle(
     history : Program or list of dict, optional
         Spindle speed before the start (negative ``from_min``, e.g. the previous day's work,
         within ``preroll_h``); None = idle, so the machine starts cold.
+    heat_loads : sequence of HeatLoad or of dict
+        External heat loads (or the contract's ``heat_loads`` entries), W, each into the node
+        read by the sensors of its role (``column_rear`` -> ``column_rear``, ``ball_screw`` ->
+        ``z_screw``); empty = none, the result unchanged.
 
     Returns
     -------
@@ -76,6 +83,7 @@ def simulate_spindle(
         method=method,
         preroll_h=preroll_h,
         history=history,
+        loads=heat_loads,
     )
     z_parts = {
         f"z_{term.name}_um": np.asarray(

@@ -7,12 +7,14 @@ deviations to 0.01 um), ``\n`` line endings, and no generation timestamp anywher
 
 from __future__ import annotations
 
+import json
 import logging
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
+from pipeline.thermal.loads import HeatLoad, loads_to_contract
 from pipeline.thermal.program import Program
 from pipeline.twin.campaigns import AxisCampaign, CampaignInfo, SpindleCampaign
 from pipeline.twin.instruments import PlacedSensor
@@ -68,6 +70,22 @@ def _program_yaml(program: Program, indent: str) -> list[str]:
     return lines
 
 
+def _loads_yaml(loads: tuple[HeatLoad, ...]) -> list[str]:
+    """Return the ``heat_loads:`` lines (role, times in min, power in W, what); [] without loads."""
+    if not loads:
+        return []
+    lines = ["heat_loads:"]
+    for entry in loads_to_contract(loads):
+        fields = [f"role: {entry['role']}"]
+        fields += [
+            f"{k}: {_num(entry[k])}" for k in ("from_min", "to_min", "power_W") if k in entry
+        ]
+        if entry.get("what"):
+            fields.append(f"what: {json.dumps(entry['what'])}")
+        lines.append(f"  - {{{', '.join(fields)}}}")
+    return lines
+
+
 def _header(info: CampaignInfo) -> list[str]:
     return [
         f"campaign_id: {info.campaign_id}",
@@ -82,9 +100,11 @@ def _header(info: CampaignInfo) -> list[str]:
 
 
 def _spindle_yaml(
-    campaign: SpindleCampaign | WorkshopCampaign, probe_lines: list[str]
+    campaign: SpindleCampaign | WorkshopCampaign,
+    probe_lines: list[str],
+    loads: tuple[HeatLoad, ...] = (),
 ) -> list[str]:
-    lines = ["spindle_program:", *_program_yaml(campaign.program, "  ")]
+    lines = ["spindle_program:", *_program_yaml(campaign.program, "  "), *_loads_yaml(loads)]
     return lines + _sensors_yaml(campaign.sensors) + ["displacement:", *probe_lines]
 
 
@@ -95,6 +115,7 @@ def campaign_yaml(campaign: SpindleCampaign | AxisCampaign | WorkshopCampaign) -
         lines += _spindle_yaml(
             campaign,
             ['  Z: {probe: eddy_current, location: "spindle nose, probe under the tool holder"}'],
+            campaign.heat_loads,
         )
     elif isinstance(campaign, WorkshopCampaign):
         axes = campaign.displacement.columns[1:]

@@ -11,7 +11,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
-from schemas.vocabulary import SENSOR_ROLES
+from schemas.vocabulary import SENSOR_ROLES, STRUCTURE_ROLES
 
 RERUN = "then rerun dvc repro"
 CONTRACT = "docs/data-contract.md"
@@ -416,6 +416,38 @@ PROBLEM_TEXTS: dict[str, ProblemText] = {
         "numeric from_min or rpm",
         "write the entries of spindle_program: as {{from_min: 0, to_min: 240, rpm: 4000}} in "
         f"{{campaign}}/campaign.yaml, {RERUN}",
+        row_level=False,
+    ),
+    "bad_heat_load": ProblemText(
+        "heat_loads entry {number} in {campaign}/campaign.yaml ({entry}) {detail}: every entry "
+        "needs a role, a finite from_min (minutes since start:) and a finite power_W (W)",
+        "write entry {number} of heat_loads: as {{role: column_rear, from_min: 0, to_min: 120, "
+        "power_W: 300}} (to_min may be left out if the load stayed on to the end; a draught "
+        f"that cools the part is a negative power_W) in {{campaign}}/campaign.yaml, {RERUN}",
+        row_level=False,
+    ),
+    "heat_load_times": ProblemText(
+        "heat_loads entry {number} in {campaign}/campaign.yaml ({entry}) has to_min {to_min} "
+        "not after its from_min {from_min}: the load is never on",
+        "give entry {number} of heat_loads: a to_min after its from_min (minutes since start:), "
+        "or leave to_min out if the load stayed on to the end, in {campaign}/campaign.yaml, "
+        f"{RERUN}",
+        row_level=False,
+    ),
+    "heat_load_role": ProblemText(
+        "heat_loads entry {number} in {campaign}/campaign.yaml has role {value}, which is not a "
+        f"structure role ({', '.join(STRUCTURE_ROLES)})",
+        "set role: of entry {number} of heat_loads: in {campaign}/campaign.yaml to the "
+        "structure role of the part the load heated (the role its nearest sensor would have), "
+        f"{RERUN}",
+        row_level=False,
+    ),
+    "heat_loads_overlap": ProblemText(
+        "heat_loads entries {other} and {number} in {campaign}/campaign.yaml both heat {role} "
+        "at the same time (their from_min..to_min overlap, or the earlier one is open-ended)",
+        "give the loads on {role} in heat_loads: of {campaign}/campaign.yaml times that follow "
+        "each other (to_min of the earlier <= from_min of the later; while two devices heated "
+        f"the part together, one entry with their summed power_W), {RERUN}",
         row_level=False,
     ),
     "empty_file": ProblemText(
