@@ -252,6 +252,8 @@ class PlanFollowUp:
         Its visible signal in the rerun, noise sigmas.
     rmse_um_before, rmse_um_after : float
         Held-out Z RMS of the rerun's baseline and final twin, um.
+    rmse_t_k_before, rmse_t_k_after : float
+        Held-out temperature RMS of the rerun's baseline and final twin, K.
     """
 
     effect: str
@@ -262,6 +264,8 @@ class PlanFollowUp:
     signal_after: float
     rmse_um_before: float
     rmse_um_after: float
+    rmse_t_k_before: float
+    rmse_t_k_after: float
 
     @property
     def effect_named(self) -> bool:
@@ -302,6 +306,13 @@ def follow_plan(
         shutil.copytree(raw, folder)
         write_plan_campaigns(folder, proposed, hidden, seed, PLAN_CAMPAIGNS)
         after = run_workflow(folder, workdir / f"out_plan_{effect}", section)
+        missing = {f"P{i + 1:02d}" for i in range(PLAN_CAMPAIGNS)} - set(after["campaigns"])
+        if missing:
+            raise RuntimeError(
+                f"the proposed test's campaigns {sorted(missing)} did not reach the workflow "
+                f"(quarantined or skipped; see the log): the plan {proposed['name']!r} cannot "
+                "be written as a valid campaign"
+            )
         again = after["identifiability"][effect]
         out.append(
             PlanFollowUp(
@@ -313,6 +324,8 @@ def follow_plan(
                 signal_after=float(again.get("signal_sigma") or float("nan")),
                 rmse_um_before=float(after["rmse_um_before"]),
                 rmse_um_after=float(after["rmse_um_after"]),
+                rmse_t_k_before=float(after["rmse_T_K_before"]),
+                rmse_t_k_after=float(after["rmse_T_K_after"]),
             )
         )
     return out
@@ -418,6 +431,9 @@ class TrialResult:
             "plan_effect_named": self.plan_named,
             "plan_rmse_um_before": "+".join(f"{f.rmse_um_before:.3f}" for f in follow),
             "plan_rmse_um_after": "+".join(f"{f.rmse_um_after:.3f}" for f in follow),
+            "plan_signal_after": "+".join(f"{f.signal_after:.2f}" for f in follow),
+            "plan_rmse_T_K_before": "+".join(f"{f.rmse_t_k_before:.4f}" for f in follow),
+            "plan_rmse_T_K_after": "+".join(f"{f.rmse_t_k_after:.4f}" for f in follow),
             "seconds": round(self.seconds, 1),
         }
 
@@ -482,7 +498,8 @@ def rates_table(trials: pd.DataFrame) -> pd.DataFrame:
     over the seeds, um); ``classes`` (the hidden effects' identifiability classes and how many
     trials ended in each); ``plans_run`` (trials whose proposed test was run), ``plan_named``
     (of those, the fraction in which the effect was then named, NaN without any) and
-    ``plan_rmse`` (the rerun's held-out Z RMS before -> after, medians, um).
+    ``plan_rmse`` and ``plan_rmse_t`` (the rerun's held-out Z, um, and temperature, K, RMS
+    before -> after, medians).
     """
     trials = trials.assign(
         plan=trials["plan"].fillna("").astype(str),
@@ -497,6 +514,9 @@ def rates_table(trials: pd.DataFrame) -> pd.DataFrame:
                 lambda s: s.dropna().astype(float).mean()
             ),
             "plan_rmse": grouped[["plan_rmse_um_before", "plan_rmse_um_after"]].apply(_plan_rmse),
+            "plan_rmse_t": grouped[["plan_rmse_T_K_before", "plan_rmse_T_K_after"]].apply(
+                _plan_rmse
+            ),
             "n": grouped.size(),
             "named_correctly": grouped["named_correctly"].mean(),
             "z_halved": grouped["z_halved"].mean(),
@@ -523,7 +543,7 @@ def _counts(values: pd.Series) -> str:
 
 
 def _plan_rmse(rows: pd.DataFrame) -> str:
-    """Median held-out Z RMS before -> after of the follow-up reruns, um ("" without one)."""
+    """Median held-out RMS before -> after of the follow-up reruns ("" without one)."""
     pairs = rows.dropna().astype(str)
     pairs = pairs[(pairs.iloc[:, 0] != "") & (pairs.iloc[:, 0] != "nan")]
     if pairs.empty:
@@ -548,11 +568,12 @@ def rates_markdown(rates: pd.DataFrame, trials: pd.DataFrame, seeds: Sequence[in
         "*Plan run*: trials whose hidden effect was classed not identifiable with a visible "
         "proposed test, which was then run on the same machine and the workflow rerun; *named "
         "after plan*: of those, the share that named the effect; *Z after plan*: the rerun's "
-        "held-out Z RMS, baseline -> augmented twin (medians, um).",
+        "held-out Z RMS (um) and temperature RMS (K), baseline -> augmented twin (medians).",
         "",
         "| hidden | trials | named correctly | Z halved | gap halved | correct (issue 4) "
-        "| held-out Z RMS before | after | class | plan run | named after plan | Z after plan |",
-        "|---|---|---|---|---|---|---|---|---|---|---|---|",
+        "| held-out Z RMS before | after | class | plan run | named after plan | Z after plan "
+        "| T after plan |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for r in rates.itertuples():
         named_after = "" if not r.plans_run or np.isnan(r.plan_named) else f"{r.plan_named:.0%}"
@@ -560,7 +581,7 @@ def rates_markdown(rates: pd.DataFrame, trials: pd.DataFrame, seeds: Sequence[in
             f"| {r.hidden} | {r.n} | {r.named_correctly:.0%} | {r.z_halved:.0%} | "
             f"{r.gap_halved:.0%} | {r.correct:.0%} | {r.rmse_um_before:.2f} | "
             f"{r.rmse_um_after:.2f} | {r.classes} | {r.plans_run} | {named_after} | "
-            f"{r.plan_rmse} |"
+            f"{r.plan_rmse} | {r.plan_rmse_t} |"
         )
     wrong = trials[~trials["correct"]]
     if len(wrong):

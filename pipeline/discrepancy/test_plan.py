@@ -89,14 +89,15 @@ HEATER_POWERS_W = (250.0, 500.0)
 
 HEAT_LOAD_ROLES = {
     "thermal_bending": ("column_rear", "column_front"),
-    "sensor_lag": ("spindle_front_bearing", "headstock", "spindle_motor"),
+    "sensor_lag": ("spindle_motor", "headstock", "spindle_front_bearing"),
 }
 """Structure roles a heater may be put on, per effect (only roles the campaigns have a sensor
-on): bending reads the difference of the column halves, which a load on one half drives
-alone; a sensor's lag shows when its own part is heated directly, its first reading rising
-later than the part's heat capacity allows."""
+on), in order of preference: bending reads the difference of the column halves, which a load
+on one half drives alone; a sensor's lag shows when its own part is heated directly and fast,
+its reading rising later than the part's heat capacity allows, so the lightest part a heater
+can be put on comes first (the motor casing; a bearing housing sits inside the headstock)."""
 
-MAX_PLANS = 60
+MAX_PLANS = 80
 """Most plans tried per effect."""
 
 
@@ -230,9 +231,10 @@ def heater_plans(high: float, roles: Sequence[str], interval_s: float) -> list[T
         half = duration * 30.0
         run_first = constant_program(high, duration)
         run_second = Program((Segment(half, 2 * half, high),), key="rpm")
+        stopped = Program((Segment(0.0, 2 * half, 0.0),), key="rpm")  # written, not left empty
         spindle = f"the spindle at {high:.0f} rpm for {half:g} min"
         patterns = (
-            ("{load} for {half:g} min with the spindle stopped", Program((), key="rpm"), 0.0),
+            ("{load} for {half:g} min with the spindle stopped", stopped, 0.0),
             (spindle + ", then a {load} for {half:g} min", run_first, half),
             ("a {load} for {half:g} min, then " + spindle, run_second, 0.0),
         )
@@ -276,7 +278,7 @@ def candidate_plans(
         for name, program, duration in programs:
             plans.append(TestPlan(name, program, duration, own, (role,), True))
     heated = [r for r in HEAT_LOAD_ROLES.get(effect, ()) if r in roles]
-    plans += heater_plans(high, heated[:2], own)
+    plans += heater_plans(high, heated, own)
     return plans[:MAX_PLANS]
 
 
