@@ -47,7 +47,14 @@ def check_heat_loads(entries: list[Any], report: Report) -> None:
         if _entry_reported(number, entry, report):
             continue
         if entry["role"] not in STRUCTURE_ROLES:
-            report("campaign.yaml", None, KEY, "heat_load_role", number=number, value=entry["role"])
+            report(
+                "campaign.yaml",
+                None,
+                KEY,
+                "heat_load_role",
+                number=number,
+                value=repr(entry["role"]),
+            )
             continue
         usable.append((number, entry))
     _report_overlaps(usable, report)
@@ -56,7 +63,9 @@ def check_heat_loads(entries: list[Any], report: Report) -> None:
 def _entry_reported(number: int, entry: Any, report: Report) -> bool:
     """Report one entry that the parser refuses on its own; return True if it did."""
     if not isinstance(entry, Mapping):
-        _bad(report, number, entry, "is not a mapping {role: ..., from_min: ..., power_W: ...}")
+        _bad(
+            report, number, repr(entry), "is not a mapping {role: ..., from_min: ..., power_W: ...}"
+        )
         return True
     try:
         (load,) = loads_from_contract([entry])
