@@ -120,6 +120,13 @@ BAD_LOADS = [
     ("nut_role", [REAR, {**REAR, "role": "nut"}], "heat_load_role", 2, "'nut'"),
     ("ends_first", [{**REAR, "from_min": 120, "to_min": 60}], "heat_load_times", 1, "to_min 60"),
     ("zero_length", [{**REAR, "to_min": 0}], "heat_load_times", 1, "never on"),
+    (
+        "ends_first_no_power",
+        [{"role": "bed", "from_min": 9, "to_min": 1}],
+        "bad_heat_load",
+        1,
+        "no",
+    ),
     ("overlap", [REAR, {**REAR, "from_min": 100, "to_min": 200}], "heat_loads_overlap", 2, "1 and"),
     ("after_open_end", [OPEN, {**OPEN, "from_min": 180}], "heat_loads_overlap", 2, "column_rear"),
 ]

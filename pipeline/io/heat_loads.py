@@ -100,9 +100,18 @@ def _number(value: Any) -> bool:
 
 
 def _ends_before_start(entry: Mapping[str, Any]) -> bool:
-    """Whether the entry's only fault is worded as ``to_min`` not after ``from_min``."""
+    """Whether the entry's only fault is a ``to_min`` not after its ``from_min``.
+
+    It is when the same entry left open-ended is one the parser accepts.
+    """
     begin, end = entry.get("from_min"), entry.get("to_min")
-    return _number(begin) and _number(end) and end <= begin
+    if not (_number(begin) and _number(end) and end <= begin):
+        return False
+    try:
+        loads_from_contract([{**entry, "to_min": None}])
+    except (TypeError, ValueError):
+        return False
+    return True
 
 
 def _lacking(entry: Mapping[str, Any]) -> str:
