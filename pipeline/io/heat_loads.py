@@ -47,7 +47,14 @@ def check_heat_loads(entries: list[Any], report: Report) -> None:
         if _entry_reported(number, entry, report):
             continue
         if entry["role"] not in STRUCTURE_ROLES:
-            report("campaign.yaml", None, KEY, "heat_load_role", number=number, value=entry["role"])
+            report(
+                "campaign.yaml",
+                None,
+                KEY,
+                "heat_load_role",
+                number=number,
+                value=repr(entry["role"]),
+            )
             continue
         usable.append((number, entry))
     _report_overlaps(usable, report)
@@ -56,7 +63,9 @@ def check_heat_loads(entries: list[Any], report: Report) -> None:
 def _entry_reported(number: int, entry: Any, report: Report) -> bool:
     """Report one entry that the parser refuses on its own; return True if it did."""
     if not isinstance(entry, Mapping):
-        _bad(report, number, entry, "is not a mapping {role: ..., from_min: ..., power_W: ...}")
+        _bad(
+            report, number, repr(entry), "is not a mapping {role: ..., from_min: ..., power_W: ...}"
+        )
         return True
     try:
         (load,) = loads_from_contract([entry])
@@ -91,9 +100,18 @@ def _number(value: Any) -> bool:
 
 
 def _ends_before_start(entry: Mapping[str, Any]) -> bool:
-    """Whether the entry's only fault is worded as ``to_min`` not after ``from_min``."""
+    """Whether the entry's only fault is a ``to_min`` not after its ``from_min``.
+
+    It is when the same entry left open-ended is one the parser accepts.
+    """
     begin, end = entry.get("from_min"), entry.get("to_min")
-    return _number(begin) and _number(end) and end <= begin
+    if not (_number(begin) and _number(end) and end <= begin):
+        return False
+    try:
+        loads_from_contract([{**entry, "to_min": None}])
+    except (TypeError, ValueError):
+        return False
+    return True
 
 
 def _lacking(entry: Mapping[str, Any]) -> str:
