@@ -32,6 +32,12 @@ def test_the_document_is_what_the_code_generates():
     assert contract_doc.render(text) == text, "run: .venv/bin/thermal contract-doc"
 
 
+def test_the_command_s_default_document_is_the_repository_s():
+    """``thermal contract-doc`` without ``--path`` rewrites docs/data-contract.md."""
+    assert contract_doc.DOCUMENT == DOCUMENT
+    assert contract_doc.main(["--check"]) == 0
+
+
 def test_check_mode_fails_on_a_stale_document(tmp_path):
     stale = tmp_path / "contract.md"
     text = DOCUMENT.read_text(encoding="utf-8")

@@ -23,7 +23,7 @@ from pipeline.validation.texts import PROBLEM_TEXTS
 from schemas.contract import ALWAYS, CAMPAIGN_KEYS, FILES, OPTIONAL, VERSION
 from schemas.vocabulary import AMBIENT_ROLE, SENSOR_ROLES
 
-DOCUMENT = Path(__file__).resolve().parents[1] / "docs" / "data-contract.md"
+DOCUMENT = Path(__file__).resolve().parents[2] / "docs" / "data-contract.md"
 """The document, in the repository this package is installed from (an editable install)."""
 BLOCK_RE = re.compile(
     r"(<!-- generated: (?P<name>[a-z-]+) -->\n)(?P<body>.*?)(<!-- end generated: (?P=name) -->)",
