@@ -6,7 +6,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: install run test test-fast bench trials demo-check ui-check lint simulate clean
+.PHONY: install run test test-fast bench trials trials-quick demo-check ui-check lint simulate clean
 
 install: $(STAMP)
 
@@ -32,8 +32,12 @@ test-fast: install
 bench: install
 	PATH="$(CURDIR)/$(BIN):$$PATH" $(BIN)/python -m benchmarks.bench
 
+# Every hidden-effect case over seeds 1-5 (8 campaigns each); trials-quick: 4 campaigns, 2 folds.
 trials: install
-	$(BIN)/python -m benchmarks.discrepancy_trials --seeds 1 2 3 --out reports/discrepancy_trials
+	$(BIN)/python -m benchmarks.discrepancy_trials --seeds 1 2 3 4 5 --out reports/discrepancy_trials
+
+trials-quick: install
+	$(BIN)/python -m benchmarks.discrepancy_trials --quick --seeds 1 2 3 4 5 --out reports/discrepancy_trials_quick
 
 demo-check: install
 	$(BIN)/python -m benchmarks.discrepancy_demo_check --out reports/discrepancy_demo_check

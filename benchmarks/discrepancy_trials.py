@@ -74,6 +74,9 @@ PROGRAMS = (
 )
 """Speed steps ((from_min, rpm), ...) of the trial campaigns, 270 min running each."""
 
+QUICK_CAMPAIGNS = 4
+"""Campaigns per trial in ``--quick`` mode (with 2 folds)."""
+
 PLAN_CAMPAIGNS = 2
 """Campaigns of a proposed test run per follow-up (the search holds campaigns out)."""
 
@@ -595,21 +598,41 @@ def rates_markdown(rates: pd.DataFrame, trials: pd.DataFrame, seeds: Sequence[in
     return "\n".join(lines) + "\n"
 
 
+def _case_name(case: frozenset) -> str:
+    """A case as ``trials.csv`` names it: the hidden effects joined by '+', or ``none``."""
+    return "+".join(sorted(case)) or "none"
+
+
 def main(argv: list[str] | None = None) -> int:
     """``python -m benchmarks.discrepancy_trials``: every case over the seeds; write the rates."""
     parser = argparse.ArgumentParser(
         prog="python -m benchmarks.discrepancy_trials", description=__doc__.splitlines()[0]
     )
-    parser.add_argument("--seeds", type=int, nargs="+", default=[1, 2, 3])
+    parser.add_argument("--seeds", type=int, nargs="+", default=[1, 2, 3, 4, 5])
+    parser.add_argument(
+        "--cases",
+        nargs="+",
+        choices=[_case_name(c) for c in CASES],
+        help="only these cases (hidden effects joined by '+', or none); default every case",
+    )
     parser.add_argument("--out", type=Path, default=Path("reports/discrepancy_trials"))
     parser.add_argument("--campaigns", type=int, default=8, help="campaigns per trial")
     parser.add_argument("--params", type=Path, default=DEFAULT_PARAMS)
+    parser.add_argument(
+        "--quick",
+        action="store_true",
+        help=f"{QUICK_CAMPAIGNS} campaigns per trial and 2 folds (about a third of the time)",
+    )
     args = parser.parse_args(argv)
+    logging.basicConfig(level=logging.INFO, format="%(asctime)s %(name)s: %(message)s")
     section = load_section("discrepancy", args.params)
+    if args.quick:
+        section = {**section, "n_folds": 2}
+        args.campaigns = QUICK_CAMPAIGNS
     args.out.mkdir(parents=True, exist_ok=True)
     rows = []
     for seed in args.seeds:
-        for case in CASES:
+        for case in [c for c in CASES if not args.cases or _case_name(c) in args.cases]:
             with tempfile.TemporaryDirectory() as tmp:
                 result = run_trial(case, seed, section, Path(tmp), args.campaigns)
             logger.info("trial %s", result.row())

@@ -510,3 +510,21 @@ def test_the_motor_loss_is_reported_with_the_rise_it_fixes():
     doubled = {k: {**v, "value": 2 * v["value"]} for k, v in params.items()}
     assert _motor_rise(doubled) == pytest.approx(_motor_rise(params))
     assert _motor_rise({"h_motor_W_per_K": {"value": 1.0, "unit": "W/K"}}) is None
+
+
+@pytest.mark.slow
+def test_the_trials_command_writes_the_follow_up_columns(tmp_path):
+    """``python -m benchmarks.discrepancy_trials --quick`` on one invisible case: trials.csv
+    records the class and the proposed test's rerun, rates.md shows them."""
+    from benchmarks.discrepancy_trials import main
+
+    out = tmp_path / "trials"
+    assert main(["--quick", "--seeds", "1", "--cases", "thermal_bending", "--out", str(out)]) == 0
+    trials = pd.read_csv(out / "trials.csv")
+    (row,) = trials.to_dict("records")
+    assert row["class"] == NOT_IDENTIFIABLE and "thermal_bending" in row["not_identifiable"]
+    assert "heater" in row["plan"] and bool(row["plan_effect_named"])
+    rates = (out / "rates.md").read_text(encoding="utf-8")
+    assert "| thermal_bending | 1 |" in rates
+    line = next(x for x in rates.splitlines() if x.startswith("| thermal_bending"))
+    assert "not_identifiable 1 | 1 | 100% |" in line
