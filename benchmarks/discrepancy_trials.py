@@ -599,7 +599,7 @@ def rates_markdown(rates: pd.DataFrame, trials: pd.DataFrame, seeds: Sequence[in
 
 
 def _case_name(case: frozenset) -> str:
-    """A case as ``trials.csv`` names it: the hidden effects joined by '+', or ``none``."""
+    """Return a case as ``trials.csv`` names it: the hidden effects joined by '+', or none."""
     return "+".join(sorted(case)) or "none"
 
 
