@@ -46,7 +46,7 @@ def check(effect: str, seed: int, workdir: Path, n: int = 4) -> dict[str, Any]:
         "signal_before": entry.get("signal_sigma"),
         "proposed_test": entry.get("proposed_test"),
     }
-    for follow in follow_plan(raw, doc, (effect,), seed, section, workdir):
+    for follow in follow_plan(raw, doc, (effect,), (effect,), seed, section, workdir):
         out.update(
             named_after=follow.effect_named,
             class_after=follow.class_after,

@@ -317,7 +317,11 @@ def test_the_hidden_effects_are_named_and_the_gap_halves(tmp_path, hidden):
     assert set(result.named) == set(hidden), result.row()
     assert result.gap_halved, result.row()
     assert NOT_IDENTIFIABLE not in result.classes, result.row()
-    assert not result.follow_ups
+    if not hidden:  # the tests proposed for what cannot be seen must not make it appear
+        assert result.follow_ups, result.row()
+        assert all(f.named == () for f in result.follow_ups), result.row()
+    else:
+        assert not result.follow_ups
 
 
 def test_trial_scoring_and_rates_table():
