@@ -170,10 +170,38 @@ TABLE = {  # plan -> its signal, sigma (threshold 1.5)
 }
 
 
-def _propose(monkeypatch, table):
+def _propose(monkeypatch, table, rise=lambda signal: 5.0, limit=10.0):
+    """Propose from ``table`` (plan -> signal); each plan heats a part by ``rise(signal)`` K."""
     monkeypatch.setattr(tp, "visibility", lambda effect, point, plausible: _figures(point))
+    monkeypatch.setattr(tp, "peak_rise_k", rise)
     current = EffectIdentifiability("sensor_lag", NOT_IDENTIFIABLE, _figures(0.5))
-    return tp.propose_test("sensor_lag", current, list(table), table.__getitem__, SETTINGS)
+    return tp.propose_test("sensor_lag", current, list(table), table.__getitem__, SETTINGS, limit)
+
+
+def test_a_plan_that_would_heat_a_part_beyond_the_envelope_is_not_proposed(monkeypatch):
+    """The cheapest visible plan (4 h + sensor, 2.0 sigma) would heat a part by 12 K against a
+    10 K envelope: the next visible one is proposed, and the paragraph says why."""
+    proposed = _propose(monkeypatch, TABLE, rise=lambda signal: 12.0 if signal == 2.0 else 4.0)
+    assert proposed.plan.name == "6 h" and proposed.too_hot == 1
+    entry = proposed.to_dict()
+    assert entry["plans_too_hot"] == 1 and entry["rise_limit_K"] == 10.0
+    assert entry["expected_max_rise_K"] == 4.0
+    assert "1 plans left out because they would heat a part more than 10.0 K" in entry["text"]
+    all_hot = _propose(monkeypatch, TABLE, rise=lambda signal: 11.0)
+    assert all_hot.plan is None and all_hot.best is None and all_hot.too_hot == len(TABLE)
+
+
+def test_the_envelope_is_the_largest_rise_of_a_structure_sensor(flat):
+    point = flat[0]
+    campaign = point.campaigns[0]
+    structure = [s for s in campaign.temperatures.columns if campaign.roles[s] != "ambient"]
+    expected = max(
+        float(c.temperatures[s].max() - c.temperatures[s].iloc[0])
+        for c in point.campaigns
+        for s in structure
+    )
+    assert tp.largest_rise_k(point.campaigns) == pytest.approx(expected)
+    assert 0.0 < expected < tp.ENVELOPE_FLOOR_K  # these short flat campaigns barely warm it
 
 
 def test_the_cheapest_visible_plan_is_proposed(monkeypatch):

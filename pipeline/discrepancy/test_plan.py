@@ -11,10 +11,12 @@ under which the effect would be identifiable (:func:`propose_tests`):
    the effect reads a structure role no campaign has (:data:`ADDED_SENSOR_ROLES`), the same
    programs with a sensor of that role added; and, where the effect reads a part a heater can
    load (:data:`HEAT_LOAD_ROLES`, roles the campaigns have a sensor on), an external heat load
-   of :data:`HEATER_POWERS_W` on that part for half the test, with the spindle stopped, or
-   running in the other half (:func:`heater_plans`): a load the spindle does not drive
-   separates what the spindle's heat ties together (the column's front-to-rear difference and
-   its mean rise, a sensor's delay and its node's heat capacity).
+   of :data:`HEATER_POWERS_W` on that part for a short pulse or half the test, with the
+   spindle stopped, or running in the other half (:func:`heater_plans`); a plan that would
+   heat a part beyond the campaigns' largest rise (at least :data:`ENVELOPE_FLOOR_K`) is left
+   out. A load the spindle does not drive separates what the spindle's heat ties together
+   (the column's front-to-rear difference and its mean rise, a sensor's delay and its node's
+   heat capacity).
 2. **The simulated test.** Each plan is one campaign simulated noise-free by the calibrated
    baseline twin (the baseline's parameter values; a node the added sensor brings gets its
    parameters' initial values), starting cold at the campaigns' ambient with the campaigns'
@@ -51,7 +53,13 @@ from pipeline.discrepancy.identifiability import (
     shortfalls,
 )
 from pipeline.discrepancy.model import ROLE_NODES, build_model, loaded_roles
-from pipeline.discrepancy.visibility import BaselinePoint, Visibility, baseline_point, visibility
+from pipeline.discrepancy.visibility import (
+    BaselinePoint,
+    Visibility,
+    baseline_point,
+    json_figure,
+    visibility,
+)
 from pipeline.thermal.loads import POWER_KEY, HeatLoad, loads_to_contract
 from pipeline.thermal.program import Program, Segment
 
@@ -84,8 +92,10 @@ HEATER_COST_H = 2.0
 """Fixed cost of an external heat load (mounting a heater, its supply, logging its power), in
 test hours."""
 
-HEATER_POWERS_W = (250.0, 500.0)
-"""Heater powers of the grid, W: heater mats and a 500 W halogen lamp a workshop has."""
+HEATER_POWERS_W = (25.0, 100.0, 250.0, 500.0)
+"""Heater powers of the grid, W: heater pads and mats and a 500 W halogen lamp. A plan
+that would heat a part beyond the campaigns' own largest rise is left out
+(:func:`largest_rise_k`)."""
 
 HEAT_LOAD_ROLES = {
     "thermal_bending": ("column_rear", "column_front"),
@@ -97,7 +107,16 @@ on one half drives alone; a sensor's lag shows when its own part is heated direc
 its reading rising later than the part's heat capacity allows, so the lightest part a heater
 can be put on comes first (the motor casing; a bearing housing sits inside the headstock)."""
 
-MAX_PLANS = 80
+PULSE_MIN = 15.0
+"""Length of the short heat pulse of the grid, min: a fast rise that a sensor's lag delays,
+while the part stays in the envelope."""
+
+MAX_PLANS = 120
+
+ENVELOPE_FLOOR_K = 10.0
+"""Smallest rise a proposed test may give a part, K, however little the campaigns warmed the
+machine: a spindle bearing housing runs 10-20 K above the air in normal service, so a part
+warmed by 10 K is within what a machine tool meets at work."""
 """Most plans tried per effect."""
 
 
@@ -222,9 +241,10 @@ def heater_plans(high: float, roles: Sequence[str], interval_s: float) -> list[T
     """Return the grid's tests with a heater on one of ``roles`` (see the module docstring).
 
     For each duration of :data:`DURATIONS_H`, role and power of :data:`HEATER_POWERS_W`: the
-    heater on in the first half with the spindle stopped; the spindle at ``high`` (rpm) in the
-    first half and the heater on in the second; the heater in the first half and the spindle
-    in the second. Sampled every ``interval_s`` (s).
+    heater on for the first :data:`PULSE_MIN` with the spindle stopped (shortest test only);
+    the heater on in the first half with the spindle stopped; the spindle at ``high`` (rpm) in
+    the first half and the heater on in the second; the heater in the first half and the
+    spindle in the second. Sampled every ``interval_s`` (s).
     """
     plans = []
     for duration in DURATIONS_H:
@@ -233,16 +253,18 @@ def heater_plans(high: float, roles: Sequence[str], interval_s: float) -> list[T
         run_second = Program((Segment(half, 2 * half, high),), key="rpm")
         stopped = Program((Segment(0.0, 2 * half, 0.0),), key="rpm")  # written, not left empty
         spindle = f"the spindle at {high:.0f} rpm for {half:g} min"
-        patterns = (
-            ("{load} for {half:g} min with the spindle stopped", stopped, 0.0),
-            (spindle + ", then a {load} for {half:g} min", run_first, half),
-            ("a {load} for {half:g} min, then " + spindle, run_second, 0.0),
-        )
+        patterns = [
+            ("a {load} for {on:g} min with the spindle stopped", stopped, 0.0, half),
+            (spindle + ", then a {load} for {on:g} min", run_first, half, half),
+            ("a {load} for {on:g} min, then " + spindle, run_second, 0.0, half),
+        ]
+        if duration == min(DURATIONS_H):
+            patterns.insert(0, (patterns[0][0], stopped, 0.0, PULSE_MIN))
         for role in roles:
             for power in HEATER_POWERS_W:
-                for words, program, on_min in patterns:
-                    load = heater(role, power, on_min, on_min + half)
-                    name = words.format(load=load.what, half=half) + f", {duration:g} h"
+                for words, program, on_min, length in patterns:
+                    load = heater(role, power, on_min, on_min + length)
+                    name = words.format(load=load.what, on=length) + f", {duration:g} h"
                     plans.append(TestPlan(name, program, duration, interval_s, (), True, (load,)))
     return plans
 
@@ -377,6 +399,14 @@ class ProposedTest:
         Whether the grid had plans with an added sensor.
     heaters_tried : bool
         Whether the grid had plans with a heat load.
+    rise_limit_k : float
+        The envelope: the largest rise any sensor showed in the campaigns
+        (:func:`largest_rise_k`), at least :data:`ENVELOPE_FLOOR_K`, K; a plan heating a part
+        beyond it is not proposed.
+    plan_rise_k : float
+        Largest rise the twin expects at a sensor under the proposed (or best) plan, K.
+    too_hot : int
+        Plans left out because they would leave the envelope.
     """
 
     effect: str
@@ -388,15 +418,21 @@ class ProposedTest:
     n_plans: int
     sensors_tried: bool = False
     heaters_tried: bool = False
+    rise_limit_k: float = float("nan")
+    plan_rise_k: float = float("nan")
+    too_hot: int = 0
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready ``proposed_test``: the plan in the raw contract's terms and its text."""
         signal = self.figures.signal_sigma if self.figures is not None else float("nan")
         out: dict[str, Any] = {"visible": self.plan is not None, "plans_tried": self.n_plans}
+        out["plans_too_hot"] = self.too_hot
+        out["rise_limit_K"] = json_figure(self.rise_limit_k)
+        rise = {"expected_max_rise_K": json_figure(self.plan_rise_k)}
         if self.plan is not None:
-            out.update(self.plan.to_dict(signal))
+            out.update(self.plan.to_dict(signal), **rise)
         elif self.best is not None:
-            out["best_in_grid"] = self.best.to_dict(signal)
+            out["best_in_grid"] = {**self.best.to_dict(signal), **rise}
         out["text"] = plan_text(self)
         return out
 
@@ -436,7 +472,9 @@ def plan_text(proposed: ProposedTest) -> str:
             f"{_program_words(proposed.plan)}. The calibrated twin expects it to leave "
             f"{proposed.figures.signal_sigma:.2f} noise sigmas beyond what the baseline absorbs "
             f"(cost {proposed.plan.cost:g} test hours, the cheapest of {proposed.n_plans} plans "
-            "tried); add the campaign to the raw folder and rerun `thermal discrepancy`."
+            f"tried{_envelope_words(proposed)}); no part should rise more than "
+            f"{proposed.plan_rise_k:.1f} K. Add the campaign to the raw folder and rerun "
+            "`thermal discrepancy`."
         )
     best = (
         f" The best, to {_program_words(proposed.best)}, reaches "
@@ -451,8 +489,20 @@ def plan_text(proposed: ProposedTest) -> str:
     )
     return (
         f"None of the {proposed.n_plans} test plans tried ({tried}) would make {e} visible "
-        f"({now}, threshold {proposed.threshold_sigma:g}).{best} Its response at a plausible "
-        f"size stays within what the baseline absorbs; {_what_else(proposed)} would be needed."
+        f"({now}, threshold {proposed.threshold_sigma:g}){_envelope_words(proposed)}.{best} "
+        "Its response at a plausible size stays within what the baseline absorbs; "
+        f"{_what_else(proposed)} would be needed."
+    )
+
+
+def _envelope_words(proposed: ProposedTest) -> str:
+    """Return how many plans were left out for heating a part beyond the envelope ("" if none)."""
+    if not proposed.too_hot:
+        return ""
+    return (
+        f"; {proposed.too_hot} plans left out because they would heat a part more than "
+        f"{proposed.rise_limit_k:.1f} K (the largest rise in these campaigns, at least "
+        f"{ENVELOPE_FLOOR_K:g} K)"
     )
 
 
@@ -496,12 +546,35 @@ def plan_sensors(campaigns: Sequence[MeasuredCampaign]) -> dict[str, str]:
     return out
 
 
+def largest_rise_k(campaigns: Sequence[MeasuredCampaign]) -> float:
+    """Largest rise of any sensor on the structure over its first reading in ``campaigns``, K.
+
+    The envelope a proposed test must stay in: a heater that takes a part further than the
+    machine's own running ever took any part risks the machine (and an ingest range check).
+    """
+    rises = [0.0]
+    for c in campaigns:
+        for s in c.temperatures.columns:
+            if c.roles.get(s) in ROLE_NODES:
+                values = c.temperatures[s].to_numpy(dtype=float)
+                ok = values[np.isfinite(values)]
+                if ok.size:
+                    rises.append(float(ok.max() - ok[0]))
+    return max(rises)
+
+
+def peak_rise_k(point: BaselinePoint) -> float:
+    """Largest rise over its first value of any structure sensor of a plan's campaign, K."""
+    return largest_rise_k(point.campaigns)
+
+
 def propose_test(
     effect: str,
     current: EffectIdentifiability,
     plans: Sequence[TestPlan],
     point_of: Any,
     settings: IdentifiabilitySettings,
+    rise_limit_k: float = float("inf"),
 ) -> ProposedTest:
     """Try ``plans`` cheapest first; return the first that makes ``effect`` visible.
 
@@ -514,45 +587,58 @@ def propose_test(
     point_of : callable
         ``TestPlan -> BaselinePoint`` (cached by the caller: one point serves every effect).
     settings : IdentifiabilitySettings
+    rise_limit_k : float
+        Plans whose simulated campaign takes a sensor further above its first reading, K, are
+        left out (:func:`largest_rise_k` of the campaigns).
     """
-    best: tuple[float, TestPlan, Visibility] | None = None
+    best: tuple[float, TestPlan, Visibility, float] | None = None
     ordered = cheapest_order(plans)
-    for n, plan in enumerate(ordered, start=1):
-        figures = visibility(effect, point_of(plan), settings.plausible)
+    too_hot = 0
+    for plan in ordered:
+        plan_point = point_of(plan)
+        rise = peak_rise_k(plan_point)
+        if rise > rise_limit_k:
+            too_hot += 1
+            continue
+        figures = visibility(effect, plan_point, settings.plausible)
         if not shortfalls(figures, settings):
-            return _proposed(effect, current, plan, figures, None, settings, n)
+            best = (figures.signal_sigma, plan, figures, rise)
+            return _proposed(effect, current, best, True, ordered, settings, rise_limit_k, too_hot)
         signal = figures.signal_sigma if np.isfinite(figures.signal_sigma) else -1.0
         if best is None or signal > best[0]:
-            best = (signal, plan, figures)
-    figures, top = (best[2], best[1]) if best else (None, None)
-    sensors = any(p.add_sensors for p in ordered)
-    heaters = any(p.heat_loads for p in ordered)
-    return _proposed(effect, current, None, figures, top, settings, len(ordered), sensors, heaters)
+            best = (signal, plan, figures, rise)
+    return _proposed(effect, current, best, False, ordered, settings, rise_limit_k, too_hot)
 
 
 def _proposed(
     effect: str,
     current: EffectIdentifiability,
-    plan: TestPlan | None,
-    figures: Visibility | None,
-    best: TestPlan | None,
+    chosen: tuple[float, TestPlan, Visibility, float] | None,
+    visible: bool,
+    ordered: Sequence[TestPlan],
     settings: IdentifiabilitySettings,
-    n_plans: int,
-    sensors_tried: bool = False,
-    heaters_tried: bool = False,
+    rise_limit_k: float,
+    too_hot: int,
 ) -> ProposedTest:
-    """Build the :class:`ProposedTest` and log it."""
+    """Build the :class:`ProposedTest` from the chosen ``(signal, plan, figures, rise)``; log it.
+
+    ``visible``: the chosen plan makes the effect visible (else it is the grid's best).
+    """
     now = current.figures.signal_sigma if current.figures is not None else float("nan")
+    _, plan, figures, rise = chosen if chosen is not None else (None, None, None, float("nan"))
     proposed = ProposedTest(
         effect,
-        plan,
+        plan if visible else None,
         figures,
-        best,
+        None if visible else plan,
         now,
         settings.min_signal_sigma,
-        n_plans,
-        sensors_tried,
-        heaters_tried,
+        len(ordered) if not visible else ordered.index(plan) + 1,
+        sensors_tried=any(p.add_sensors for p in ordered),
+        heaters_tried=any(p.heat_loads for p in ordered),
+        rise_limit_k=rise_limit_k,
+        plan_rise_k=rise,
+        too_hot=too_hot,
     )
     logger.info("test plan for %s: %s", effect, plan_text(proposed))
     return proposed
@@ -579,6 +665,7 @@ def propose_tests(
         Effect -> its proposed test, for the not-identifiable effects, in ``classes`` order.
     """
     ambient_c = _ambient(point.campaigns)
+    limit = max(largest_rise_k(point.campaigns), ENVELOPE_FLOOR_K)
     cache: dict[TestPlan, BaselinePoint] = {}
     sensors = plan_sensors(point.campaigns)
 
@@ -596,6 +683,7 @@ def propose_tests(
             candidate_plans(point.campaigns, effect, point.roles),
             point_of,
             settings,
+            limit,
         )
         for effect, entry in classes.items()
         if entry.status == NOT_IDENTIFIABLE

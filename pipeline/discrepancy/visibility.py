@@ -144,22 +144,24 @@ class Visibility:
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready figures (4 significant digits; None when not finite)."""
         return {
-            "collinearity_index": _num(self.collinearity_index),
-            "collinearity_index_all_parameters": _num(self.collinearity_index_all_parameters),
-            "signal_sigma": _num(self.signal_sigma),
-            "signal_Z_sigma": _num(self.signal_z_sigma),
-            "signal_T_sigma": _num(self.signal_t_sigma),
-            "signal_Z_um": _num(self.signal_z_um),
-            "signal_T_K": _num(self.signal_t_k),
-            "response_Z_um": _num(self.response_z_um),
-            "response_T_K": _num(self.response_t_k),
+            "collinearity_index": json_figure(self.collinearity_index),
+            "collinearity_index_all_parameters": json_figure(
+                self.collinearity_index_all_parameters
+            ),
+            "signal_sigma": json_figure(self.signal_sigma),
+            "signal_Z_sigma": json_figure(self.signal_z_sigma),
+            "signal_T_sigma": json_figure(self.signal_t_sigma),
+            "signal_Z_um": json_figure(self.signal_z_um),
+            "signal_T_K": json_figure(self.signal_t_k),
+            "response_Z_um": json_figure(self.response_z_um),
+            "response_T_K": json_figure(self.response_t_k),
             "plausible_values": {
-                k: {"value": _num(v), "unit": u} for k, (v, u) in self.values.items()
+                k: {"value": json_figure(v), "unit": u} for k, (v, u) in self.values.items()
             },
         }
 
 
-def _num(x: float) -> float | None:
+def json_figure(x: float) -> float | None:
     """Return ``x`` to 4 significant digits, or None when not finite (JSON has no NaN)."""
     x = float(x)
     return float(f"{x:.4g}") if np.isfinite(x) else None
