@@ -52,6 +52,9 @@ def check(effect: str, seed: int, workdir: Path, n: int = 4) -> dict[str, Any]:
             class_after=follow.class_after,
             signal_after=follow.signal_after,
             named_effects_after=list(follow.named),
+            plans_run=follow.plan,
+            rounds=follow.rounds,
+            expected_sigma_last_plan=follow.expected_sigma,
             rmse_um_before_after_plan=follow.rmse_um_before,
             rmse_um_after_after_plan=follow.rmse_um_after,
         )

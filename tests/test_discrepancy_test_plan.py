@@ -268,16 +268,20 @@ def test_the_plan_s_sensors_read_with_the_campaigns_noise_floors(flat):
 
 
 @pytest.mark.slow
-def test_the_proposed_heater_test_run_on_the_same_machine_names_the_lag(tmp_path):
-    """The trial with the lag hidden (seed 1, 4 campaigns): the workflow calls it not
-    identifiable and proposes a test with a heater; that test, simulated for the same machine
-    and added to the campaigns, gets the lag named and its signal above the threshold."""
+def test_the_proposed_heater_test_run_on_the_same_machine_names_the_bending(tmp_path):
+    """The trial with bending hidden (seed 1, 4 campaigns): the workflow calls it not
+    identifiable and proposes a test with a heater on a column half; that test, simulated for
+    the same machine and added to the campaigns, gets bending named, its signal above the
+    threshold and the held-out Z gap smaller."""
     from benchmarks.test_plan_check import check
 
-    result = check("sensor_lag", 1, tmp_path)
+    result = check("thermal_bending", 1, tmp_path)
     assert result["class_before"] == NOT_IDENTIFIABLE
     proposed = result["proposed_test"]
-    assert proposed["visible"] and proposed["heat_loads"], proposed
+    assert proposed["visible"], proposed
+    assert proposed["heat_loads"][0]["role"] in ("column_rear", "column_front")
+    assert proposed["expected_max_rise_K"] <= proposed["rise_limit_K"]
     assert result["named_after"], result
     assert result["class_after"] == "named"
     assert result["signal_after"] >= SETTINGS.min_signal_sigma > result["signal_before"]
+    assert result["rmse_um_after_after_plan"] < 0.5 * result["rmse_um_before_after_plan"]
