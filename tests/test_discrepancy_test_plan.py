@@ -146,6 +146,8 @@ def test_a_heater_on_the_column_rear_separates_bending_from_the_column_s_growth(
     assert with_heater > max(5.0 * without, SETTINGS.min_signal_sigma), (without, with_heater)
     entry = heated.to_dict(with_heater)
     assert loads_from_contract(entry["heat_loads"]) == heated.heat_loads
+    text = proposed["thermal_bending"].to_dict()["text"]
+    assert "`heat_loads:`" in text and "switch the heater off" in text
     assert all(e["role"] in SENSOR_ROLES and e["power_W"] > 0 for e in entry["heat_loads"])
 
 

@@ -472,9 +472,8 @@ def plan_text(proposed: ProposedTest) -> str:
             f"{_program_words(proposed.plan)}. The calibrated twin expects it to leave "
             f"{proposed.figures.signal_sigma:.2f} noise sigmas beyond what the baseline absorbs "
             f"(cost {proposed.plan.cost:g} test hours, the cheapest of {proposed.n_plans} plans "
-            f"tried{_envelope_words(proposed)}); no part should rise more than "
-            f"{proposed.plan_rise_k:.1f} K. Add the campaign to the raw folder and rerun "
-            "`thermal discrepancy`."
+            f"tried{_envelope_words(proposed)}).{_watch_words(proposed)} Add the campaign to "
+            "the raw folder and rerun `thermal discrepancy`."
         )
     best = (
         f" The best, to {_program_words(proposed.best)}, reaches "
@@ -492,6 +491,17 @@ def plan_text(proposed: ProposedTest) -> str:
         f"({now}, threshold {proposed.threshold_sigma:g}){_envelope_words(proposed)}.{best} "
         "Its response at a plausible size stays within what the baseline absorbs; "
         f"{_what_else(proposed)} would be needed."
+    )
+
+
+def _watch_words(proposed: ProposedTest) -> str:
+    """Return the safety instruction of a plan with a heat load ("" without one)."""
+    if proposed.plan is None or not proposed.plan.heat_loads:
+        return ""
+    return (
+        f" The twin expects no sensor to rise more than {proposed.plan_rise_k:.1f} K, but it "
+        "has never seen that part heated: watch the heated part's sensor and switch the heater "
+        f"off if any sensor rises more than {proposed.rise_limit_k:.1f} K."
     )
 
 
