@@ -40,24 +40,6 @@ SEASON_OF_MONTH = {
 """The season of a calendar month (northern hemisphere): a campaign's season when campaign.yaml
 gives ``start`` but no ``season``."""
 
-SENSOR_ROLES = (
-    "spindle_front_bearing",
-    "spindle_rear_bearing",
-    "spindle_motor",
-    "headstock",
-    "column_front",
-    "column_rear",
-    "bed",
-    "ball_screw",
-    "nut",
-    "coolant",
-    "ambient",
-    "other",
-)
-"""Closed vocabulary of sensor roles; at most one sensor per campaign is ``ambient``."""
-
-AMBIENT_ROLE = "ambient"
-
 STRUCTURE_ROLES = (
     "spindle_front_bearing",
     "spindle_rear_bearing",
@@ -72,6 +54,11 @@ STRUCTURE_ROLES = (
 column, bed, ball screw): a node each of the physical twin's thermal network and the parts a
 ``heat_loads:`` entry of campaign.yaml may heat. ``nut``, ``coolant``, ``ambient`` and
 ``other`` are not."""
+
+SENSOR_ROLES = (*STRUCTURE_ROLES, "nut", "coolant", "ambient", "other")
+"""Closed vocabulary of sensor roles; at most one sensor per campaign is ``ambient``."""
+
+AMBIENT_ROLE = "ambient"
 
 DIRECTIONS = ("+", "-")
 """Laser run directions."""
