@@ -282,6 +282,9 @@ class PlanFollowUp:
         Held-out temperature RMS of the rerun's baseline and final twin, K.
     rounds : int
         Proposed tests run one after the other (:data:`PLAN_ROUNDS` at most).
+    quarantined : tuple of str
+        Campaigns of the tests that the workflow did not get (quarantined by validation); the
+        follow-up stops at the first such round.
     """
 
     effect: str
@@ -295,6 +298,7 @@ class PlanFollowUp:
     rmse_t_k_before: float
     rmse_t_k_after: float
     rounds: int = 1
+    quarantined: tuple[str, ...] = ()
 
     @property
     def effect_named(self) -> bool:
@@ -339,7 +343,7 @@ def follow_plan(
     for effect in effects:
         folder = workdir / f"raw_plan_{effect}"
         shutil.copytree(raw, folder)
-        after, names = doc, []
+        after, names, lost = doc, [], []
         for round_ in range(1, PLAN_ROUNDS + 1):
             entry = after["identifiability"].get(effect) or {}
             proposed = entry.get("proposed_test") or {}
@@ -347,28 +351,36 @@ def follow_plan(
                 break
             ids = write_plan_campaigns(folder, proposed, hidden, seed, PLAN_CAMPAIGNS, round_)
             after = run_workflow(folder, workdir / f"out_plan_{effect}_{round_}", section)
-            _check_reached(ids, after, proposed)
             names.append(str(proposed["name"]))
             expected = float(proposed["expected_signal_sigma"])
-            if effect in after["named_effects"]:
+            lost += _not_reached(ids, after, proposed)
+            if effect in after["named_effects"] or lost:
                 break
         if names:
-            out.append(_follow_up(effect, names, expected, after))
+            out.append(_follow_up(effect, names, expected, after, tuple(lost)))
     return out
 
 
-def _check_reached(ids: Sequence[str], doc: dict, proposed: dict) -> None:
-    """Raise RuntimeError if a campaign of the proposed test did not reach the workflow."""
+def _not_reached(ids: Sequence[str], doc: dict, proposed: dict) -> list[str]:
+    """Return the campaigns of the proposed test that the workflow did not get, with a warning.
+
+    A plan's campaign can be quarantined like any measurement, e.g. a quiet sensor during a
+    heater test with the spindle stopped reads as stuck (validation's ``stuck_sensor``).
+    """
     missing = sorted(set(ids) - set(doc["campaigns"]))
     if missing:
-        raise RuntimeError(
-            f"the proposed test's campaigns {missing} did not reach the workflow (quarantined "
-            f"or skipped; see the log): the plan {proposed['name']!r} cannot be written as a "
-            "valid campaign"
+        logger.warning(
+            "the proposed test %r: campaigns %s did not reach the workflow (quarantined or "
+            "skipped; see the log); the follow-up stops here",
+            proposed["name"],
+            missing,
         )
+    return missing
 
 
-def _follow_up(effect: str, names: list[str], expected: float, after: dict) -> PlanFollowUp:
+def _follow_up(
+    effect: str, names: list[str], expected: float, after: dict, lost: tuple[str, ...]
+) -> PlanFollowUp:
     """Return the follow-up of ``effect`` from the last rerun's ``discrepancy.json``."""
     again = after["identifiability"][effect]
     return PlanFollowUp(
@@ -383,6 +395,7 @@ def _follow_up(effect: str, names: list[str], expected: float, after: dict) -> P
         rmse_t_k_before=float(after["rmse_T_K_before"]),
         rmse_t_k_after=float(after["rmse_T_K_after"]),
         rounds=len(names),
+        quarantined=lost,
     )
 
 
@@ -491,6 +504,7 @@ class TrialResult:
             "plan_named": "+".join("+".join(f.named) or "none" for f in follow),
             "plan_effect_named": self.plan_named,
             "plan_rounds": "+".join(str(f.rounds) for f in follow),
+            "plan_quarantined": "+".join(" ".join(f.quarantined) or "none" for f in follow),
             "plan_rmse_um_before": "+".join(f"{f.rmse_um_before:.3f}" for f in follow),
             "plan_rmse_um_after": "+".join(f"{f.rmse_um_after:.3f}" for f in follow),
             "plan_signal_after": "+".join(f"{f.signal_after:.2f}" for f in follow),

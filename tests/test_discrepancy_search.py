@@ -532,3 +532,18 @@ def test_the_trials_command_writes_the_follow_up_columns(tmp_path):
     assert "| thermal_bending | 1 |" in rates
     line = next(x for x in rates.splitlines() if x.startswith("| thermal_bending"))
     assert "not_identifiable 1 | 1 | 100% |" in line
+
+
+def test_a_quarantined_plan_campaign_is_recorded_not_fatal():
+    """A proposed test's campaign quarantined by validation (e.g. a quiet sensor read as stuck
+    during a heater test) stops the follow-up and is recorded in trials.csv."""
+    from benchmarks.discrepancy_trials import PlanFollowUp, _not_reached
+
+    doc = {"campaigns": ["H01", "P1_01"]}
+    assert _not_reached(["P1_01", "P1_02"], doc, {"name": "pulse"}) == ["P1_02"]
+    assert _not_reached(["P1_01"], doc, {"name": "pulse"}) == []
+    follow = PlanFollowUp(
+        "sensor_lag", "pulse", 2.0, (), NOT_IDENTIFIABLE, 0.5, 0.5, 0.5, 0.1, 0.1, 1, ("P1_02",)
+    )
+    row = TrialResult(("sensor_lag",), 1, (), 0.5, 0.5, 0.1, 0.1, 1.0, follow_ups=(follow,)).row()
+    assert row["plan_quarantined"] == "P1_02" and row["plan_effect_named"] is False
