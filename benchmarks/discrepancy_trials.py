@@ -412,6 +412,11 @@ def run_workflow(raw: Path, out: Path, section: dict, params_file: Path = DEFAUL
     return doc
 
 
+def case_name(case: Iterable[str]) -> str:
+    """Return a case as ``trials.csv`` names it: the hidden effects joined by '+', or none."""
+    return "+".join(sorted(case)) or "none"
+
+
 @dataclass(frozen=True)
 class TrialResult:
     """Outcome of one trial.
@@ -486,7 +491,7 @@ class TrialResult:
         """One row of ``trials.csv`` (follow-up columns empty without a follow-up)."""
         follow = self.follow_ups
         return {
-            "hidden": "+".join(self.hidden) or "none",
+            "hidden": case_name(self.hidden),
             "seed": self.seed,
             "named": "+".join(self.named) or "none",
             "rmse_um_before": round(self.rmse_um_before, 3),
@@ -677,11 +682,6 @@ def rates_markdown(rates: pd.DataFrame, trials: pd.DataFrame, seeds: Sequence[in
     return "\n".join(lines) + "\n"
 
 
-def _case_name(case: frozenset) -> str:
-    """Return a case as ``trials.csv`` names it: the hidden effects joined by '+', or none."""
-    return "+".join(sorted(case)) or "none"
-
-
 def main(argv: list[str] | None = None) -> int:
     """``python -m benchmarks.discrepancy_trials``: every case over the seeds; write the rates."""
     parser = argparse.ArgumentParser(
@@ -691,7 +691,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--cases",
         nargs="+",
-        choices=[_case_name(c) for c in CASES],
+        choices=[case_name(c) for c in CASES],
         help="only these cases (hidden effects joined by '+', or none); default every case",
     )
     parser.add_argument("--out", type=Path, default=Path("reports/discrepancy_trials"))
@@ -711,7 +711,7 @@ def main(argv: list[str] | None = None) -> int:
     args.out.mkdir(parents=True, exist_ok=True)
     rows = []
     for seed in args.seeds:
-        for case in [c for c in CASES if not args.cases or _case_name(c) in args.cases]:
+        for case in [c for c in CASES if not args.cases or case_name(c) in args.cases]:
             with tempfile.TemporaryDirectory() as tmp:
                 result = run_trial(case, seed, section, Path(tmp), args.campaigns)
             logger.info("trial %s", result.row())

@@ -18,6 +18,7 @@ import pytest
 from benchmarks.discrepancy_trials import (
     CASES,
     TrialResult,
+    case_name,
     rates_markdown,
     rates_table,
     run_trial,
@@ -289,12 +290,8 @@ INVISIBLE = {
 """Effects the trial campaigns cannot show: classed not identifiable, not named."""
 
 
-def _case_id(case: frozenset) -> str:
-    return "+".join(sorted(case)) or "none"
-
-
 @pytest.mark.slow
-@pytest.mark.parametrize("hidden", [frozenset(c) for c in CASES], ids=_case_id)
+@pytest.mark.parametrize("hidden", [frozenset(c) for c in CASES], ids=case_name)
 def test_the_hidden_effects_are_named_and_the_gap_halves(tmp_path, hidden):
     """Issue 4, section 3, seed 1: exactly the hidden effects are named and the held-out gap
     (displacement, or temperatures for an effect that shows there, such as ``motor_heat``) at
