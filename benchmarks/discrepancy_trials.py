@@ -337,28 +337,45 @@ def follow_plan(
     Returns
     -------
     list of PlanFollowUp
-        One per effect of ``effects`` classed not identifiable whose proposed test is visible.
+        One per effect of ``effects`` classed not identifiable with a visible proposed test or
+        a calibration step.
     """
     out = []
     for effect in effects:
         folder = workdir / f"raw_plan_{effect}"
         shutil.copytree(raw, folder)
-        after, names, lost = doc, [], []
+        after, names, lost, expected = doc, [], [], float("nan")
         for round_ in range(1, PLAN_ROUNDS + 1):
             entry = after["identifiability"].get(effect) or {}
-            proposed = entry.get("proposed_test") or {}
-            if entry.get("class") != NOT_IDENTIFIABLE or not proposed.get("visible"):
+            test = _test_to_run(entry)
+            if test is None:
                 break
-            ids = write_plan_campaigns(folder, proposed, hidden, seed, PLAN_CAMPAIGNS, round_)
+            ids = write_plan_campaigns(folder, test, hidden, seed, PLAN_CAMPAIGNS, round_)
             after = run_workflow(folder, workdir / f"out_plan_{effect}_{round_}", section)
-            names.append(str(proposed["name"]))
-            expected = float(proposed["expected_signal_sigma"])
-            lost += _not_reached(ids, after, proposed)
+            visible = "expected_signal_sigma" in test
+            names.append(str(test["name"]) if visible else f"calibration: {test['name']}")
+            expected = float(test["expected_signal_sigma"]) if visible else expected
+            lost += _not_reached(ids, after, test)
             if effect in after["named_effects"] or lost:
                 break
         if names:
             out.append(_follow_up(effect, names, expected, after, tuple(lost)))
     return out
+
+
+def _test_to_run(entry: dict) -> dict | None:
+    """Return the test to run for an identifiability entry, or None.
+
+    The visible proposed test of an effect classed not identifiable; without one, its
+    calibration step (a heater pulse on a part the campaigns never heated,
+    :func:`pipeline.discrepancy.test_plan.propose_test`).
+    """
+    proposed = entry.get("proposed_test") or {}
+    if entry.get("class") != NOT_IDENTIFIABLE:
+        return None
+    if proposed.get("visible"):
+        return proposed
+    return proposed.get("calibration_step")
 
 
 def _not_reached(ids: Sequence[str], doc: dict, proposed: dict) -> list[str]:

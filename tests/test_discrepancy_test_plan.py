@@ -9,6 +9,7 @@ hand-made table of plans and signals; the report's paragraph.
 
 from __future__ import annotations
 
+from dataclasses import replace
 from datetime import datetime
 
 import numpy as np
@@ -22,6 +23,7 @@ from pipeline.discrepancy.identifiability import (
     assess_effects,
 )
 from pipeline.discrepancy.model import EFFECTS
+from pipeline.discrepancy.plan_twin import plan_twin
 from pipeline.discrepancy.report_text import _identifiability_line
 from pipeline.discrepancy.visibility import Visibility, baseline_point, visibility
 from pipeline.thermal.program import Program
@@ -52,9 +54,11 @@ def flat():
 
 
 def _plan_signal(point, plan: tp.TestPlan, effect: str) -> float:
-    """The effect's signal on the plan's simulated campaign, recomputed from scratch, sigma."""
+    """The effect's signal on the plan's simulated campaign, recomputed from scratch with the
+    planning twin, sigma."""
     sensors = tp.plan_sensors(point.campaigns)
-    campaign, roles, values = tp.simulate_plan(plan, point.values, sensors, 20.0)
+    planning = plan_twin(point).values
+    campaign, roles, values = tp.simulate_plan(plan, planning, sensors, 20.0)
     assert set(campaign.temperatures.columns) == set(sensors)  # the campaigns' own sensors
     plan_point = baseline_point([campaign], values, set(roles), point.noise, point.prior_log_sd)
     return visibility(effect, plan_point, SETTINGS.plausible).signal_sigma
@@ -172,12 +176,18 @@ TABLE = {  # plan -> its signal, sigma (threshold 1.5)
 }
 
 
-def _propose(monkeypatch, table, rise=lambda signal: 5.0, limit=10.0):
-    """Propose from ``table`` (plan -> signal); each plan heats a part by ``rise(signal)`` K."""
+def _propose(monkeypatch, table, rise=lambda signal: 5.0, limit=10.0, loaded=frozenset()):
+    """Propose from ``table`` (plan -> signal); each plan heats a part by ``rise(signal)`` K
+    (expected), at most 1 K more (its bound)."""
     monkeypatch.setattr(tp, "visibility", lambda effect, point, plausible: _figures(point))
-    monkeypatch.setattr(tp, "peak_rise_k", rise)
     current = EffectIdentifiability("sensor_lag", NOT_IDENTIFIABLE, _figures(0.5))
-    return tp.propose_test("sensor_lag", current, list(table), table.__getitem__, SETTINGS, limit)
+
+    def rise_of(plan):
+        return tp.PlanRise(rise(table[plan]) - 1.0, rise(table[plan]))
+
+    return tp.propose_test(
+        "sensor_lag", current, list(table), table.__getitem__, rise_of, SETTINGS, limit, loaded
+    )
 
 
 def test_a_plan_that_would_heat_a_part_beyond_the_envelope_is_not_proposed(monkeypatch):
@@ -187,10 +197,49 @@ def test_a_plan_that_would_heat_a_part_beyond_the_envelope_is_not_proposed(monke
     assert proposed.plan.name == "6 h" and proposed.too_hot == 1
     entry = proposed.to_dict()
     assert entry["plans_too_hot"] == 1 and entry["rise_limit_K"] == 10.0
-    assert entry["expected_max_rise_K"] == 4.0
-    assert "1 plans left out because they would heat a part more than 10.0 K" in entry["text"]
+    assert entry["expected_max_rise_K"] == 3.0 and entry["max_rise_bound_K"] == 4.0
+    assert "1 plans left out because they could heat a part more than 10.0 K" in entry["text"]
     all_hot = _propose(monkeypatch, TABLE, rise=lambda signal: 11.0)
     assert all_hot.plan is None and all_hot.best is None and all_hot.too_hot == len(TABLE)
+
+
+def _heated(name: str, hours: float, power: float) -> tp.TestPlan:
+    """A stepped plan of ``hours`` with a ``power`` W pulse on the motor."""
+    load = tp.heater("spindle_motor", power, 0.0, 15.0)
+    return replace(_plan(name, hours), heat_loads=(load,))
+
+
+def test_a_part_never_heated_gets_a_calibration_step_first(monkeypatch):
+    """The only visible plan could heat the motor beyond the envelope; two motor pulses of
+    equal cost fit in it but show nothing: the hotter is the calibration step, a longer one is
+    dearer. Once a campaign has heated the motor, there is no calibration step."""
+    table = {
+        _plan("4 h steps", 4.0): 0.9,
+        _heated("25 W pulse", 4.0, 25.0): 0.4,
+        _heated("100 W pulse", 4.0, 100.0): 0.8,
+        _heated("100 W, 8 h", 8.0, 100.0): 1.0,
+        _heated("500 W pulse", 4.0, 500.0): 3.0,
+    }
+    rises = {0.9: 2.0, 0.4: 3.0, 0.8: 8.0, 1.0: 9.0, 3.0: 40.0}  # by signal, K (bounds)
+    proposed = _propose(monkeypatch, table, rise=rises.__getitem__)
+    assert proposed.plan is None and proposed.too_hot == 1
+    assert proposed.calibration.name == "100 W pulse"
+    entry = proposed.to_dict()
+    step = entry["calibration_step"]
+    assert step["heat_loads"][0] == {
+        "role": "spindle_motor",
+        "from_min": 0.0,
+        "to_min": 15.0,
+        "power_W": 100.0,
+        "what": "100 W heater on the spindle motor",
+    }
+    assert step["expected_max_rise_K"] == 7.0 and step["max_rise_bound_K"] == 8.0
+    assert "expected_signal_sigma" not in step and entry["visible"] is False
+    assert "never heated the spindle motor" in entry["text"]
+    assert "calibration step" in entry["text"] and "switch the heater off" in entry["text"]
+    seen = _propose(monkeypatch, table, rise=rises.__getitem__, loaded=frozenset({"spindle_motor"}))
+    assert seen.calibration is None and "calibration_step" not in seen.to_dict()
+    assert "calibration step" not in seen.to_dict()["text"]
 
 
 def test_the_envelope_is_the_largest_rise_of_a_structure_sensor(flat):
@@ -210,11 +259,13 @@ def test_the_cheapest_visible_plan_is_proposed(monkeypatch):
     proposed = _propose(monkeypatch, TABLE)
     # 4 h steps (cost 4) is not visible; 4 h + sensor and 6 h fast and 6 h cost 6: the own
     # interval first, then grid order; 8 h costs more
-    assert proposed.plan.name == "4 h + sensor"
+    assert proposed.plan.name == "4 h + sensor"  # 2.0 sigma beats the 6 h plan's 1.6
     assert proposed.figures.signal_sigma == 2.0
-    assert proposed.n_plans == 2  # stopped at the first visible plan
+    assert proposed.n_plans == 3  # stopped after the plans as cheap as the first visible one
     order = [p.name for p in tp.cheapest_order(list(TABLE))]
     assert order == ["4 h steps", "4 h + sensor", "6 h", "6 h fast", "8 h steps"]
+    clearer = {**TABLE, _plan("6 h", 6.0): 2.5}  # as cheap, later in the grid, clearer
+    assert _propose(monkeypatch, clearer).plan.name == "6 h"
 
 
 def test_none_visible_reports_the_best_of_the_grid(monkeypatch):

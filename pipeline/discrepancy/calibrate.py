@@ -10,6 +10,14 @@ are fitted in log space; ``scipy.optimize.least_squares`` (``trf``, bounded).
 AICc and BIC use the Gaussian likelihood with the residual scale estimated:
 ``n ln(SSE/n) + 2k + 2k(k+1)/(n-k-1)`` and ``n ln(SSE/n) + k ln n``, SSE of the weighted
 residuals, n observations, k parameters.
+
+With ``prior_log_sd`` the fit is the maximum a posteriori point under independent Gaussian
+priors centred on the specs' ``initial`` values (:func:`prior_scales`): one residual row per
+parameter, ``(x - x_initial) / scale`` in the fitted space. Where the campaigns pin a
+combination of parameters down, the data rows decide; where they leave one loose (a node's heat
+capacity and its conductances scaled together when nothing heats the node directly), the prior
+rows hold it at its typical value instead of wherever the optimiser stopped. The SSE, AICc and
+BIC count the data rows only.
 """
 
 from __future__ import annotations
@@ -368,20 +376,52 @@ def _initial_theta(model: TwinModel, start: Mapping[str, float] | None) -> np.nd
     return np.array([float(start.get(p.name, p.initial)) for p in model.param_specs])
 
 
+def prior_scales(model: TwinModel, theta: np.ndarray, prior_log_sd: float) -> np.ndarray:
+    """Return the prior scale of each parameter at ``theta``, in the fitted space.
+
+    ``prior_log_sd`` for a positive parameter (fitted in log space: 1 is a factor e); for the
+    others ``max(|theta|, range / 20)`` in their unit, the scale the optimiser uses.
+    """
+    logs = np.array([p.log for p in model.param_specs])
+    lo, hi = model.bounds()
+    return np.where(logs, prior_log_sd, np.maximum(np.abs(theta), (hi - lo) / 20.0))
+
+
+@dataclass(frozen=True)
+class _Prior:
+    """Gaussian prior rows: centre and scale of every parameter in the fitted space."""
+
+    centre: np.ndarray
+    scale: np.ndarray
+
+
+def _prior(model: TwinModel, space: _Space, prior_log_sd: float | None) -> _Prior | None:
+    """Return the prior centred on the specs' initial values (None without ``prior_log_sd``)."""
+    if prior_log_sd is None:
+        return None
+    initial = model.initial()
+    return _Prior(_to_x(initial, space.logs), prior_scales(model, initial, prior_log_sd))
+
+
 def _objective(
-    model: TwinModel, targets: list[_Target], space: _Space
+    model: TwinModel, targets: list[_Target], space: _Space, prior: _Prior | None = None
 ) -> tuple[Callable[[np.ndarray], np.ndarray], Callable[[np.ndarray], np.ndarray]]:
-    """Return the weighted residuals of a fitted point ``x`` and their Jacobian, as functions."""
+    """Return the weighted residuals of a fitted point ``x`` and their Jacobian, as functions.
+
+    With a ``prior``, one row per parameter follows the data rows.
+    """
 
     def fun(x: np.ndarray) -> np.ndarray:
-        return _weighted(model, space.theta(x)[None, :], targets)[0]
+        r = _weighted(model, space.theta(x)[None, :], targets)[0]
+        return r if prior is None else np.concatenate([r, (x - prior.centre) / prior.scale])
 
     def jac(x: np.ndarray) -> np.ndarray:
         # all perturbed parameter vectors and the base point in one batched simulation
         h = _forward_difference_steps(x, space.x_hi)
         xs = np.vstack([x, x + np.diag(h)])
         r = _weighted(model, space.theta(xs), targets)
-        return ((r[1:] - r[0]) / h[:, None]).T
+        j = ((r[1:] - r[0]) / h[:, None]).T
+        return j if prior is None else np.vstack([j, np.diag(1.0 / prior.scale)])
 
     return fun, jac
 
@@ -396,13 +436,15 @@ def _multistart(
     seed: int,
     max_nfev: int,
     tol: float,
+    prior: _Prior | None = None,
 ) -> OptimizeResult:
     """Run ``least_squares`` from each start; return the result of the lowest cost.
 
     The first start is ``theta0`` (clipped inside the bounds); each other one adds normal
-    noise of standard deviation 0.5 (``seed``) to its log-space coordinates.
+    noise of standard deviation 0.5 (``seed``) to its log-space coordinates. With a ``prior``
+    its rows join the residuals.
     """
-    fun, jac = _objective(model, targets, space)
+    fun, jac = _objective(model, targets, space, prior)
     x0 = space.inside(_to_x(np.clip(theta0, space.lo, space.hi), space.logs))
     x_scale = np.where(space.logs, 1.0, np.maximum(np.abs(theta0), (space.hi - space.lo) / 20.0))
     rng = np.random.default_rng(seed)
@@ -478,7 +520,8 @@ def _calibration(
     raw = [(rT[0], rz[0]) for rT, rz in raw_batch]
     theta = space.theta(best.x)
     n_obs = int(sum(t.mask_t.sum() + t.mask_z.sum() for t in targets))
-    sse = float(np.sum(best.fun**2))
+    n_data = int(sum(t.mask_t.size + t.mask_z.size for t in targets))
+    sse = float(np.sum(best.fun[:n_data] ** 2))  # without the prior rows
     k = len(theta) + len(targets)
     aicc, bic = _information_criteria(sse, n_obs, k)
     z_all = np.concatenate([rz[t.mask_z] for t, (_, rz) in zip(targets, raw, strict=True)])
@@ -529,6 +572,7 @@ def calibrate(
     seed: int = 0,
     max_nfev: int = 400,
     tol: float = 1e-6,
+    prior_log_sd: float | None = None,
 ) -> Calibration:
     """Fit the model's bounded parameters to the campaigns by least squares.
 
@@ -555,6 +599,10 @@ def calibrate(
     tol : float
         ``ftol`` and ``xtol`` of ``least_squares`` (relative change of the cost / of the
         parameters at which it stops).
+    prior_log_sd : float, optional
+        Fit the maximum a posteriori point under priors centred on the specs' initial values,
+        this scale in the log of a positive parameter (module docstring). Default: plain least
+        squares.
 
     Returns
     -------
@@ -575,7 +623,15 @@ def calibrate(
     theta0 = _initial_theta(model, start)
     with threadpool_limits(limits=1):  # BLAS threads only slow down these small matrices
         best = _multistart(
-            model, targets, space, theta0, n_starts=n_starts, seed=seed, max_nfev=max_nfev, tol=tol
+            model,
+            targets,
+            space,
+            theta0,
+            n_starts=n_starts,
+            seed=seed,
+            max_nfev=max_nfev,
+            tol=tol,
+            prior=_prior(model, space, prior_log_sd),
         )
         raw = _raw_residuals(model, space.theta(best.x)[None, :], targets)
     result = _calibration(model, targets, space, best, raw, noise, time.perf_counter() - t0)

@@ -11,33 +11,45 @@ under which the effect would be identifiable (:func:`propose_tests`):
    the effect reads a structure role no campaign has (:data:`ADDED_SENSOR_ROLES`), the same
    programs with a sensor of that role added; and, where the effect reads a part a heater can
    load (:data:`HEAT_LOAD_ROLES`, roles the campaigns have a sensor on), an external heat load
-   of :data:`HEATER_POWERS_W` on that part for a short pulse or half the test, with the
-   spindle stopped, or running in the other half (:func:`heater_plans`); a plan that would
-   heat a part beyond the campaigns' largest rise (at least :data:`ENVELOPE_FLOOR_K`) is left
-   out. A load the spindle does not drive separates what the spindle's heat ties together
-   (the column's front-to-rear difference and its mean rise, a sensor's delay and its node's
-   heat capacity).
-2. **The simulated test.** Each plan is one campaign simulated noise-free by the calibrated
-   baseline twin (the baseline's parameter values; a node the added sensor brings gets its
-   parameters' initial values), starting cold at the campaigns' ambient with the campaigns'
-   sensors (plus the added one) and the Z probe (:func:`simulate_plan`).
-3. **Its signal.** The same figures as the identifiability of the campaigns
+   of :data:`HEATER_POWERS_W` on that part for a short pulse after a spindle run or for half
+   the test, with the spindle stopped, or running in the other half (:func:`heater_plans`).
+   A load the spindle does not drive separates what the spindle's heat ties together (the
+   column's front-to-rear difference and its mean rise, a sensor's delay and its node's heat
+   capacity).
+2. **The simulated test.** Each plan is one campaign simulated noise-free by the planning
+   twin (:func:`~pipeline.discrepancy.plan_twin.plan_twin`: the baseline refitted with its
+   priors, so that what the campaigns leave loose sits at typical values; a node the added
+   sensor brings gets its parameters' initial values), starting cold at the campaigns'
+   ambient with the campaigns' sensors (plus the added one) and the Z probe
+   (:func:`simulate_plan`).
+3. **The envelope.** A plan whose peak rise at a structure sensor could exceed the campaigns'
+   largest rise (at least :data:`ENVELOPE_FLOOR_K`) is left out: the rise it is held to is
+   the :data:`~pipeline.discrepancy.plan_twin.RISE_QUANTILE` quantile over draws from the
+   planning twin's posterior (:func:`plan_rises`), so a part whose response the campaigns do
+   not pin down (one they never heated directly) is held to what it could do, not to what it
+   is expected to do.
+4. **Its signal.** The same figures as the identifiability of the campaigns
    (:func:`~pipeline.discrepancy.visibility.visibility`: the effect at its plausible size, the
    part the baseline cannot absorb by moving its parameters within their prior scales, RMS in
    noise sigmas), on the plan's campaign, with the noise floor of each sensor of the campaigns
    (an added one: their median). A plan makes the effect visible when it misses no threshold
    (:func:`~pipeline.discrepancy.identifiability.shortfalls`).
-4. **Cost.** Test duration in hours plus :data:`SENSOR_COST_H` per added sensor and
-   :data:`HEATER_COST_H` per heat load; ties go to the
-   campaigns' own sampling interval, then to the grid's order. Plans are tried in order of cost
-   and the first visible one is proposed; when none is, the report says so with the best signal
-   the grid reached.
+5. **Cost.** Test duration in hours plus :data:`SENSOR_COST_H` per added sensor and
+   :data:`HEATER_COST_H` per heat load; ties go to the campaigns' own sampling interval. Plans
+   are tried in order of cost; of the visible ones in the envelope at the lowest cost, the one
+   with the largest signal is proposed. When none is, the report says so with the best signal
+   the grid reached, and if a heater plan on a part no campaign heated fits in the envelope, it
+   proposes the cheapest as a **calibration step** (:func:`propose_test`): a sequential
+   design, as in the model-based design of experiments of Franceschini and Macchietto
+   (2008, *Model-based design of experiments for parameter precision: state of the art*,
+   Chem. Eng. Sci. 63(19), 4846-4872): a first, safe test pins the part's response down, and
+   the rerun designs the test for the effect from it.
 """
 
 from __future__ import annotations
 
 import logging
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -52,7 +64,8 @@ from pipeline.discrepancy.identifiability import (
     IdentifiabilitySettings,
     shortfalls,
 )
-from pipeline.discrepancy.model import ROLE_NODES, build_model, loaded_roles
+from pipeline.discrepancy.model import ROLE_NODES, TwinModel, build_model, loaded_roles
+from pipeline.discrepancy.plan_twin import RISE_QUANTILE, PlanTwin, peak_rises, plan_twin
 from pipeline.discrepancy.visibility import (
     BaselinePoint,
     Visibility,
@@ -109,15 +122,16 @@ can be put on comes first (the motor casing; a bearing housing sits inside the h
 
 PULSE_MIN = 15.0
 """Length of the short heat pulse of the grid, min: a fast rise that a sensor's lag delays,
-while the part stays in the envelope."""
+while the part stays in the envelope; the smallest such pulse on a part the campaigns never
+heated is the calibration step of :func:`propose_test`."""
 
 MAX_PLANS = 120
+"""Most plans tried per effect."""
 
 ENVELOPE_FLOOR_K = 10.0
 """Smallest rise a proposed test may give a part, K, however little the campaigns warmed the
 machine: a spindle bearing housing runs 10-20 K above the air in normal service, so a part
 warmed by 10 K is within what a machine tool meets at work."""
-"""Most plans tried per effect."""
 
 
 @dataclass(frozen=True)
@@ -178,9 +192,14 @@ class TestPlan:
         }
 
 
+def _order_key(plan: TestPlan) -> tuple[float, bool]:
+    """Return the plan's place in the search: its cost, then the campaigns' own interval first."""
+    return (plan.cost, not plan.own_interval)
+
+
 def cheapest_order(plans: Sequence[TestPlan]) -> list[TestPlan]:
     """Return ``plans`` by cost, then the campaigns' own interval first, then grid order."""
-    return sorted(plans, key=lambda p: (p.cost, not p.own_interval))
+    return sorted(plans, key=_order_key)
 
 
 def stepped_program(high: float, low: float, period_min: float, duration_h: float) -> Program:
@@ -241,10 +260,14 @@ def heater_plans(high: float, roles: Sequence[str], interval_s: float) -> list[T
     """Return the grid's tests with a heater on one of ``roles`` (see the module docstring).
 
     For each duration of :data:`DURATIONS_H`, role and power of :data:`HEATER_POWERS_W`: the
-    heater on for the first :data:`PULSE_MIN` with the spindle stopped (shortest test only);
-    the heater on in the first half with the spindle stopped; the spindle at ``high`` (rpm) in
-    the first half and the heater on in the second; the heater in the first half and the
-    spindle in the second. Sampled every ``interval_s`` (s).
+    spindle at ``high`` (rpm) in the first half and the heater on for :data:`PULSE_MIN` at the
+    start of the cool-down (shortest test only); the heater on in the first half with the
+    spindle stopped; the spindle in the first half and the heater on in the second; the heater
+    in the first half and the spindle in the second. Sampled every ``interval_s`` (s).
+
+    The short pulse follows a spindle run rather than a cold machine: every sensor then moves
+    (the machine cools), where after a pulse on a cold, stopped machine the far sensors read
+    one quantised value for hours and validation quarantines the campaign for a stuck sensor.
     """
     plans = []
     for duration in DURATIONS_H:
@@ -258,8 +281,8 @@ def heater_plans(high: float, roles: Sequence[str], interval_s: float) -> list[T
             (spindle + ", then a {load} for {on:g} min", run_first, half, half),
             ("a {load} for {on:g} min, then " + spindle, run_second, 0.0, half),
         ]
-        if duration == min(DURATIONS_H):
-            patterns.insert(0, (patterns[0][0], stopped, 0.0, PULSE_MIN))
+        if duration == min(DURATIONS_H):  # a short pulse at the start of the cool-down
+            patterns.insert(0, (patterns[1][0], run_first, half, PULSE_MIN))
         for role in roles:
             for power in HEATER_POWERS_W:
                 for words, program, on_min, length in patterns:
@@ -344,8 +367,34 @@ def simulate_plan(
     values : dict of str to float
         Every parameter of the twin: the baseline's, the initial value for a new node's.
     """
+    blank, model = plan_campaign(plan, sensors, ambient_c)
+    full = {p.name: float(values.get(p.name, p.initial)) for p in model.param_specs}
+    sim = model.simulate(np.array([full[n] for n in model.names]), blank)
+    temps = blank.temperatures.copy()
+    for s in sim.temperatures.columns:
+        temps[s] = sim.temperatures[s].to_numpy()
+    campaign = MeasuredCampaign(
+        campaign_id=blank.campaign_id,
+        t_s=blank.t_s,
+        rpm=blank.rpm,
+        temperatures=temps,
+        roles=blank.roles,
+        z_um=np.asarray(sim.z_um, dtype=float) - float(sim.z_um[0]),
+        program=plan.program,
+        heat_loads=plan.heat_loads,
+    )
+    return campaign, model.roles, full
+
+
+def plan_campaign(
+    plan: TestPlan, sensors: Mapping[str, str], ambient_c: float
+) -> tuple[MeasuredCampaign, TwinModel]:
+    """Return the plan's campaign with every sensor at ``ambient_c`` (degC), and its twin.
+
+    The sensors are ``sensors`` (name -> role) and one ``added_<role>`` per role the plan adds;
+    the twin is built for their roles and the plan's heat loads.
+    """
     names = {**dict(sensors), **{f"added_{r}": r for r in plan.add_sensors}}
-    all_roles = frozenset(names.values())
     t = np.arange(0.0, plan.duration_h * 3600.0 + 0.5, plan.sample_interval_s)
     blank = MeasuredCampaign(
         campaign_id=f"plan {plan.name}",
@@ -357,23 +406,50 @@ def simulate_plan(
         program=plan.program,
         heat_loads=plan.heat_loads,
     )
-    model = build_model(all_roles, load_roles=loaded_roles([blank]))
-    full = {p.name: float(values.get(p.name, p.initial)) for p in model.param_specs}
-    sim = model.simulate(np.array([full[n] for n in model.names]), blank)
-    temps = blank.temperatures.copy()
-    for s in sim.temperatures.columns:
-        temps[s] = sim.temperatures[s].to_numpy()
-    campaign = MeasuredCampaign(
-        campaign_id=blank.campaign_id,
-        t_s=t,
-        rpm=blank.rpm,
-        temperatures=temps,
-        roles=names,
-        z_um=np.asarray(sim.z_um, dtype=float) - float(sim.z_um[0]),
-        program=plan.program,
-        heat_loads=plan.heat_loads,
+    return blank, build_model(frozenset(names.values()), load_roles=loaded_roles([blank]))
+
+
+def plan_rises(
+    plan: TestPlan, twin: PlanTwin, sensors: Mapping[str, str], ambient_c: float
+) -> tuple[float, float]:
+    """Return the plan's peak rise at the planning point and its bound over the draws, K.
+
+    Parameters
+    ----------
+    plan : TestPlan
+    twin : PlanTwin
+        The planning point and the posterior draws (:func:`~pipeline.discrepancy.plan_twin
+        .plan_twin`); a parameter the plan's twin adds (a new node's) takes its initial value.
+    sensors : mapping of str to str
+    ambient_c : float
+
+    Returns
+    -------
+    expected : float
+        Largest rise of a sensed structure node over its first value, at ``twin.values``, K.
+    bound : float
+        Its :data:`~pipeline.discrepancy.plan_twin.RISE_QUANTILE` quantile over the draws
+        (at least ``expected``), K.
+    """
+    blank, model = plan_campaign(plan, sensors, ambient_c)
+    column = {name: i for i, name in enumerate(twin.names)}
+    thetas = np.array(
+        [
+            [(draw[column[p.name]] if p.name in column else p.initial) for p in model.param_specs]
+            for draw in twin.draws
+        ]
     )
-    return campaign, all_roles, full
+    point = np.array([twin.values.get(p.name, p.initial) for p in model.param_specs])
+    rises = peak_rises(model, np.vstack([point, thetas]), blank)
+    return float(rises[0]), float(max(rises[0], np.quantile(rises[1:], RISE_QUANTILE)))
+
+
+@dataclass(frozen=True)
+class PlanRise:
+    """How far a plan heats the machine: its peak rise expected, and its bound, K."""
+
+    expected: float
+    bound: float
 
 
 @dataclass(frozen=True)
@@ -401,12 +477,18 @@ class ProposedTest:
         Whether the grid had plans with a heat load.
     rise_limit_k : float
         The envelope: the largest rise any sensor showed in the campaigns
-        (:func:`largest_rise_k`), at least :data:`ENVELOPE_FLOOR_K`, K; a plan heating a part
-        beyond it is not proposed.
-    plan_rise_k : float
-        Largest rise the twin expects at a sensor under the proposed (or best) plan, K.
+        (:func:`largest_rise_k`), at least :data:`ENVELOPE_FLOOR_K`, K; a plan whose rise bound
+        exceeds it is not proposed.
+    plan_rise : PlanRise or None
+        Largest rise the twin expects at a sensor under the proposed (or best) plan, and its
+        bound over the posterior draws, K.
     too_hot : int
         Plans left out because they would leave the envelope.
+    calibration : TestPlan or None
+        When no plan is visible within the envelope: a short heater pulse on a part the
+        campaigns never heated, within the envelope, to run first (:func:`propose_test`).
+    calibration_rise : PlanRise or None
+        The calibration step's rises, K.
     """
 
     effect: str
@@ -419,8 +501,10 @@ class ProposedTest:
     sensors_tried: bool = False
     heaters_tried: bool = False
     rise_limit_k: float = float("nan")
-    plan_rise_k: float = float("nan")
+    plan_rise: PlanRise | None = None
     too_hot: int = 0
+    calibration: TestPlan | None = None
+    calibration_rise: PlanRise | None = None
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready ``proposed_test``: the plan in the raw contract's terms and its text."""
@@ -428,13 +512,26 @@ class ProposedTest:
         out: dict[str, Any] = {"visible": self.plan is not None, "plans_tried": self.n_plans}
         out["plans_too_hot"] = self.too_hot
         out["rise_limit_K"] = json_figure(self.rise_limit_k)
-        rise = {"expected_max_rise_K": json_figure(self.plan_rise_k)}
         if self.plan is not None:
-            out.update(self.plan.to_dict(signal), **rise)
+            out.update(self.plan.to_dict(signal), **_rise_dict(self.plan_rise))
         elif self.best is not None:
-            out["best_in_grid"] = {**self.best.to_dict(signal), **rise}
+            out["best_in_grid"] = {**self.best.to_dict(signal), **_rise_dict(self.plan_rise)}
+        if self.calibration is not None:
+            step = self.calibration.to_dict(float("nan"))
+            step.pop("expected_signal_sigma")
+            out["calibration_step"] = {**step, **_rise_dict(self.calibration_rise)}
         out["text"] = plan_text(self)
         return out
+
+
+def _rise_dict(rise: PlanRise | None) -> dict[str, float | None]:
+    """Return a plan's rises as ``discrepancy.json`` writes them, K."""
+    if rise is None:
+        return {"expected_max_rise_K": None, "max_rise_bound_K": None}
+    return {
+        "expected_max_rise_K": json_figure(rise.expected),
+        "max_rise_bound_K": json_figure(rise.bound),
+    }
 
 
 def _program_words(plan: TestPlan) -> str:
@@ -472,8 +569,8 @@ def plan_text(proposed: ProposedTest) -> str:
             f"{_program_words(proposed.plan)}. The calibrated twin expects it to leave "
             f"{proposed.figures.signal_sigma:.2f} noise sigmas beyond what the baseline absorbs "
             f"(cost {proposed.plan.cost:g} test hours, the cheapest of {proposed.n_plans} plans "
-            f"tried{_envelope_words(proposed)}).{_watch_words(proposed)} Add the campaign to "
-            "the raw folder and rerun `thermal discrepancy`."
+            f"tried{_envelope_words(proposed)}).{_watch_words(proposed.plan, proposed)} Add the "
+            "campaign to the raw folder and rerun `thermal discrepancy`."
         )
     best = (
         f" The best, to {_program_words(proposed.best)}, reaches "
@@ -486,22 +583,41 @@ def plan_text(proposed: ProposedTest) -> str:
         + (", added sensors" if proposed.sensors_tried else "")
         + (", heat loads" if proposed.heaters_tried else "")
     )
-    return (
+    head = (
         f"None of the {proposed.n_plans} test plans tried ({tried}) would make {e} visible "
-        f"({now}, threshold {proposed.threshold_sigma:g}){_envelope_words(proposed)}.{best} "
-        "Its response at a plausible size stays within what the baseline absorbs; "
+        f"({now}, threshold {proposed.threshold_sigma:g}){_envelope_words(proposed)}.{best}"
+    )
+    if proposed.calibration is not None:
+        return head + _calibration_words(proposed)
+    return (
+        f"{head} Its response at a plausible size stays within what the baseline absorbs; "
         f"{_what_else(proposed)} would be needed."
     )
 
 
-def _watch_words(proposed: ProposedTest) -> str:
+def _calibration_words(proposed: ProposedTest) -> str:
+    """Return the paragraph's calibration step: why, what to run, what comes next."""
+    plan, rise = proposed.calibration, proposed.calibration_rise
+    assert plan is not None and rise is not None
+    parts = ", ".join(sorted({load.role for load in plan.heat_loads}))
+    return (
+        f" The campaigns never heated the {parts.replace('_', ' ')} directly, so the twin "
+        "cannot tell how far a heater warms it, and the tests that would show the effect are "
+        f"held back by that doubt. First {_program_words(plan)}: a calibration step (cost "
+        f"{plan.cost:g} test hours; the twin expects a rise of {rise.expected:.1f} K, at most "
+        f"{rise.bound:.1f} K).{_watch_words(plan, proposed)} Add the campaign to the raw folder "
+        f"and rerun `thermal discrepancy`: it then proposes the test for {proposed.effect!r} "
+        "from the part's measured response."
+    )
+
+
+def _watch_words(plan: TestPlan, proposed: ProposedTest) -> str:
     """Return the safety instruction of a plan with a heat load ("" without one)."""
-    if proposed.plan is None or not proposed.plan.heat_loads:
+    if not plan.heat_loads:
         return ""
     return (
-        f" The twin expects no sensor to rise more than {proposed.plan_rise_k:.1f} K, but it "
-        "has never seen that part heated: watch the heated part's sensor and switch the heater "
-        f"off if any sensor rises more than {proposed.rise_limit_k:.1f} K."
+        f" Watch the heated part's sensor and switch the heater off if any sensor rises more "
+        f"than {proposed.rise_limit_k:.1f} K."
     )
 
 
@@ -510,9 +626,10 @@ def _envelope_words(proposed: ProposedTest) -> str:
     if not proposed.too_hot:
         return ""
     return (
-        f"; {proposed.too_hot} plans left out because they would heat a part more than "
+        f"; {proposed.too_hot} plans left out because they could heat a part more than "
         f"{proposed.rise_limit_k:.1f} K (the largest rise in these campaigns, at least "
-        f"{ENVELOPE_FLOOR_K:g} K)"
+        f"{ENVELOPE_FLOOR_K:g} K; the bound is the {RISE_QUANTILE:.0%} quantile over the "
+        "twin's uncertainty)"
     )
 
 
@@ -573,20 +690,32 @@ def largest_rise_k(campaigns: Sequence[MeasuredCampaign]) -> float:
     return max(rises)
 
 
-def peak_rise_k(point: BaselinePoint) -> float:
-    """Largest rise over its first value of any structure sensor of a plan's campaign, K."""
-    return largest_rise_k(point.campaigns)
+def _first_heating(plan: TestPlan, loaded: frozenset[str]) -> bool:
+    """Whether ``plan`` heats only parts that no campaign of ``loaded`` heated (and heats some)."""
+    return bool(plan.heat_loads) and all(load.role not in loaded for load in plan.heat_loads)
 
 
 def propose_test(
     effect: str,
     current: EffectIdentifiability,
     plans: Sequence[TestPlan],
-    point_of: Any,
+    point_of: Callable[[TestPlan], BaselinePoint],
+    rise_of: Callable[[TestPlan], PlanRise],
     settings: IdentifiabilitySettings,
     rise_limit_k: float = float("inf"),
+    loaded: frozenset[str] = frozenset(),
 ) -> ProposedTest:
-    """Try ``plans`` cheapest first; return the first that makes ``effect`` visible.
+    """Try ``plans`` cheapest first; return the cheapest that makes ``effect`` visible.
+
+    A plan is visible when the effect is visible under it at the planning point and its rise
+    bound stays in the envelope; of the visible plans of the lowest cost (own sampling interval
+    first), the one with the largest signal is proposed, so that a plan of the same cost that
+    shows the effect more clearly is not passed over for its place in the grid. When none is
+    visible: if a plan with a heater on a part no campaign heated (``loaded``) fits in the
+    envelope, the cheapest such (the hottest of equal cost) is the calibration step. Once a
+    campaign has heated that part, the twin's rise and signal of the tests on it come from its
+    measured response; without that step the doubt about it holds them back (see
+    :mod:`pipeline.discrepancy.plan_twin`).
 
     Parameters
     ----------
@@ -595,47 +724,68 @@ def propose_test(
         Its class and figures on the campaigns.
     plans : sequence of TestPlan
     point_of : callable
-        ``TestPlan -> BaselinePoint`` (cached by the caller: one point serves every effect).
+        ``TestPlan -> BaselinePoint`` at the planning point (cached by the caller: one point
+        serves every effect).
+    rise_of : callable
+        ``TestPlan -> PlanRise`` (cached by the caller).
     settings : IdentifiabilitySettings
     rise_limit_k : float
-        Plans whose simulated campaign takes a sensor further above its first reading, K, are
-        left out (:func:`largest_rise_k` of the campaigns).
+        Plans whose rise bound exceeds it, K, are left out (:func:`largest_rise_k` of the
+        campaigns).
+    loaded : frozenset of str
+        Roles some campaign put an external heat load on.
     """
-    best: tuple[float, TestPlan, Visibility, float] | None = None
+    best: tuple[float, TestPlan, Visibility, PlanRise] | None = None
+    chosen: tuple[float, TestPlan, Visibility, PlanRise] | None = None
+    calibration: tuple[TestPlan, PlanRise] | None = None
     ordered = cheapest_order(plans)
-    too_hot = 0
+    too_hot = tried = 0
     for plan in ordered:
-        plan_point = point_of(plan)
-        rise = peak_rise_k(plan_point)
-        if rise > rise_limit_k:
+        if chosen is not None and _order_key(plan) != _order_key(chosen[1]):
+            break  # every plan as cheap as the first visible one was tried
+        tried += 1
+        rise = rise_of(plan)
+        if rise.bound > rise_limit_k:
             too_hot += 1
             continue
-        figures = visibility(effect, plan_point, settings.plausible)
-        if not shortfalls(figures, settings):
-            best = (figures.signal_sigma, plan, figures, rise)
-            return _proposed(effect, current, best, True, ordered, settings, rise_limit_k, too_hot)
+        if _first_heating(plan, loaded) and (
+            calibration is None
+            or (plan.cost, -rise.expected) < (calibration[0].cost, -calibration[1].expected)
+        ):
+            calibration = (plan, rise)
+        figures = visibility(effect, point_of(plan), settings.plausible)
         signal = figures.signal_sigma if np.isfinite(figures.signal_sigma) else -1.0
+        if not shortfalls(figures, settings) and (chosen is None or signal > chosen[0]):
+            chosen = (signal, plan, figures, rise)
         if best is None or signal > best[0]:
             best = (signal, plan, figures, rise)
-    return _proposed(effect, current, best, False, ordered, settings, rise_limit_k, too_hot)
+    if chosen is not None:
+        return _proposed(effect, current, chosen, ordered, settings, rise_limit_k, too_hot, tried)
+    return _proposed(
+        effect, current, best, ordered, settings, rise_limit_k, too_hot, tried, calibration, False
+    )
 
 
 def _proposed(
     effect: str,
     current: EffectIdentifiability,
-    chosen: tuple[float, TestPlan, Visibility, float] | None,
-    visible: bool,
+    chosen: tuple[float, TestPlan, Visibility, PlanRise] | None,
     ordered: Sequence[TestPlan],
     settings: IdentifiabilitySettings,
     rise_limit_k: float,
     too_hot: int,
+    tried: int,
+    calibration: tuple[TestPlan, PlanRise] | None = None,
+    visible: bool = True,
 ) -> ProposedTest:
     """Build the :class:`ProposedTest` from the chosen ``(signal, plan, figures, rise)``; log it.
 
-    ``visible``: the chosen plan makes the effect visible (else it is the grid's best).
+    ``visible``: the chosen plan makes the effect visible (else it is the grid's best, and
+    ``calibration`` the calibration step, if any).
     """
     now = current.figures.signal_sigma if current.figures is not None else float("nan")
-    _, plan, figures, rise = chosen if chosen is not None else (None, None, None, float("nan"))
+    _, plan, figures, rise = chosen if chosen is not None else (None, None, None, None)
+    step, step_rise = calibration if calibration is not None else (None, None)
     proposed = ProposedTest(
         effect,
         plan if visible else None,
@@ -643,12 +793,14 @@ def _proposed(
         None if visible else plan,
         now,
         settings.min_signal_sigma,
-        len(ordered) if not visible else ordered.index(plan) + 1,
+        tried,
         sensors_tried=any(p.add_sensors for p in ordered),
         heaters_tried=any(p.heat_loads for p in ordered),
         rise_limit_k=rise_limit_k,
-        plan_rise_k=rise,
+        plan_rise=rise,
         too_hot=too_hot,
+        calibration=step,
+        calibration_rise=step_rise,
     )
     logger.info("test plan for %s: %s", effect, plan_text(proposed))
     return proposed
@@ -660,6 +812,10 @@ def propose_tests(
     settings: IdentifiabilitySettings,
 ) -> dict[str, ProposedTest]:
     """Propose a test plan for every effect classed not identifiable.
+
+    The plans are scored with the planning twin of ``point``
+    (:func:`~pipeline.discrepancy.plan_twin.plan_twin`: the baseline refitted with its priors,
+    and draws from its posterior), not with the search's values as they are.
 
     Parameters
     ----------
@@ -674,27 +830,47 @@ def propose_tests(
     dict of str to ProposedTest
         Effect -> its proposed test, for the not-identifiable effects, in ``classes`` order.
     """
+    wanted = [effect for effect, entry in classes.items() if entry.status == NOT_IDENTIFIABLE]
+    if not wanted:
+        return {}
+    twin = plan_twin(point)
+    moved = twin.moved(point.values)
+    logger.info(
+        "test plans are scored with the baseline refitted with its priors (SSE x %.3f)%s",
+        twin.sse_ratio,
+        "; moved by more than 2x: "
+        + ", ".join(f"{k} {a:.3g} -> {b:.3g}" for k, (a, b) in moved.items())
+        if moved
+        else "",
+    )
     ambient_c = _ambient(point.campaigns)
     limit = max(largest_rise_k(point.campaigns), ENVELOPE_FLOOR_K)
-    cache: dict[TestPlan, BaselinePoint] = {}
+    points: dict[TestPlan, BaselinePoint] = {}
+    rises: dict[TestPlan, PlanRise] = {}
     sensors = plan_sensors(point.campaigns)
 
     def point_of(plan: TestPlan) -> BaselinePoint:
-        if plan not in cache:
-            cache[plan] = _plan_point(
-                plan, point.values, sensors, ambient_c, point.noise, point.prior_log_sd
+        if plan not in points:
+            points[plan] = _plan_point(
+                plan, twin.values, sensors, ambient_c, point.noise, point.prior_log_sd
             )
-        return cache[plan]
+        return points[plan]
+
+    def rise_of(plan: TestPlan) -> PlanRise:
+        if plan not in rises:
+            rises[plan] = PlanRise(*plan_rises(plan, twin, sensors, ambient_c))
+        return rises[plan]
 
     return {
         effect: propose_test(
             effect,
-            entry,
+            classes[effect],
             candidate_plans(point.campaigns, effect, point.roles),
             point_of,
+            rise_of,
             settings,
             limit,
+            point.load_roles,
         )
-        for effect, entry in classes.items()
-        if entry.status == NOT_IDENTIFIABLE
+        for effect in wanted
     }

@@ -50,6 +50,7 @@ from pipeline.discrepancy.calibrate import (
     NoiseFloor,
     ResidualRows,
     estimate_noise,
+    prior_scales,
     weighted_residuals,
 )
 from pipeline.discrepancy.collinearity import (
@@ -185,7 +186,7 @@ class BaselinePoint:
         The baseline's noise-weighted residuals on the campaigns (measured minus twin).
     sensitivities : ndarray of shape (n_residuals, n_params)
         Change of the weighted outputs per prior scale of each baseline parameter
-        (:func:`_prior_scales`).
+        (:func:`~pipeline.discrepancy.calibrate.prior_scales`).
     basis : ndarray of shape (n_residuals + n_params, n_params)
         Orthonormal basis of the column space of ``sensitivities`` with one prior row per
         parameter appended (:func:`~pipeline.discrepancy.collinearity.with_prior`): what the
@@ -247,7 +248,7 @@ def baseline_point(
     moved = np.ones(theta.size, dtype=bool)
     perturbed, steps = _perturbed(model, theta, moved)
     r, _ = weighted_residuals(model, np.vstack([theta, perturbed]), campaigns, noise)
-    sensitivities = _sensitivities(r, steps) * _prior_scales(model, theta, moved, prior_log_sd)
+    sensitivities = _sensitivities(r, steps) * prior_scales(model, theta, prior_log_sd)[moved]
     return BaselinePoint(
         roles=roles,
         values={name: float(values[name]) for name in model.names},
@@ -291,20 +292,6 @@ def _perturbed(
     h = np.where(x + h > x_hi, -h, h)
     xs = (x + np.diag(h))[moved]
     return np.where(logs, np.exp(np.where(logs, xs, 0.0)), xs), h[moved]
-
-
-def _prior_scales(
-    model: TwinModel, theta: np.ndarray, moved: np.ndarray, prior_log_sd: float
-) -> np.ndarray:
-    """Return the prior scale of each moved parameter, in the calibration's coordinates.
-
-    ``prior_log_sd`` for a positive parameter (fitted in log space); for the others, the scale
-    the calibration gives them (``max(|theta|, range / 20)``, their unit).
-    """
-    logs = np.array([p.log for p in model.param_specs])
-    lo, hi = model.bounds()
-    linear = np.maximum(np.abs(theta), (hi - lo) / 20.0)
-    return np.where(logs, prior_log_sd, linear)[moved]
 
 
 def _sensitivities(residuals: np.ndarray, steps: np.ndarray) -> np.ndarray:
@@ -404,7 +391,7 @@ def visibility(effect: str, point: BaselinePoint, plausible: Mapping[str, float]
     )
     response = point.residual - r[-1]
     if own.any():
-        scales = _prior_scales(model, theta0, own, point.prior_log_sd)
+        scales = prior_scales(model, theta0, point.prior_log_sd)[own]
         effect_cols = _sensitivities(r[:-1], steps) * scales
     else:  # a switch without a parameter: its column is what switching it on changes
         effect_cols = (point.residual - r[0])[:, None]
