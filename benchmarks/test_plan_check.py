@@ -31,8 +31,9 @@ def check(effect: str, seed: int, workdir: Path, n: int = 4) -> dict[str, Any]:
     -------
     dict
         ``class_before``, ``signal_before`` (sigma), ``proposed_test``, and when a visible test
-        was proposed ``named_after``, ``class_after``, ``signal_after`` (sigma), the rerun's
-        held-out Z RMS before and after (um) and its named effects.
+        or a calibration step was proposed ``named_after``, ``class_after``, ``signal_after``
+        (sigma), the rerun's held-out Z (um) and temperature (K) RMS before and after, its named
+        effects and the test's campaigns quarantined.
     """
     section = {**load_section("discrepancy"), "n_folds": 2, "mlflow": False}
     raw = workdir / "raw"
@@ -57,6 +58,9 @@ def check(effect: str, seed: int, workdir: Path, n: int = 4) -> dict[str, Any]:
             expected_sigma_last_plan=follow.expected_sigma,
             rmse_um_before_after_plan=follow.rmse_um_before,
             rmse_um_after_after_plan=follow.rmse_um_after,
+            rmse_T_K_before_after_plan=follow.rmse_t_k_before,
+            rmse_T_K_after_after_plan=follow.rmse_t_k_after,
+            plan_quarantined=list(follow.quarantined),
         )
     return out
 

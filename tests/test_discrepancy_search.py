@@ -470,6 +470,15 @@ def test_mlflow_run_holds_the_metrics_and_figures(tmp_path, monkeypatch):
                 "best_in_grid": {"name": "steps", "expected_signal_sigma": 0.75},
             },
         },
+        "ambient_variation": {
+            "class": "not_identifiable",
+            "signal_sigma": 0.2,
+            "proposed_test": {
+                "visible": False,
+                "best_in_grid": {"name": "steps", "expected_signal_sigma": 0.5},
+                "calibration_step": {"name": "motor pulse"},
+            },
+        },
     }
     uri = f"sqlite:///{(tmp_path / 'mlflow.db').as_posix()}"
     monkeypatch.setenv("MLFLOW_TRACKING_URI", uri)
@@ -494,6 +503,7 @@ def test_mlflow_run_holds_the_metrics_and_figures(tmp_path, monkeypatch):
     assert run.data.metrics["signal_sigma.thermal_bending"] == pytest.approx(0.31)
     assert run.data.params["proposed_test.thermal_bending"] == "heater"
     assert run.data.params["proposed_test.sensor_lag"] == "none visible"
+    assert run.data.params["proposed_test.ambient_variation"] == "calibration step: motor pulse"
     assert run.data.metrics["proposed_signal_sigma.sensor_lag"] == pytest.approx(0.75)
     assert "proposed_test.motor_heat" not in run.data.params
 

@@ -75,9 +75,9 @@ def _log_identifiability(client: Any, run_id: str, entries: Mapping[str, Any]) -
 
     Each effect gets the tag ``identifiability.<effect>`` (its class), the metric
     ``signal_sigma.<effect>`` (its visible signal, noise sigmas) and, when it is not
-    identifiable, the param ``proposed_test.<effect>`` (the proposed plan's name, or ``none
-    visible``) with the metric ``proposed_signal_sigma.<effect>`` (the signal the plan would
-    leave, or the grid's best).
+    identifiable, the param ``proposed_test.<effect>`` (the proposed plan's name, without one
+    ``calibration step: <its name>`` or ``none visible``) with the metric
+    ``proposed_signal_sigma.<effect>`` (the signal the plan would leave, or the grid's best).
     """
     for effect, entry in entries.items():
         client.set_tag(run_id, f"identifiability.{effect}", str(entry["class"]))
@@ -88,7 +88,14 @@ def _log_identifiability(client: Any, run_id: str, entries: Mapping[str, Any]) -
         if not proposed:
             continue
         plan = proposed if proposed.get("visible") else proposed.get("best_in_grid") or {}
-        name = str(plan.get("name", "")) if proposed.get("visible") else "none visible"
+        step = proposed.get("calibration_step")
+        name = (
+            str(plan.get("name", ""))
+            if proposed.get("visible")
+            else f"calibration step: {step['name']}"
+            if step
+            else "none visible"
+        )
         client.log_param(run_id, f"proposed_test.{effect}", name[:500])
         if plan.get("expected_signal_sigma") is not None:
             client.log_metric(
