@@ -23,6 +23,12 @@ from pipeline.discrepancy.identifiability import (
     assess_effects,
 )
 from pipeline.discrepancy.model import EFFECTS
+from pipeline.discrepancy.plan_envelope import (
+    ENVELOPE_FLOOR_K,
+    PlanRise,
+    adiabatic_rise_k,
+    largest_rise_k,
+)
 from pipeline.discrepancy.plan_twin import plan_twin
 from pipeline.discrepancy.report_text import _identifiability_line
 from pipeline.discrepancy.visibility import Visibility, baseline_point, visibility
@@ -150,6 +156,11 @@ def test_a_heater_on_the_column_rear_separates_bending_from_the_column_s_growth(
     assert with_heater > max(5.0 * without, SETTINGS.min_signal_sigma), (without, with_heater)
     entry = heated.to_dict(with_heater)
     assert loads_from_contract(entry["heat_loads"]) == heated.heat_loads
+    # no campaign heated the column: the plan is held to its heater's adiabatic rise at least
+    full = proposed["thermal_bending"].to_dict()
+    adiabatic = adiabatic_rise_k(heated.heat_loads[0], point.prior_log_sd)
+    assert full["max_rise_bound_K"] >= 0.999 * adiabatic
+    assert full["max_rise_bound_K"] <= full["rise_limit_K"]
     text = proposed["thermal_bending"].to_dict()["text"]
     assert "`heat_loads:`" in text and "switch the heater off" in text
     assert all(e["role"] in SENSOR_ROLES and e["power_W"] > 0 for e in entry["heat_loads"])
@@ -183,7 +194,7 @@ def _propose(monkeypatch, table, rise=lambda signal: 5.0, limit=10.0, loaded=fro
     current = EffectIdentifiability("sensor_lag", NOT_IDENTIFIABLE, _figures(0.5))
 
     def rise_of(plan):
-        return tp.PlanRise(rise(table[plan]) - 1.0, rise(table[plan]))
+        return PlanRise(rise(table[plan]) - 1.0, rise(table[plan]))
 
     return tp.propose_test(
         "sensor_lag", current, list(table), table.__getitem__, rise_of, SETTINGS, limit, loaded
@@ -251,8 +262,8 @@ def test_the_envelope_is_the_largest_rise_of_a_structure_sensor(flat):
         for c in point.campaigns
         for s in structure
     )
-    assert tp.largest_rise_k(point.campaigns) == pytest.approx(expected)
-    assert 0.0 < expected < tp.ENVELOPE_FLOOR_K  # these short flat campaigns barely warm it
+    assert largest_rise_k(point.campaigns) == pytest.approx(expected)
+    assert 0.0 < expected < ENVELOPE_FLOOR_K  # these short flat campaigns barely warm it
 
 
 def test_the_cheapest_visible_plan_is_proposed(monkeypatch):

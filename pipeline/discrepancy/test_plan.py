@@ -22,12 +22,13 @@ under which the effect would be identifiable (:func:`propose_tests`):
    sensor brings gets its parameters' initial values), starting cold at the campaigns'
    ambient with the campaigns' sensors (plus the added one) and the Z probe
    (:func:`simulate_plan`).
-3. **The envelope.** A plan whose peak rise at a structure sensor could exceed the campaigns'
-   largest rise (at least :data:`ENVELOPE_FLOOR_K`) is left out: the rise it is held to is
-   the :data:`~pipeline.discrepancy.plan_twin.RISE_QUANTILE` quantile over draws from the
-   planning twin's posterior (:func:`plan_rises`), so a part whose response the campaigns do
-   not pin down (one they never heated directly) is held to what it could do, not to what it
-   is expected to do.
+3. **The envelope** (:mod:`~pipeline.discrepancy.plan_envelope`). A plan that could heat a
+   part beyond the campaigns' largest rise (at least
+   :data:`~pipeline.discrepancy.plan_envelope.ENVELOPE_FLOOR_K`) is left out. What it could do
+   is the :data:`~pipeline.discrepancy.plan_twin.RISE_QUANTILE` quantile of its peak rise over
+   draws from the planning twin's posterior (:func:`plan_rises`) and, for a heater on a part
+   no campaign heated, the rise if all the heater's energy stayed in the part's smallest
+   plausible heat capacity, which no calibration error can exceed.
 4. **Its signal.** The same figures as the identifiability of the campaigns
    (:func:`~pipeline.discrepancy.visibility.visibility`: the effect at its plausible size, the
    part the baseline cannot absorb by moving its parameters within their prior scales, RMS in
@@ -65,6 +66,12 @@ from pipeline.discrepancy.identifiability import (
     shortfalls,
 )
 from pipeline.discrepancy.model import ROLE_NODES, TwinModel, build_model, loaded_roles
+from pipeline.discrepancy.plan_envelope import (
+    ENVELOPE_FLOOR_K,
+    PlanRise,
+    first_heating_bound_k,
+    rise_limit_k,
+)
 from pipeline.discrepancy.plan_twin import RISE_QUANTILE, PlanTwin, peak_rises, plan_twin
 from pipeline.discrepancy.visibility import (
     BaselinePoint,
@@ -108,7 +115,7 @@ test hours."""
 HEATER_POWERS_W = (25.0, 100.0, 250.0, 500.0)
 """Heater powers of the grid, W: heater pads and mats and a 500 W halogen lamp. A plan
 that would heat a part beyond the campaigns' own largest rise is left out
-(:func:`largest_rise_k`)."""
+(:func:`~pipeline.discrepancy.plan_envelope.largest_rise_k`)."""
 
 HEAT_LOAD_ROLES = {
     "thermal_bending": ("column_rear", "column_front"),
@@ -127,11 +134,6 @@ heated is the calibration step of :func:`propose_test`."""
 
 MAX_PLANS = 120
 """Most plans tried per effect."""
-
-ENVELOPE_FLOOR_K = 10.0
-"""Smallest rise a proposed test may give a part, K, however little the campaigns warmed the
-machine: a spindle bearing housing runs 10-20 K above the air in normal service, so a part
-warmed by 10 K is within what a machine tool meets at work."""
 
 
 @dataclass(frozen=True)
@@ -445,14 +447,6 @@ def plan_rises(
 
 
 @dataclass(frozen=True)
-class PlanRise:
-    """How far a plan heats the machine: its peak rise expected, and its bound, K."""
-
-    expected: float
-    bound: float
-
-
-@dataclass(frozen=True)
 class ProposedTest:
     """The plan proposed for one effect, or the best the grid reached when none is visible.
 
@@ -477,7 +471,7 @@ class ProposedTest:
         Whether the grid had plans with a heat load.
     rise_limit_k : float
         The envelope: the largest rise any sensor showed in the campaigns
-        (:func:`largest_rise_k`), at least :data:`ENVELOPE_FLOOR_K`, K; a plan whose rise bound
+        (:func:`~pipeline.discrepancy.plan_envelope.rise_limit_k`), K; a plan whose rise bound
         exceeds it is not proposed.
     plan_rise : PlanRise or None
         Largest rise the twin expects at a sensor under the proposed (or best) plan, and its
@@ -628,8 +622,9 @@ def _envelope_words(proposed: ProposedTest) -> str:
     return (
         f"; {proposed.too_hot} plans left out because they could heat a part more than "
         f"{proposed.rise_limit_k:.1f} K (the largest rise in these campaigns, at least "
-        f"{ENVELOPE_FLOOR_K:g} K; the bound is the {RISE_QUANTILE:.0%} quantile over the "
-        "twin's uncertainty)"
+        f"{ENVELOPE_FLOOR_K:g} K; what a plan could do is the {RISE_QUANTILE:.0%} quantile over "
+        "the twin's uncertainty, and for a heater on a part no campaign heated, its energy kept "
+        "in the part's smallest plausible heat capacity)"
     )
 
 
@@ -673,23 +668,6 @@ def plan_sensors(campaigns: Sequence[MeasuredCampaign]) -> dict[str, str]:
     return out
 
 
-def largest_rise_k(campaigns: Sequence[MeasuredCampaign]) -> float:
-    """Largest rise of any sensor on the structure over its first reading in ``campaigns``, K.
-
-    The envelope a proposed test must stay in: a heater that takes a part further than the
-    machine's own running ever took any part risks the machine (and an ingest range check).
-    """
-    rises = [0.0]
-    for c in campaigns:
-        for s in c.temperatures.columns:
-            if c.roles.get(s) in ROLE_NODES:
-                values = c.temperatures[s].to_numpy(dtype=float)
-                ok = values[np.isfinite(values)]
-                if ok.size:
-                    rises.append(float(ok.max() - ok[0]))
-    return max(rises)
-
-
 def _first_heating(plan: TestPlan, loaded: frozenset[str]) -> bool:
     """Whether ``plan`` heats only parts that no campaign of ``loaded`` heated (and heats some)."""
     return bool(plan.heat_loads) and all(load.role not in loaded for load in plan.heat_loads)
@@ -730,7 +708,7 @@ def propose_test(
         ``TestPlan -> PlanRise`` (cached by the caller).
     settings : IdentifiabilitySettings
     rise_limit_k : float
-        Plans whose rise bound exceeds it, K, are left out (:func:`largest_rise_k` of the
+        Plans whose rise bound exceeds it, K, are left out (:func:`rise_limit_k` of the
         campaigns).
     loaded : frozenset of str
         Roles some campaign put an external heat load on.
@@ -844,7 +822,7 @@ def propose_tests(
         else "",
     )
     ambient_c = _ambient(point.campaigns)
-    limit = max(largest_rise_k(point.campaigns), ENVELOPE_FLOOR_K)
+    limit = rise_limit_k(point.campaigns)
     points: dict[TestPlan, BaselinePoint] = {}
     rises: dict[TestPlan, PlanRise] = {}
     sensors = plan_sensors(point.campaigns)
@@ -858,7 +836,9 @@ def propose_tests(
 
     def rise_of(plan: TestPlan) -> PlanRise:
         if plan not in rises:
-            rises[plan] = PlanRise(*plan_rises(plan, twin, sensors, ambient_c))
+            expected, bound = plan_rises(plan, twin, sensors, ambient_c)
+            first = first_heating_bound_k(plan.heat_loads, point.load_roles, point.prior_log_sd)
+            rises[plan] = PlanRise(expected, max(bound, first))
         return rises[plan]
 
     return {
