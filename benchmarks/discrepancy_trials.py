@@ -80,7 +80,8 @@ QUICK_CAMPAIGNS = 4
 """Campaigns per trial in ``--quick`` mode (with 2 folds)."""
 
 PLAN_CAMPAIGNS = 2
-"""Campaigns of a proposed test run per follow-up (the search holds campaigns out)."""
+"""Campaigns of a proposed test run per follow-up when the proposal gives no ``campaigns``
+count (the search holds campaigns out)."""
 
 PLAN_ROUNDS = 3
 """Proposed tests run one after the other at most: when the first test's campaigns still do
@@ -350,7 +351,8 @@ def follow_plan(
             test = _test_to_run(entry)
             if test is None:
                 break
-            ids = write_plan_campaigns(folder, test, hidden, seed, PLAN_CAMPAIGNS, round_)
+            n = int(test.get("campaigns", PLAN_CAMPAIGNS))
+            ids = write_plan_campaigns(folder, test, hidden, seed, n, round_)
             after = run_workflow(folder, workdir / f"out_plan_{effect}_{round_}", section)
             visible = "expected_signal_sigma" in test
             names.append(str(test["name"]) if visible else f"calibration: {test['name']}")

@@ -72,6 +72,7 @@ from pipeline.discrepancy.plan_envelope import (
     first_heating_bound_k,
     rise_limit_k,
 )
+from pipeline.discrepancy.plan_naming import HeldOutFloor, counted_samples, would_be_named
 from pipeline.discrepancy.plan_twin import RISE_QUANTILE, PlanTwin, peak_rises, plan_twin
 from pipeline.discrepancy.visibility import (
     BaselinePoint,
@@ -135,6 +136,10 @@ heated is the calibration step of :func:`propose_test`."""
 MAX_PLANS = 120
 """Most plans tried per effect."""
 
+PLAN_REPEATS = 2
+"""Campaigns of a proposed test: the test run on two days, so that one odd day does not decide
+(:mod:`~pipeline.discrepancy.plan_naming` counts their samples)."""
+
 
 @dataclass(frozen=True)
 class TestPlan:
@@ -188,6 +193,7 @@ class TestPlan:
             ],
             "heat_loads": loads_to_contract(self.heat_loads),
             "duration_h": float(self.duration_h),
+            "campaigns": PLAN_REPEATS,
             "cost_h": float(self.cost),
             "name": self.name,
             "expected_signal_sigma": float(f"{signal_sigma:.4g}"),
@@ -506,16 +512,31 @@ class ProposedTest:
         out: dict[str, Any] = {"visible": self.plan is not None, "plans_tried": self.n_plans}
         out["plans_too_hot"] = self.too_hot
         out["rise_limit_K"] = json_figure(self.rise_limit_k)
+        shown = _signal_dict(self.figures)
         if self.plan is not None:
-            out.update(self.plan.to_dict(signal), **_rise_dict(self.plan_rise))
+            out.update(self.plan.to_dict(signal), **shown, **_rise_dict(self.plan_rise))
         elif self.best is not None:
-            out["best_in_grid"] = {**self.best.to_dict(signal), **_rise_dict(self.plan_rise)}
+            out["best_in_grid"] = {
+                **self.best.to_dict(signal),
+                **shown,
+                **_rise_dict(self.plan_rise),
+            }
         if self.calibration is not None:
             step = self.calibration.to_dict(float("nan"))
             step.pop("expected_signal_sigma")
             out["calibration_step"] = {**step, **_rise_dict(self.calibration_rise)}
         out["text"] = plan_text(self)
         return out
+
+
+def _signal_dict(figures: Visibility | None) -> dict[str, float | None]:
+    """Return the visible response under a plan, um (Z) and K (temperatures)."""
+    if figures is None:
+        return {}
+    return {
+        "expected_signal_Z_um": json_figure(figures.signal_z_um),
+        "expected_signal_T_K": json_figure(figures.signal_t_k),
+    }
 
 
 def _rise_dict(rise: PlanRise | None) -> dict[str, float | None]:
@@ -531,7 +552,7 @@ def _rise_dict(rise: PlanRise | None) -> dict[str, float | None]:
 def _program_words(plan: TestPlan) -> str:
     """Return the plan's program, sampling and sensors in words."""
     words = (
-        f"run one {plan.duration_h:g} h test from a cold machine, "
+        f"run a {plan.duration_h:g} h test from a cold machine on each of {PLAN_REPEATS} days, "
         f"{plan.name.rsplit(',', 1)[0]} (the `spindle_program` of `proposed_test`), logging "
         f"every {plan.sample_interval_s:g} s"
     )
@@ -584,7 +605,8 @@ def plan_text(proposed: ProposedTest) -> str:
     if proposed.calibration is not None:
         return head + _calibration_words(proposed)
     return (
-        f"{head} Its response at a plausible size stays within what the baseline absorbs; "
+        f"{head} Its response at a plausible size stays within what the baseline absorbs, or "
+        "too small against the twin's held-out misfit for the search to name it; "
         f"{_what_else(proposed)} would be needed."
     )
 
@@ -682,17 +704,19 @@ def propose_test(
     settings: IdentifiabilitySettings,
     rise_limit_k: float = float("inf"),
     loaded: frozenset[str] = frozenset(),
+    named_if: Callable[[TestPlan, Visibility], bool] | None = None,
 ) -> ProposedTest:
     """Try ``plans`` cheapest first; return the cheapest that makes ``effect`` visible.
 
-    A plan is visible when the effect is visible under it at the planning point and its rise
-    bound stays in the envelope; of the visible plans of the lowest cost (own sampling interval
-    first), the one with the largest signal is proposed, so that a plan of the same cost that
-    shows the effect more clearly is not passed over for its place in the grid. When none is
-    visible: if a plan with a heater on a part no campaign heated (``loaded``) fits in the
-    envelope, the cheapest such (the hottest of equal cost) is the calibration step. Once a
-    campaign has heated that part, the twin's rise and signal of the tests on it come from its
-    measured response; without that step the doubt about it holds them back (see
+    A plan is visible when the effect is visible under it at the planning point, its response
+    would pass the search's rule (``named_if``) and its rise bound stays in the envelope; of
+    the visible plans of the lowest cost (own sampling interval first), the one with the
+    largest signal is proposed, so that a plan of the same cost that shows the effect more
+    clearly is not passed over for its place in the grid. When none is visible: if a plan
+    with a heater on a part no campaign heated (``loaded``) fits in the envelope, the cheapest
+    such (the hottest of equal cost) is the calibration step. Once a campaign has heated that
+    part, the twin's rise and signal of the tests on it come from its measured response;
+    without that step the doubt about it holds them back (see
     :mod:`pipeline.discrepancy.plan_twin`).
 
     Parameters
@@ -712,6 +736,10 @@ def propose_test(
         campaigns).
     loaded : frozenset of str
         Roles some campaign put an external heat load on.
+    named_if : callable, optional
+        ``(TestPlan, Visibility) -> bool``: whether the search would name the effect with the
+        plan's campaigns added (:func:`~pipeline.discrepancy.plan_naming.would_be_named`);
+        default: visible is enough.
     """
     best: tuple[float, TestPlan, Visibility, PlanRise] | None = None
     chosen: tuple[float, TestPlan, Visibility, PlanRise] | None = None
@@ -733,7 +761,10 @@ def propose_test(
             calibration = (plan, rise)
         figures = visibility(effect, point_of(plan), settings.plausible)
         signal = figures.signal_sigma if np.isfinite(figures.signal_sigma) else -1.0
-        if not shortfalls(figures, settings) and (chosen is None or signal > chosen[0]):
+        visible = not shortfalls(figures, settings) and (
+            named_if is None or named_if(plan, figures)
+        )
+        if visible and (chosen is None or signal > chosen[0]):
             chosen = (signal, plan, figures, rise)
         if best is None or signal > best[0]:
             best = (signal, plan, figures, rise)
@@ -788,6 +819,7 @@ def propose_tests(
     point: BaselinePoint,
     classes: Mapping[str, EffectIdentifiability],
     settings: IdentifiabilitySettings,
+    floor: HeldOutFloor | None = None,
 ) -> dict[str, ProposedTest]:
     """Propose a test plan for every effect classed not identifiable.
 
@@ -802,6 +834,10 @@ def propose_tests(
     classes : mapping of str to EffectIdentifiability
         The class of every candidate effect.
     settings : IdentifiabilitySettings
+    floor : HeldOutFloor, optional
+        The search's held-out floor: a plan must leave a response that passes its rule with
+        :data:`PLAN_REPEATS` campaigns of the plan added
+        (:func:`~pipeline.discrepancy.plan_naming.would_be_named`). Default: visible is enough.
 
     Returns
     -------
@@ -841,6 +877,16 @@ def propose_tests(
             rises[plan] = PlanRise(expected, max(bound, first))
         return rises[plan]
 
+    def named_if(effect: str) -> Callable[[TestPlan, Visibility], bool] | None:
+        if floor is None:
+            return None
+
+        def check(plan: TestPlan, figures: Visibility) -> bool:
+            n_z, n_t = counted_samples(point_of(plan).campaigns)
+            return would_be_named(effect, figures, floor, PLAN_REPEATS * n_z, PLAN_REPEATS * n_t)
+
+        return check
+
     return {
         effect: propose_test(
             effect,
@@ -851,6 +897,7 @@ def propose_tests(
             settings,
             limit,
             point.load_roles,
+            named_if(effect),
         )
         for effect in wanted
     }

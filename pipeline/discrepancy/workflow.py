@@ -28,6 +28,7 @@ from pipeline.discrepancy.identifiability import (
 )
 from pipeline.discrepancy.localise import LocaliseSettings, localise
 from pipeline.discrepancy.model import ROLE_NODES
+from pipeline.discrepancy.plan_naming import held_out_floor
 from pipeline.discrepancy.report import (
     build_document,
     untestable_document,
@@ -173,7 +174,8 @@ def run(
     result = search_twin(campaigns, settings)
     point = searched_point(campaigns, result, ident_settings)
     classes = identifiability(campaigns, result, settings.candidates, ident_settings, point)
-    proposed = propose_tests(point, classes, ident_settings)
+    floor = held_out_floor(result, point.campaigns, settings)
+    proposed = propose_tests(point, classes, ident_settings, floor)
     entries = {e: c.to_dict(ident_settings) for e, c in classes.items()}
     for effect, test in proposed.items():
         entries[effect]["proposed_test"] = test.to_dict()
