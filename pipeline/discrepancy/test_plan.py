@@ -485,8 +485,8 @@ class ProposedTest:
     too_hot : int
         Plans left out because they would leave the envelope.
     calibration : TestPlan or None
-        When no plan is visible within the envelope: a short heater pulse on a part the
-        campaigns never heated, within the envelope, to run first (:func:`propose_test`).
+        When no plan is visible within the envelope: a heater plan within it on a part the
+        campaigns never heated, to run first (:func:`propose_test`).
     calibration_rise : PlanRise or None
         The calibration step's rises, K.
     """
@@ -712,12 +712,15 @@ def propose_test(
     would pass the search's rule (``named_if``) and its rise bound stays in the envelope; of
     the visible plans of the lowest cost (own sampling interval first), the one with the
     largest signal is proposed, so that a plan of the same cost that shows the effect more
-    clearly is not passed over for its place in the grid. When none is visible: if a plan
-    with a heater on a part no campaign heated (``loaded``) fits in the envelope, the cheapest
-    such (the hottest of equal cost) is the calibration step. Once a campaign has heated that
-    part, the twin's rise and signal of the tests on it come from its measured response;
-    without that step the doubt about it holds them back (see
-    :mod:`pipeline.discrepancy.plan_twin`).
+    clearly is not passed over for its place in the grid.
+
+    When none is visible, a calibration step may be: a part no campaign heated (``loaded``) is
+    *held back* when a plan heating it would show the effect and the twin expects it within
+    the envelope, but its bound (the doubt about a part never heated) is not. The cheapest
+    plan that heats only held-back parts and fits in the envelope (of equal cost, the one the
+    twin expects to heat most) is the calibration step: once a campaign has heated the part,
+    the rise and signal of the tests on it come from its measured response (see
+    :mod:`pipeline.discrepancy.plan_envelope`).
 
     Parameters
     ----------
@@ -743,7 +746,13 @@ def propose_test(
     """
     best: tuple[float, TestPlan, Visibility, PlanRise] | None = None
     chosen: tuple[float, TestPlan, Visibility, PlanRise] | None = None
-    calibration: tuple[TestPlan, PlanRise] | None = None
+    safe_first: list[tuple[TestPlan, PlanRise]] = []  # first heatings within the envelope
+    held_back: set[str] = set()  # parts whose doubt alone holds a visible plan back
+
+    def shows(plan: TestPlan, figures: Visibility) -> bool:
+        named = named_if is None or named_if(plan, figures)
+        return not shortfalls(figures, settings) and named
+
     ordered = cheapest_order(plans)
     too_hot = tried = 0
     for plan in ordered:
@@ -751,28 +760,44 @@ def propose_test(
             break  # every plan as cheap as the first visible one was tried
         tried += 1
         rise = rise_of(plan)
+        first = _first_heating(plan, loaded)
         if rise.bound > rise_limit_k:
             too_hot += 1
+            if first and rise.expected <= rise_limit_k:
+                figures = visibility(effect, point_of(plan), settings.plausible)
+                if shows(plan, figures):
+                    held_back.update(load.role for load in plan.heat_loads)
             continue
-        if _first_heating(plan, loaded) and (
-            calibration is None
-            or (plan.cost, -rise.expected) < (calibration[0].cost, -calibration[1].expected)
-        ):
-            calibration = (plan, rise)
+        if first:
+            safe_first.append((plan, rise))
         figures = visibility(effect, point_of(plan), settings.plausible)
         signal = figures.signal_sigma if np.isfinite(figures.signal_sigma) else -1.0
-        visible = not shortfalls(figures, settings) and (
-            named_if is None or named_if(plan, figures)
-        )
-        if visible and (chosen is None or signal > chosen[0]):
+        if shows(plan, figures) and (chosen is None or signal > chosen[0]):
             chosen = (signal, plan, figures, rise)
         if best is None or signal > best[0]:
             best = (signal, plan, figures, rise)
     if chosen is not None:
         return _proposed(effect, current, chosen, ordered, settings, rise_limit_k, too_hot, tried)
+    calibration = _calibration_step(safe_first, held_back)
     return _proposed(
         effect, current, best, ordered, settings, rise_limit_k, too_hot, tried, calibration, False
     )
+
+
+def _calibration_step(
+    safe_first: Sequence[tuple[TestPlan, PlanRise]], held_back: set[str]
+) -> tuple[TestPlan, PlanRise] | None:
+    """Return the calibration step: the cheapest safe first heating of a held-back part.
+
+    Of equal cost, the one the twin expects to heat the part most (the clearest reading of its
+    response); None when no part's doubt holds a visible plan back.
+    """
+    useful = [
+        (plan, rise)
+        for plan, rise in safe_first
+        if {load.role for load in plan.heat_loads} <= held_back
+    ]
+    return min(useful, key=lambda pr: (pr[0].cost, -pr[1].expected), default=None)
 
 
 def _proposed(
