@@ -715,8 +715,10 @@ def propose_test(
     clearly is not passed over for its place in the grid.
 
     When none is visible, a calibration step may be: a part no campaign heated (``loaded``) is
-    *held back* when a plan heating it would show the effect and the twin expects it within
-    the envelope, but its bound (the doubt about a part never heated) is not. The cheapest
+    *held back* when a plan heating it leaves the effect above the identifiability thresholds
+    and the twin expects it within the envelope, but its bound (the doubt about a part never
+    heated) is not. The search's naming rule is not asked of such a plan: its response is
+    scored with the very parameters the step is there to measure. The cheapest
     plan that heats only held-back parts and fits in the envelope (of equal cost, the one the
     twin expects to heat most) is the calibration step: once a campaign has heated the part,
     the rise and signal of the tests on it come from its measured response (see
@@ -765,7 +767,7 @@ def propose_test(
             too_hot += 1
             if first and rise.expected <= rise_limit_k:
                 figures = visibility(effect, point_of(plan), settings.plausible)
-                if shows(plan, figures):
+                if not shortfalls(figures, settings):  # visible where the doubt is largest
                     held_back.update(load.role for load in plan.heat_loads)
             continue
         if first:
