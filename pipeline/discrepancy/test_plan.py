@@ -489,6 +489,10 @@ class ProposedTest:
         campaigns never heated, to run first (:func:`propose_test`).
     calibration_rise : PlanRise or None
         The calibration step's rises, K.
+    misfit_limited : bool
+        When none is visible: the best plan shows the effect above the identifiability
+        thresholds, but too little against the twin's held-out misfit for the search to name
+        it (:mod:`~pipeline.discrepancy.plan_naming`).
     """
 
     effect: str
@@ -505,6 +509,7 @@ class ProposedTest:
     too_hot: int = 0
     calibration: TestPlan | None = None
     calibration_rise: PlanRise | None = None
+    misfit_limited: bool = False
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready ``proposed_test``: the plan in the raw contract's terms and its text."""
@@ -515,7 +520,9 @@ class ProposedTest:
         shown = _signal_dict(self.figures)
         if self.plan is not None:
             out.update(self.plan.to_dict(signal), **shown, **_rise_dict(self.plan_rise))
-        elif self.best is not None:
+        else:
+            out["misfit_limited"] = self.misfit_limited
+        if self.plan is None and self.best is not None:
             out["best_in_grid"] = {
                 **self.best.to_dict(signal),
                 **shown,
@@ -604,9 +611,15 @@ def plan_text(proposed: ProposedTest) -> str:
     )
     if proposed.calibration is not None:
         return head + _calibration_words(proposed)
+    if proposed.misfit_limited:
+        return (
+            f"{head} The effect would be visible there, but too small against what the twin "
+            "already misses on the held-out campaigns for the search to name it: a twin that "
+            "fits these campaigns better (a missing effect or per-campaign state named first) "
+            f"or {_what_else(proposed)} would be needed."
+        )
     return (
-        f"{head} Its response at a plausible size stays within what the baseline absorbs, or "
-        "too small against the twin's held-out misfit for the search to name it; "
+        f"{head} Its response at a plausible size stays within what the baseline absorbs; "
         f"{_what_else(proposed)} would be needed."
     )
 
@@ -781,8 +794,19 @@ def propose_test(
     if chosen is not None:
         return _proposed(effect, current, chosen, ordered, settings, rise_limit_k, too_hot, tried)
     calibration = _calibration_step(safe_first, held_back)
+    misfit = best is not None and not shortfalls(best[2], settings)
     return _proposed(
-        effect, current, best, ordered, settings, rise_limit_k, too_hot, tried, calibration, False
+        effect,
+        current,
+        best,
+        ordered,
+        settings,
+        rise_limit_k,
+        too_hot,
+        tried,
+        calibration,
+        visible=False,
+        misfit_limited=misfit,
     )
 
 
@@ -813,6 +837,7 @@ def _proposed(
     tried: int,
     calibration: tuple[TestPlan, PlanRise] | None = None,
     visible: bool = True,
+    misfit_limited: bool = False,
 ) -> ProposedTest:
     """Build the :class:`ProposedTest` from the chosen ``(signal, plan, figures, rise)``; log it.
 
@@ -837,6 +862,7 @@ def _proposed(
         too_hot=too_hot,
         calibration=step,
         calibration_rise=step_rise,
+        misfit_limited=misfit_limited,
     )
     logger.info("test plan for %s: %s", effect, plan_text(proposed))
     return proposed
