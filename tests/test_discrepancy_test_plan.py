@@ -308,17 +308,18 @@ def test_none_visible_reports_the_best_of_the_grid(monkeypatch):
     assert entry["misfit_limited"] is False and "what the baseline absorbs" in entry["text"]
 
 
-def test_visible_but_too_small_for_the_search_is_not_proposed_and_says_why(monkeypatch):
-    """Every plan leaves the effect above 1.5 sigma, but the search's rule would not name it
-    (its response too small against the twin's held-out misfit): none is proposed, the best is
-    reported, and the paragraph names the misfit, not the baseline's absorption."""
-    proposed = _propose(monkeypatch, TABLE, named_if=lambda plan, figures: False)
-    assert proposed.plan is None and proposed.best.name == "8 h steps"  # 4.0 sigma
-    entry = proposed.to_dict()
-    assert entry["misfit_limited"] is True
-    assert "too small against what the twin already misses" in entry["text"]
+def test_a_plan_the_search_would_name_comes_before_a_cheaper_one_it_would_not(monkeypatch):
+    """Every plan of the table is visible; only the 8 h one would pass the search's rule: it
+    is proposed though it costs more. When none would, the cheapest visible plan is proposed
+    all the same, and the paragraph warns that the rerun may need the next test."""
     only_8h = _propose(monkeypatch, TABLE, named_if=lambda plan, figures: plan.duration_h == 8)
-    assert only_8h.plan.name == "8 h steps"
+    assert only_8h.plan.name == "8 h steps" and not only_8h.misfit_limited
+    assert only_8h.to_dict()["misfit_limited"] is False
+    none = _propose(monkeypatch, TABLE, named_if=lambda plan, figures: False)
+    assert none.plan.name == "4 h + sensor" and none.misfit_limited
+    entry = none.to_dict()
+    assert entry["visible"] and entry["misfit_limited"] is True
+    assert "for the search to name it from this test alone" in entry["text"]
 
 
 def test_the_report_gives_the_engineer_the_paragraph():

@@ -490,9 +490,9 @@ class ProposedTest:
     calibration_rise : PlanRise or None
         The calibration step's rises, K.
     misfit_limited : bool
-        When none is visible: the best plan shows the effect above the identifiability
-        thresholds, but too little against the twin's held-out misfit for the search to name
-        it (:mod:`~pipeline.discrepancy.plan_naming`).
+        The proposed plan shows the effect above the identifiability thresholds, but too
+        little against the twin's held-out misfit for the search's rule to name it from this
+        test alone (:mod:`~pipeline.discrepancy.plan_naming`).
     """
 
     effect: str
@@ -520,8 +520,7 @@ class ProposedTest:
         shown = _signal_dict(self.figures)
         if self.plan is not None:
             out.update(self.plan.to_dict(signal), **shown, **_rise_dict(self.plan_rise))
-        else:
-            out["misfit_limited"] = self.misfit_limited
+        out["misfit_limited"] = self.misfit_limited
         if self.plan is None and self.best is not None:
             out["best_in_grid"] = {
                 **self.best.to_dict(signal),
@@ -591,8 +590,9 @@ def plan_text(proposed: ProposedTest) -> str:
             f"{_program_words(proposed.plan)}. The calibrated twin expects it to leave "
             f"{proposed.figures.signal_sigma:.2f} noise sigmas beyond what the baseline absorbs "
             f"(cost {proposed.plan.cost:g} test hours, the cheapest of {proposed.n_plans} plans "
-            f"tried{_envelope_words(proposed)}).{_watch_words(proposed.plan, proposed)} Add the "
-            "campaign to the raw folder and rerun `thermal discrepancy`."
+            f"tried{_envelope_words(proposed)}).{_misfit_words(proposed)}"
+            f"{_watch_words(proposed.plan, proposed)} Add the campaigns to the raw folder and "
+            "rerun `thermal discrepancy`."
         )
     best = (
         f" The best, to {_program_words(proposed.best)}, reaches "
@@ -611,16 +611,20 @@ def plan_text(proposed: ProposedTest) -> str:
     )
     if proposed.calibration is not None:
         return head + _calibration_words(proposed)
-    if proposed.misfit_limited:
-        return (
-            f"{head} The effect would be visible there, but too small against what the twin "
-            "already misses on the held-out campaigns for the search to name it: a twin that "
-            "fits these campaigns better (a missing effect or per-campaign state named first) "
-            f"or {_what_else(proposed)} would be needed."
-        )
     return (
         f"{head} Its response at a plausible size stays within what the baseline absorbs; "
         f"{_what_else(proposed)} would be needed."
+    )
+
+
+def _misfit_words(proposed: ProposedTest) -> str:
+    """Return the warning of a plan too weak for the search's rule ("" otherwise)."""
+    if not proposed.misfit_limited:
+        return ""
+    return (
+        " No plan in the envelope shows it enough against what the twin already misses on the "
+        "held-out campaigns for the search to name it from this test alone; the rerun will "
+        "propose the next."
     )
 
 
@@ -721,11 +725,13 @@ def propose_test(
 ) -> ProposedTest:
     """Try ``plans`` cheapest first; return the cheapest that makes ``effect`` visible.
 
-    A plan is visible when the effect is visible under it at the planning point, its response
-    would pass the search's rule (``named_if``) and its rise bound stays in the envelope; of
-    the visible plans of the lowest cost (own sampling interval first), the one with the
-    largest signal is proposed, so that a plan of the same cost that shows the effect more
-    clearly is not passed over for its place in the grid.
+    A plan is visible when the effect is visible under it at the planning point and its rise
+    bound stays in the envelope. Of the visible plans whose response would also pass the
+    search's rule (``named_if``), the cheapest is proposed (own sampling interval first; of
+    equal cost the one with the largest signal, so that a plan that shows the effect more
+    clearly is not passed over for its place in the grid). When no visible plan would pass the
+    rule, the cheapest visible one is proposed all the same, flagged ``misfit_limited``: the
+    rerun may need the next test.
 
     When none is visible, a calibration step may be: a part no campaign heated (``loaded``) is
     *held back* when a plan heating it leaves the effect above the identifiability thresholds
@@ -761,13 +767,9 @@ def propose_test(
     """
     best: tuple[float, TestPlan, Visibility, PlanRise] | None = None
     chosen: tuple[float, TestPlan, Visibility, PlanRise] | None = None
+    fallback: tuple[float, TestPlan, Visibility, PlanRise] | None = None  # visible, not named
     safe_first: list[tuple[TestPlan, PlanRise]] = []  # first heatings within the envelope
     held_back: set[str] = set()  # parts whose doubt alone holds a visible plan back
-
-    def shows(plan: TestPlan, figures: Visibility) -> bool:
-        named = named_if is None or named_if(plan, figures)
-        return not shortfalls(figures, settings) and named
-
     ordered = cheapest_order(plans)
     too_hot = tried = 0
     for plan in ordered:
@@ -787,14 +789,28 @@ def propose_test(
             safe_first.append((plan, rise))
         figures = visibility(effect, point_of(plan), settings.plausible)
         signal = figures.signal_sigma if np.isfinite(figures.signal_sigma) else -1.0
-        if shows(plan, figures) and (chosen is None or signal > chosen[0]):
-            chosen = (signal, plan, figures, rise)
+        if not shortfalls(figures, settings):
+            entry = (signal, plan, figures, rise)
+            if named_if is None or named_if(plan, figures):
+                chosen = entry if chosen is None or signal > chosen[0] else chosen
+            elif fallback is None or (
+                _order_key(plan) == _order_key(fallback[1]) and signal > fallback[0]
+            ):
+                fallback = entry
         if best is None or signal > best[0]:
             best = (signal, plan, figures, rise)
-    if chosen is not None:
-        return _proposed(effect, current, chosen, ordered, settings, rise_limit_k, too_hot, tried)
-    calibration = _calibration_step(safe_first, held_back)
-    misfit = best is not None and not shortfalls(best[2], settings)
+    if chosen is not None or fallback is not None:
+        return _proposed(
+            effect,
+            current,
+            chosen or fallback,
+            ordered,
+            settings,
+            rise_limit_k,
+            too_hot,
+            tried,
+            misfit_limited=chosen is None,
+        )
     return _proposed(
         effect,
         current,
@@ -804,9 +820,8 @@ def propose_test(
         rise_limit_k,
         too_hot,
         tried,
-        calibration,
+        _calibration_step(safe_first, held_back),
         visible=False,
-        misfit_limited=misfit,
     )
 
 
