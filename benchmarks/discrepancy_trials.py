@@ -13,9 +13,10 @@ temperatures far more than in Z).
 
 Issue 14: each trial also records the identifiability class of every hidden effect and which
 candidates were classed not identifiable. For a hidden effect classed not identifiable with a
-visible proposed test, the trial runs that test on the same machine (:func:`follow_plan`: the
-same drawn parameters, the effect still hidden, :data:`PLAN_CAMPAIGNS` campaigns of the
-proposed ``spindle_program``, ``sample_interval_s`` and ``heat_loads``), adds them to the
+visible proposed test (or, without one, a calibration step), the trial runs that test on the
+same machine (:func:`follow_plan`: the
+same drawn parameters, the effect still hidden, the proposal's ``campaigns`` of the proposed
+``spindle_program``, ``sample_interval_s`` and ``heat_loads``), adds them to the
 campaigns, reruns the workflow and records whether the effect is named and how the held-out Z
 and temperature gaps moved; when the rerun proposes another test, that one is run too, up to
 :data:`PLAN_ROUNDS`. With nothing hidden, the tests proposed for the effects classed not
@@ -221,8 +222,8 @@ def write_plan_campaigns(
     folder : Path
         Raw folder to add them to.
     proposed : dict
-        A visible ``proposed_test`` entry of ``discrepancy.json``: ``spindle_program``,
-        ``sample_interval_s`` (s), ``duration_h`` (h), ``heat_loads``.
+        A visible ``proposed_test`` entry of ``discrepancy.json``, or its ``calibration_step``:
+        ``spindle_program``, ``sample_interval_s`` (s), ``duration_h`` (h), ``heat_loads``.
     effects : iterable of str
         The hidden effects, on in the generating twin.
     seed : int
@@ -670,7 +671,8 @@ def rates_markdown(rates: pd.DataFrame, trials: pd.DataFrame, seeds: Sequence[in
         "",
         "*Class*: the identifiability class each hidden effect ended in (trials per class). "
         "*Plan run*: trials whose hidden effect was classed not identifiable with a visible "
-        "proposed test, which was then run on the same machine and the workflow rerun (with "
+        "proposed test or a calibration step, which was then run on the same machine (each "
+        "rerun's next proposal too, up to 3 rounds) and the workflow rerun (with "
         "nothing hidden: every effect classed not identifiable, its test run on the clean "
         "machine); *named after plan*: of those, the share that named the effect (with "
         "nothing hidden: that named an absent effect, a false alarm); *Z after plan*: the rerun's "
