@@ -185,13 +185,18 @@ def _calibrated(campaigns: list[MeasuredCampaign]):
     return model, fit, roles
 
 
-@pytest.fixture(scope="module")
-def constant_speed():
+def constant_speed_campaigns() -> list[MeasuredCampaign]:
+    """Three 4 h campaigns at one constant 4000 rpm, a month apart, no cool-down."""
     plans = [
         ConstantPlan(f"C{i}", datetime(2024, 3 + i, 5, 8), 4000.0, run_min=240.0, cooldown_min=0)
         for i in range(3)
     ]
-    campaigns = [_measured(p) for p in plans]
+    return [_measured(p) for p in plans]
+
+
+@pytest.fixture(scope="module")
+def constant_speed():
+    campaigns = constant_speed_campaigns()
     return campaigns, *_calibrated(campaigns)
 
 

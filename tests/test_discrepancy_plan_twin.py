@@ -9,8 +9,6 @@ over them.
 
 from __future__ import annotations
 
-from datetime import datetime
-
 import numpy as np
 import pytest
 
@@ -19,17 +17,13 @@ from pipeline.discrepancy.calibrate import calibrate, prior_scales, weighted_res
 from pipeline.discrepancy.plan_twin import plan_twin
 from pipeline.discrepancy.visibility import baseline_point
 from pipeline.thermal.program import Program, Segment
-from tests.test_discrepancy_identifiability import ConstantPlan, _calibrated, _measured
+from tests.test_discrepancy_identifiability import _calibrated, constant_speed_campaigns
 
 
 @pytest.fixture(scope="module")
 def flat():
     """Three campaigns at one constant 4000 rpm, their model and calibrated baseline point."""
-    plans = [
-        ConstantPlan(f"C{i}", datetime(2024, 3 + i, 5, 8), 4000.0, run_min=240.0, cooldown_min=0)
-        for i in range(3)
-    ]
-    campaigns = [_measured(p) for p in plans]
+    campaigns = constant_speed_campaigns()
     model, fit, roles = _calibrated(campaigns)
     point = baseline_point(campaigns, {k: v for k, (v, _) in fit.params.items()}, roles)
     return model, point, plan_twin(point)

@@ -10,7 +10,6 @@ hand-made table of plans and signals; the report's paragraph.
 from __future__ import annotations
 
 from dataclasses import replace
-from datetime import datetime
 
 import numpy as np
 import pytest
@@ -36,10 +35,9 @@ from pipeline.thermal.program import Program
 from schemas.vocabulary import SENSOR_ROLES
 from tests.test_discrepancy_identifiability import (
     SETTINGS,
-    ConstantPlan,
     _calibrated,
     _entry,
-    _measured,
+    constant_speed_campaigns,
 )
 
 SPEED_EFFECTS = ("nonlinear_bearing_heat", "centrifugal_growth")
@@ -48,11 +46,7 @@ SPEED_EFFECTS = ("nonlinear_bearing_heat", "centrifugal_growth")
 @pytest.fixture(scope="module")
 def flat():
     """Three campaigns at one constant 4000 rpm, the calibrated baseline, classes and plans."""
-    plans = [
-        ConstantPlan(f"C{i}", datetime(2024, 3 + i, 5, 8), 4000.0, run_min=240.0, cooldown_min=0)
-        for i in range(3)
-    ]
-    campaigns = [_measured(p) for p in plans]
+    campaigns = constant_speed_campaigns()
     _, fit, roles = _calibrated(campaigns)
     point = baseline_point(campaigns, {k: v for k, (v, _) in fit.params.items()}, roles)
     classes = assess_effects(point, EFFECTS, [], {}, SETTINGS)
