@@ -6,8 +6,9 @@ matters. The spindle-only campaigns heat it only through its neighbours, so its 
 and its two conductances are known only as a time constant and a ratio; their common scale is
 free. On one trial machine the fit put the capacity at 1.5e3 J/K, with conductances of
 0.6 W/K, and the twin expected a 25 W heater to warm the motor by 22 K in 2 h where the
-machine warmed by 3 K. A test plan scored with those values is wrong both ways: too hot to
-propose on one machine, too cool to be safe on another. So a plan is scored with
+machine warmed by 3 K, so safe plans were left out. (The other way, a node tied to a large
+neighbour that the data do pin down, as on the demo, no refit corrects;
+:mod:`~pipeline.discrepancy.plan_envelope` bounds that case.) So a plan is scored with
 (:func:`plan_twin`):
 
 1. **The maximum a posteriori point.** The baseline refitted from the search's values with
