@@ -51,7 +51,7 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -733,15 +733,11 @@ def propose_test(
     rule, the cheapest visible one is proposed all the same, flagged ``misfit_limited``: the
     rerun may need the next test.
 
-    When none is visible, a calibration step may be: a part no campaign heated (``loaded``) is
-    *held back* when a plan heating it leaves the effect above the identifiability thresholds
-    and the twin expects it within the envelope, but its bound (the doubt about a part never
-    heated) is not. The search's naming rule is not asked of such a plan: its response is
-    scored with the very parameters the step is there to measure. The cheapest
-    plan that heats only held-back parts and fits in the envelope (of equal cost, the one the
-    twin expects to heat most) is the calibration step: once a campaign has heated the part,
-    the rise and signal of the tests on it come from its measured response (see
-    :mod:`pipeline.discrepancy.plan_envelope`).
+    When none is visible, the calibration step (:func:`_calibration_step`) heats a part no
+    campaign heated (``loaded``) that is *held back*: a plan heating it leaves the effect
+    above the identifiability thresholds (the naming rule is not asked: its response is scored
+    with the very parameters the step is there to measure) and the twin expects it within the
+    envelope, but its bound, the doubt about a part never heated, is not.
 
     Parameters
     ----------
@@ -765,64 +761,84 @@ def propose_test(
         plan's campaigns added (:func:`~pipeline.discrepancy.plan_naming.would_be_named`);
         default: visible is enough.
     """
-    best: tuple[float, TestPlan, Visibility, PlanRise] | None = None
-    chosen: tuple[float, TestPlan, Visibility, PlanRise] | None = None
-    fallback: tuple[float, TestPlan, Visibility, PlanRise] | None = None  # visible, not named
-    safe_first: list[tuple[TestPlan, PlanRise]] = []  # first heatings within the envelope
-    held_back: set[str] = set()  # parts whose doubt alone holds a visible plan back
+    scan = _Scan()
     ordered = cheapest_order(plans)
-    too_hot = tried = 0
     for plan in ordered:
-        if chosen is not None and _order_key(plan) != _order_key(chosen[1]):
+        if scan.done(plan):
             break  # every plan as cheap as the first visible one was tried
-        tried += 1
+        scan.tried += 1
         rise = rise_of(plan)
         first = _first_heating(plan, loaded)
         if rise.bound > rise_limit_k:
-            too_hot += 1
-            if first and rise.expected <= rise_limit_k:
+            scan.too_hot += 1
+            if first and rise.expected <= rise_limit_k:  # visible where the doubt is largest?
                 figures = visibility(effect, point_of(plan), settings.plausible)
-                if not shortfalls(figures, settings):  # visible where the doubt is largest
-                    held_back.update(load.role for load in plan.heat_loads)
+                if not shortfalls(figures, settings):
+                    scan.held_back.update(load.role for load in plan.heat_loads)
             continue
         if first:
-            safe_first.append((plan, rise))
+            scan.safe_first.append((plan, rise))
         figures = visibility(effect, point_of(plan), settings.plausible)
         signal = figures.signal_sigma if np.isfinite(figures.signal_sigma) else -1.0
+        entry = (signal, plan, figures, rise)
         if not shortfalls(figures, settings):
-            entry = (signal, plan, figures, rise)
-            if named_if is None or named_if(plan, figures):
-                chosen = entry if chosen is None or signal > chosen[0] else chosen
-            elif fallback is None or (
-                _order_key(plan) == _order_key(fallback[1]) and signal > fallback[0]
-            ):
-                fallback = entry
-        if best is None or signal > best[0]:
-            best = (signal, plan, figures, rise)
-    if chosen is not None or fallback is not None:
-        return _proposed(
-            effect,
-            current,
-            chosen or fallback,
-            ordered,
-            settings,
-            rise_limit_k,
-            too_hot,
-            tried,
-            misfit_limited=chosen is None,
-        )
-    return _proposed(
-        effect,
-        current,
-        best,
-        ordered,
-        settings,
-        rise_limit_k,
-        too_hot,
-        tried,
-        _calibration_step(safe_first, held_back),
-        visible=False,
-    )
+            scan.visible(entry, named_if is None or named_if(plan, figures))
+        if scan.best is None or signal > scan.best[0]:
+            scan.best = entry
+    common = (ordered, settings, rise_limit_k, scan.too_hot, scan.tried)
+    found = scan.chosen or scan.fallback
+    if found is not None:
+        return _proposed(effect, current, found, *common, misfit_limited=scan.chosen is None)
+    step = _calibration_step(scan.safe_first, scan.held_back)
+    return _proposed(effect, current, scan.best, *common, step, visible=False)
+
+
+_Entry = tuple[float, TestPlan, Visibility, PlanRise]
+"""A plan tried: its signal (sigma), the plan, its figures and its rises."""
+
+
+@dataclass
+class _Scan:
+    """What the cheapest-first pass of :func:`propose_test` found.
+
+    Attributes
+    ----------
+    best : _Entry or None
+        The largest signal of the plans in the envelope.
+    chosen : _Entry or None
+        The visible plan the search's rule would name (the clearest of the lowest cost).
+    fallback : _Entry or None
+        The cheapest visible plan the rule would not name (the clearest of its cost).
+    safe_first : list of (TestPlan, PlanRise)
+        Plans within the envelope that heat parts no campaign heated.
+    held_back : set of str
+        Parts whose doubt alone keeps a visible plan out of the envelope.
+    too_hot, tried : int
+        Plans left out by the envelope; plans tried.
+    """
+
+    best: _Entry | None = None
+    chosen: _Entry | None = None
+    fallback: _Entry | None = None
+    safe_first: list[tuple[TestPlan, PlanRise]] = field(default_factory=list)
+    held_back: set[str] = field(default_factory=set)
+    too_hot: int = 0
+    tried: int = 0
+
+    def done(self, plan: TestPlan) -> bool:
+        """Whether ``plan`` costs more than the chosen one (the pass can stop)."""
+        return self.chosen is not None and _order_key(plan) != _order_key(self.chosen[1])
+
+    def visible(self, entry: _Entry, named: bool) -> None:
+        """Record a visible plan; ``named``: the search's rule would name the effect."""
+        signal, plan = entry[0], entry[1]
+        if named:
+            if self.chosen is None or signal > self.chosen[0]:
+                self.chosen = entry
+        elif self.fallback is None or (
+            _order_key(plan) == _order_key(self.fallback[1]) and signal > self.fallback[0]
+        ):
+            self.fallback = entry
 
 
 def _calibration_step(
@@ -883,6 +899,19 @@ def _proposed(
     return proposed
 
 
+def _log_planning_twin(twin: PlanTwin, point: BaselinePoint) -> None:
+    """Log the refit's SSE ratio and the parameters it moved by more than a factor 2."""
+    moved = twin.moved(point.values)
+    logger.info(
+        "test plans are scored with the baseline refitted with its priors (SSE x %.3f)%s",
+        twin.sse_ratio,
+        "; moved by more than 2x: "
+        + ", ".join(f"{k} {a:.3g} -> {b:.3g}" for k, (a, b) in moved.items())
+        if moved
+        else "",
+    )
+
+
 def propose_tests(
     point: BaselinePoint,
     classes: Mapping[str, EffectIdentifiability],
@@ -916,15 +945,7 @@ def propose_tests(
     if not wanted:
         return {}
     twin = plan_twin(point)
-    moved = twin.moved(point.values)
-    logger.info(
-        "test plans are scored with the baseline refitted with its priors (SSE x %.3f)%s",
-        twin.sse_ratio,
-        "; moved by more than 2x: "
-        + ", ".join(f"{k} {a:.3g} -> {b:.3g}" for k, (a, b) in moved.items())
-        if moved
-        else "",
-    )
+    _log_planning_twin(twin, point)
     ambient_c = _ambient(point.campaigns)
     limit = rise_limit_k(point.campaigns)
     points: dict[TestPlan, BaselinePoint] = {}
