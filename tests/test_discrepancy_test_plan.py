@@ -26,6 +26,7 @@ from pipeline.discrepancy.plan_envelope import (
     ENVELOPE_FLOOR_K,
     PlanRise,
     adiabatic_rise_k,
+    first_heating_bound_k,
     largest_rise_k,
 )
 from pipeline.discrepancy.plan_twin import plan_twin
@@ -131,6 +132,26 @@ def test_the_grid_is_small_and_adds_a_sensor_only_where_a_role_is_missing(flat):
         assert {s.value for s in load.program.segments} <= set(tp.HEATER_POWERS_W)
         assert all(s.to_min <= p.duration_h * 60.0 for s in load.program.segments)
     assert not any(p.heat_loads for p in tp.candidate_plans(point.campaigns, "motor_heat", fewer))
+
+
+def test_the_grid_is_whole_and_its_smallest_pulse_fits_any_part_never_heated(flat):
+    """Every heated role gets every power (MAX_PLANS cuts nothing off), and the grid's smallest
+    pulse stays within the envelope's floor even if all its energy stayed in the part's
+    smallest plausible heat capacity: a calibration step exists for every part a heater can
+    be put on, the light motor casing included."""
+    point = flat[0]
+    roles = frozenset(point.roles) | {"spindle_motor", "headstock", "spindle_front_bearing"}
+    plans = tp.candidate_plans(point.campaigns, "sensor_lag", roles)
+    assert len(plans) < tp.MAX_PLANS
+    for role in tp.HEAT_LOAD_ROLES["sensor_lag"]:
+        powers = {
+            p.heat_loads[0].program.segments[0].value
+            for p in plans
+            if p.heat_loads and p.heat_loads[0].role == role
+        }
+        assert powers == set(tp.HEATER_POWERS_W), role
+        pulse = tp.heater(role, min(tp.HEATER_POWERS_W), 0.0, tp.PULSE_MIN)
+        assert first_heating_bound_k([pulse], frozenset(), point.prior_log_sd) < ENVELOPE_FLOOR_K
 
 
 def test_a_heater_on_the_column_rear_separates_bending_from_the_column_s_growth(flat):

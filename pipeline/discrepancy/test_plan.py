@@ -113,10 +113,13 @@ HEATER_COST_H = 2.0
 """Fixed cost of an external heat load (mounting a heater, its supply, logging its power), in
 test hours."""
 
-HEATER_POWERS_W = (25.0, 100.0, 250.0, 500.0)
+HEATER_POWERS_W = (10.0, 25.0, 100.0, 250.0, 500.0)
 """Heater powers of the grid, W: heater pads and mats and a 500 W halogen lamp. A plan
 that would heat a part beyond the campaigns' own largest rise is left out
-(:func:`~pipeline.discrepancy.plan_envelope.largest_rise_k`)."""
+(:func:`~pipeline.discrepancy.plan_envelope.largest_rise_k`). The 10 W pad is there for the
+calibration step: on a light part no campaign heated (a motor casing of a few kJ/K whose heat
+capacity the campaigns leave loose by a factor of a few), even a 25 W pulse can exceed the
+envelope over the twin's uncertainty."""
 
 HEAT_LOAD_ROLES = {
     "thermal_bending": ("column_rear", "column_front"),
@@ -133,8 +136,9 @@ PULSE_MIN = 15.0
 while the part stays in the envelope; the smallest such pulse on a part the campaigns never
 heated is the calibration step of :func:`propose_test`."""
 
-MAX_PLANS = 120
-"""Most plans tried per effect."""
+MAX_PLANS = 150
+"""Most plans tried per effect (the full grid has at most 22 programs, 11 with an added sensor
+and 35 heater plans per heated role)."""
 
 PLAN_REPEATS = 2
 """Campaigns of a proposed test: the test run on two days, so that one odd day does not decide
