@@ -283,6 +283,23 @@ def test_a_part_never_heated_gets_a_calibration_step_first(monkeypatch):
     assert hot.calibration is None  # nothing to unlock: the twin itself expects it too hot
 
 
+def test_the_calibration_step_drives_the_part_hardest_not_the_spindle(monkeypatch):
+    """Of two safe motor pulses of equal cost, the one whose heater drives the motor harder
+    (larger adiabatic bound) is the calibration step, though the other's peak rise, set by its
+    spindle run, is larger."""
+    table = {
+        _heated("10 W pulse", 4.0, 10.0): 0.3,
+        _heated("25 W pulse", 4.0, 25.0): 0.4,
+        _heated("500 W pulse", 4.0, 500.0): 3.0,
+    }
+    rises = {0.3: (7.0, 7.0, 3.3), 0.4: (5.0, 8.3, 8.3), 3.0: (9.0, 166.0, 166.0)}  # K
+    proposed = _propose(monkeypatch, table, rise=rises.__getitem__)
+    assert proposed.calibration.name == "25 W pulse"
+    assert proposed.to_dict()["calibration_step"]["max_rise_bound_K"] == 8.3
+    rises[0.4] = (5.0, 8.3, 2.0)  # the same pulse on a part that could take more energy
+    assert _propose(monkeypatch, table, rise=rises.__getitem__).calibration.name == "10 W pulse"
+
+
 def test_the_envelope_is_the_largest_rise_of_a_structure_sensor(flat):
     point = flat[0]
     campaign = point.campaigns[0]

@@ -52,10 +52,15 @@ class PlanRise:
     bound : float
         The rise the plan is held to: the larger of the twin's bound over its posterior and,
         for a heater on a part no campaign heated, the adiabatic bound.
+    first_heating : float
+        That adiabatic bound alone (:func:`first_heating_bound_k`; 0 when the plan heats no
+        part for the first time): how hard the plan drives a part the campaigns never heated,
+        against its smallest plausible heat capacity.
     """
 
     expected: float
     bound: float
+    first_heating: float = 0.0
 
 
 def largest_rise_k(campaigns: Sequence[MeasuredCampaign]) -> float:

@@ -850,15 +850,23 @@ def _calibration_step(
 ) -> tuple[TestPlan, PlanRise] | None:
     """Return the calibration step: the cheapest safe first heating of a held-back part.
 
-    Of equal cost, the one the twin expects to heat the part most (the clearest reading of its
-    response); None when no part's doubt holds a visible plan back.
+    Of equal cost, the one that drives the part hardest (the largest adiabatic bound: the
+    heater's energy over the part's smallest plausible heat capacity), for the clearest reading
+    of its response; then the one the twin expects to heat most. The twin's expected rise
+    alone would favour whatever runs the spindle longest: on the demo it picked a 10 W heater
+    on the 1e6 J/K headstock after a spindle run (0.5 K at most from the heater) over a 25 W
+    pulse on the motor (8 K). None when no part's doubt holds a visible plan back.
     """
     useful = [
         (plan, rise)
         for plan, rise in safe_first
         if {load.role for load in plan.heat_loads} <= held_back
     ]
-    return min(useful, key=lambda pr: (pr[0].cost, -pr[1].expected), default=None)
+    return min(
+        useful,
+        key=lambda pr: (pr[0].cost, -pr[1].first_heating, -pr[1].expected),
+        default=None,
+    )
 
 
 def _proposed(
@@ -967,7 +975,7 @@ def propose_tests(
         if plan not in rises:
             expected, bound = plan_rises(plan, twin, sensors, ambient_c)
             first = first_heating_bound_k(plan.heat_loads, point.load_roles, point.prior_log_sd)
-            rises[plan] = PlanRise(expected, max(bound, first))
+            rises[plan] = PlanRise(expected, max(bound, first), first)
         return rises[plan]
 
     def named_if(effect: str) -> Callable[[TestPlan, Visibility], bool] | None:
