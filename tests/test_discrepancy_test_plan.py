@@ -300,6 +300,29 @@ def test_the_calibration_step_drives_the_part_hardest_not_the_spindle(monkeypatc
     assert _propose(monkeypatch, table, rise=rises.__getitem__).calibration.name == "10 W pulse"
 
 
+def test_the_calibration_step_measures_the_part_that_holds_back_the_clearest_test(monkeypatch):
+    """The motor holds back a 3-sigma plan, the front bearing a 2-sigma one: the calibration
+    step heats the motor, though a pulse on the light bearing would drive it harder."""
+
+    def on(role: str, name: str, power: float) -> tp.TestPlan:
+        load = tp.heater(role, power, 0.0, 15.0)
+        return replace(_plan(name, 4.0), heat_loads=(load,))
+
+    table = {
+        on("spindle_front_bearing", "10 W bearing pulse", 10.0): 0.2,
+        on("spindle_motor", "10 W motor pulse", 10.0): 0.3,
+        on("spindle_front_bearing", "250 W bearing pulse", 250.0): 2.0,
+        on("spindle_motor", "500 W motor pulse", 500.0): 3.0,
+    }
+    rises = {0.2: (6.0, 9.0, 9.0), 0.3: (6.0, 6.0, 3.3), 2.0: (9.0, 225.0, 225.0)}
+    rises[3.0] = (9.0, 166.0, 166.0)  # both visible plans held back by a first heating, K
+    proposed = _propose(monkeypatch, table, rise=rises.__getitem__)
+    assert proposed.plan is None and proposed.calibration.name == "10 W motor pulse"
+    rises[3.0] = (12.0, 166.0, 166.0)  # the twin itself expects the motor plan too hot
+    bearing = _propose(monkeypatch, table, rise=rises.__getitem__)
+    assert bearing.calibration.name == "10 W bearing pulse"
+
+
 def test_the_envelope_is_the_largest_rise_of_a_structure_sensor(flat):
     point = flat[0]
     campaign = point.campaigns[0]

@@ -778,7 +778,7 @@ def propose_test(
             if first and rise.expected <= rise_limit_k:  # visible where the doubt is largest?
                 figures = visibility(effect, point_of(plan), settings.plausible)
                 if not shortfalls(figures, settings):
-                    scan.held_back.update(load.role for load in plan.heat_loads)
+                    scan.hold_back(plan, figures.signal_sigma)
             continue
         if first:
             scan.safe_first.append((plan, rise))
@@ -815,8 +815,9 @@ class _Scan:
         The cheapest visible plan the rule would not name (the clearest of its cost).
     safe_first : list of (TestPlan, PlanRise)
         Plans within the envelope that heat parts no campaign heated.
-    held_back : set of str
-        Parts whose doubt alone keeps a visible plan out of the envelope.
+    held_back : dict of str to float
+        Parts whose doubt alone keeps a visible plan out of the envelope, each with the largest
+        signal of the plans it holds back, sigma.
     too_hot, tried : int
         Plans left out by the envelope; plans tried.
     """
@@ -825,13 +826,18 @@ class _Scan:
     chosen: _Entry | None = None
     fallback: _Entry | None = None
     safe_first: list[tuple[TestPlan, PlanRise]] = field(default_factory=list)
-    held_back: set[str] = field(default_factory=set)
+    held_back: dict[str, float] = field(default_factory=dict)
     too_hot: int = 0
     tried: int = 0
 
     def done(self, plan: TestPlan) -> bool:
         """Whether ``plan`` costs more than the chosen one (the pass can stop)."""
         return self.chosen is not None and _order_key(plan) != _order_key(self.chosen[1])
+
+    def hold_back(self, plan: TestPlan, signal: float) -> None:
+        """Record a visible plan that only the doubt about the parts it heats holds back."""
+        for load in plan.heat_loads:
+            self.held_back[load.role] = max(signal, self.held_back.get(load.role, signal))
 
     def visible(self, entry: _Entry, named: bool) -> None:
         """Record a visible plan; ``named``: the search's rule would name the effect."""
@@ -846,28 +852,37 @@ class _Scan:
 
 
 def _calibration_step(
-    safe_first: Sequence[tuple[TestPlan, PlanRise]], held_back: set[str]
+    safe_first: Sequence[tuple[TestPlan, PlanRise]], held_back: Mapping[str, float]
 ) -> tuple[TestPlan, PlanRise] | None:
     """Return the calibration step: the cheapest safe first heating of a held-back part.
 
-    Of equal cost, the one that drives the part hardest (the largest adiabatic bound: the
-    heater's energy over the part's smallest plausible heat capacity), for the clearest reading
-    of its response; then the one the twin expects to heat most. The twin's expected rise
-    alone would favour whatever runs the spindle longest: on the demo it picked a 10 W heater
-    on the headstock for 2 h before a spindle run (at most 5.3 K from the heater) over a 25 W
-    pulse on the motor (at most 8.3 K), because the spindle run dominated both peak rises.
-    None when no part's doubt holds a visible plan back.
+    Of equal cost, the one on the part that holds back the clearest test (the largest signal
+    of the plans it holds back, ``held_back``: a calibration step measures one part, so the
+    most promising first; in a trial without this preference it calibrated the front bearing,
+    then the motor); on that part, the one that drives it hardest (the largest adiabatic
+    bound: the heater's energy over the part's smallest plausible heat capacity), for the
+    clearest reading of its response; then the one the twin expects to heat most. The twin's
+    expected rise alone would favour whatever runs the spindle longest: on the demo it picked
+    a 10 W heater on the headstock for 2 h before a spindle run (at most 5.3 K from the
+    heater) over a 25 W pulse on the motor (at most 8.3 K), because the spindle run dominated
+    both peak rises. None when no part's doubt holds a visible plan back.
     """
     useful = [
-        (plan, rise)
+        (plan, rise, min(held_back[load.role] for load in plan.heat_loads))
         for plan, rise in safe_first
-        if {load.role for load in plan.heat_loads} <= held_back
+        if all(load.role in held_back for load in plan.heat_loads)
     ]
-    return min(
+    step = min(
         useful,
-        key=lambda pr: (pr[0].cost, -pr[1].first_heating, -pr[1].expected),
+        key=lambda entry: (
+            entry[0].cost,
+            -entry[2],
+            -entry[1].first_heating,
+            -entry[1].expected,
+        ),
         default=None,
     )
+    return None if step is None else step[:2]
 
 
 def _proposed(
