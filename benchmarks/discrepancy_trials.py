@@ -600,9 +600,11 @@ def rates_table(trials: pd.DataFrame) -> pd.DataFrame:
 
     Columns ``hidden``, ``n``; the fractions ``named_correctly``, ``z_halved``, ``gap_halved``
     and ``correct`` (see :class:`TrialResult`); ``rmse_um_before``, ``rmse_um_after`` (medians
-    over the seeds, um); ``classes`` (the hidden effects' identifiability classes and how many
+    over the seeds, um) and their ranges ``rmse_um_before_range``, ``rmse_um_after_range``
+    (min, max), um; ``classes`` (the hidden effects' identifiability classes and how many
     trials ended in each); ``plans_run`` (trials whose proposed test was run), ``plan_named``
-    (of those, the fraction in which the effect was then named, NaN without any) and
+    (of those, the fraction in which the effect was then named, NaN without any; ``plan_n``
+    trials it counts) and
     ``plan_rmse`` and ``plan_rmse_t`` (the rerun's held-out Z, um, and temperature, K, RMS
     before -> after, medians).
     """
@@ -618,6 +620,7 @@ def rates_table(trials: pd.DataFrame) -> pd.DataFrame:
             "plan_named": grouped["plan_effect_named"].agg(
                 lambda s: s.dropna().astype(float).mean()
             ),
+            "plan_n": grouped["plan_effect_named"].agg(lambda s: int(s.notna().sum())),
             "plan_rmse": grouped[["plan_rmse_um_before", "plan_rmse_um_after"]].apply(_plan_rmse),
             "plan_rmse_t": grouped[["plan_rmse_T_K_before", "plan_rmse_T_K_after"]].apply(
                 _plan_rmse
@@ -629,8 +632,35 @@ def rates_table(trials: pd.DataFrame) -> pd.DataFrame:
             "correct": grouped["correct"].mean(),
             "rmse_um_before": grouped["rmse_um_before"].median(),
             "rmse_um_after": grouped["rmse_um_after"].median(),
+            "rmse_um_before_range": grouped["rmse_um_before"].agg(lambda s: (s.min(), s.max())),
+            "rmse_um_after_range": grouped["rmse_um_after"].agg(lambda s: (s.min(), s.max())),
         }
     ).reset_index()
+
+
+def wilson_interval(rate: float, n: int, z: float = 1.96) -> tuple[float, float]:
+    """Return the Wilson score interval of a rate observed over ``n`` trials (95 % at z 1.96).
+
+    Wilson (1927, *Probable inference, the law of succession, and statistical inference*,
+    J. Am. Stat. Assoc. 22(158), 209-212): unlike the normal approximation it stays within
+    [0, 1] and does not collapse to a point at 0 or 100 %, which five seeds per case give.
+    """
+    if n <= 0:
+        return (float("nan"), float("nan"))
+    centre = (rate + z * z / (2 * n)) / (1 + z * z / n)
+    half = z * np.sqrt(rate * (1 - rate) / n + z * z / (4 * n * n)) / (1 + z * z / n)
+    return (max(0.0, centre - half), min(1.0, centre + half))
+
+
+def _rate(rate: float, n: int) -> str:
+    """Return a rate with its 95 % Wilson interval, e.g. ``"80% (38-96)"``."""
+    low, high = wilson_interval(rate, n)
+    return f"{rate:.0%} ({100 * low:.0f}-{100 * high:.0f})"
+
+
+def _spread(median: float, span: tuple[float, float]) -> str:
+    """Return a median with the range over the seeds, e.g. ``"0.57 (0.36-0.75)"``."""
+    return f"{median:.2f} ({span[0]:.2f}-{span[1]:.2f})"
 
 
 def _as_bool(value: Any) -> bool | None:
@@ -666,8 +696,9 @@ def rates_markdown(rates: pd.DataFrame, trials: pd.DataFrame, seeds: Sequence[in
         f"Seeds {', '.join(map(str, seeds))}: {int(trials['named_correctly'].sum())} of "
         f"{len(trials)} trials named exactly the hidden effects; {int(trials['correct'].sum())} "
         "also at least halved the held-out displacement RMS (issue 4's criterion). *Gap "
-        "halved*: the held-out displacement or temperature RMS at least halved. RMS columns: "
-        "medians over the seeds, um.",
+        "halved*: the held-out displacement or temperature RMS at least halved. Rates with "
+        "their 95 % Wilson interval (five trials: one trial moves a rate by 20 points); RMS "
+        "columns: medians over the seeds (range), um.",
         "",
         "*Class*: the identifiability class each hidden effect ended in (trials per class). "
         "*Plan run*: trials whose hidden effect was classed not identifiable with a visible "
@@ -684,12 +715,13 @@ def rates_markdown(rates: pd.DataFrame, trials: pd.DataFrame, seeds: Sequence[in
         "|---|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for r in rates.itertuples():
-        named_after = "" if not r.plans_run or np.isnan(r.plan_named) else f"{r.plan_named:.0%}"
+        named_after = "" if not r.plan_n else _rate(r.plan_named, r.plan_n)
         lines.append(
-            f"| {r.hidden} | {r.n} | {r.named_correctly:.0%} | {r.z_halved:.0%} | "
-            f"{r.gap_halved:.0%} | {r.correct:.0%} | {r.rmse_um_before:.2f} | "
-            f"{r.rmse_um_after:.2f} | {r.classes} | {r.plans_run} | {named_after} | "
-            f"{r.plan_rmse} | {r.plan_rmse_t} |"
+            f"| {r.hidden} | {r.n} | {_rate(r.named_correctly, r.n)} | {r.z_halved:.0%} | "
+            f"{r.gap_halved:.0%} | {_rate(r.correct, r.n)} | "
+            f"{_spread(r.rmse_um_before, r.rmse_um_before_range)} | "
+            f"{_spread(r.rmse_um_after, r.rmse_um_after_range)} | {r.classes} | "
+            f"{r.plans_run} | {named_after} | {r.plan_rmse} | {r.plan_rmse_t} |"
         )
     wrong = trials[~trials["correct"]]
     if len(wrong):

@@ -322,6 +322,17 @@ def test_the_hidden_effects_are_named_and_the_gap_halves(tmp_path, hidden):
         assert not result.follow_ups
 
 
+def test_the_wilson_interval_of_a_rate():
+    from benchmarks.discrepancy_trials import wilson_interval
+
+    low, high = wilson_interval(1.0, 5)
+    assert low == pytest.approx(5 / (5 + 1.96**2)) and high == 1.0  # 5 of 5: 57-100 %
+    assert wilson_interval(0.0, 5) == pytest.approx((0.0, 1.96**2 / (5 + 1.96**2)))
+    low, high = wilson_interval(0.4, 5)
+    assert low < 0.4 < high and high - low < wilson_interval(0.4, 2)[1] - wilson_interval(0.4, 2)[0]
+    assert np.isnan(wilson_interval(0.5, 0)[0])
+
+
 def test_trial_scoring_and_rates_table():
     right = TrialResult(("motor_heat",), 1, ("motor_heat",), 2.0, 0.9, 1.0, 0.8, 10.0)
     t_only = TrialResult(("motor_heat",), 2, ("motor_heat",), 2.0, 1.1, 1.0, 0.4, 10.0)
@@ -337,7 +348,9 @@ def test_trial_scoring_and_rates_table():
     assert rates.loc["motor_heat", "gap_halved"] == 1.0
     assert rates.loc["none", "correct"] == 0.0
     md = rates_markdown(rates_table(trials), trials, [1, 2])
-    assert "| motor_heat | 2 | 100% | 50% | 100% | 50% |" in md
+    # rates with their Wilson interval (2 of 2: 34-100 %; 1 of 2: 9-91 %), RMS median (range)
+    assert "| motor_heat | 2 | 100% (34-100) | 50% | 100% | 50% (9-91) | 2.00 (2.00-2.00) |" in md
+    assert "| 1.00 (0.90-1.10) |" in md
     assert "hidden none, seed 1: named sensor_lag" in md
 
 
@@ -539,7 +552,7 @@ def test_the_trials_command_writes_the_follow_up_columns(tmp_path):
     rates = (out / "rates.md").read_text(encoding="utf-8")
     assert "| thermal_bending | 1 |" in rates
     line = next(x for x in rates.splitlines() if x.startswith("| thermal_bending"))
-    assert "not_identifiable 1 | 1 | 100% |" in line
+    assert "not_identifiable 1 | 1 | 100% (21-100) |" in line  # Wilson interval of 1 of 1
 
 
 def test_a_quarantined_plan_campaign_is_recorded_not_fatal():
