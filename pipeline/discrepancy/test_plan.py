@@ -861,11 +861,10 @@ def _calibration_step(
     part behind the most promising test first); on that part, the one that drives it hardest
     (the largest adiabatic bound: the heater's energy over the part's smallest plausible heat
     capacity), for the clearest reading of its response; then the one the twin expects to
-    heat most. The twin's
-    expected rise alone would favour whatever runs the spindle longest: on the demo it picked
-    a 10 W heater on the headstock for 2 h before a spindle run (at most 5.3 K from the
-    heater) over a 25 W pulse on the motor (at most 8.3 K), because the spindle run dominated
-    both peak rises. None when no part's doubt holds a visible plan back.
+    heat most. The twin's expected rise alone would favour whatever runs the spindle longest:
+    on the demo it picked a 10 W heater on the headstock for 2 h before a spindle run (at most
+    5.3 K from the heater) over a 25 W pulse on the motor (at most 8.3 K), because the spindle
+    run dominated both peak rises. None when no part's doubt holds a visible plan back.
     """
     useful = [
         (plan, rise, min(held_back[load.role] for load in plan.heat_loads))
