@@ -14,13 +14,13 @@ temperatures far more than in Z).
 Issue 14: each trial also records the identifiability class of every hidden effect and which
 candidates were classed not identifiable. For a hidden effect classed not identifiable with a
 visible proposed test (or, without one, a calibration step), the trial runs that test on the
-same machine (:func:`follow_plan`: the
-same drawn parameters, the effect still hidden, the proposal's ``campaigns`` of the proposed
-``spindle_program``, ``sample_interval_s`` and ``heat_loads``), adds them to the
-campaigns, reruns the workflow and records whether the effect is named and how the held-out Z
-and temperature gaps moved; when the rerun proposes another test, that one is run too, up to
-:data:`PLAN_ROUNDS`. With nothing hidden, the tests proposed for the effects classed not
-identifiable are run on the clean machine: naming anything then is a false alarm.
+same machine (:func:`follow_plan`: the same drawn parameters, the effect still hidden, the
+proposal's ``campaigns`` of the proposed ``spindle_program``, ``sample_interval_s`` and
+``heat_loads``), adds them to the campaigns, reruns the workflow and records whether the
+effect is named and how the held-out Z and temperature gaps moved; when the rerun proposes
+another test, that one is run too, up to :data:`PLAN_ROUNDS`. With nothing hidden, the tests
+proposed for the effects classed not identifiable are run on the clean machine: naming
+anything then is a false alarm.
 
 ``python -m benchmarks.discrepancy_trials --seeds 1 2 3 4 5 --out reports/discrepancy_trials`` runs
 every case over the seeds and writes ``trials.csv`` (one row per case and seed) and ``rates.md``
@@ -43,6 +43,8 @@ from typing import Any
 
 import numpy as np
 import pandas as pd
+from scipy.stats import norm
+from statsmodels.stats.proportion import proportion_confint
 
 from pipeline.config import DEFAULT_PARAMS, load_section
 from pipeline.discrepancy.identifiability import NOT_IDENTIFIABLE
@@ -642,14 +644,14 @@ def wilson_interval(rate: float, n: int, z: float = 1.96) -> tuple[float, float]
     """Return the Wilson score interval of a rate observed over ``n`` trials (95 % at z 1.96).
 
     Wilson (1927, *Probable inference, the law of succession, and statistical inference*,
-    J. Am. Stat. Assoc. 22(158), 209-212): unlike the normal approximation it stays within
-    [0, 1] and does not collapse to a point at 0 or 100 %, which five seeds per case give.
+    J. Am. Stat. Assoc. 22(158), 209-212), as statsmodels computes it: unlike the normal
+    approximation it stays within [0, 1] and does not collapse to a point at 0 or 100 %,
+    which five seeds per case give.
     """
     if n <= 0:
         return (float("nan"), float("nan"))
-    centre = (rate + z * z / (2 * n)) / (1 + z * z / n)
-    half = z * np.sqrt(rate * (1 - rate) / n + z * z / (4 * n * n)) / (1 + z * z / n)
-    return (max(0.0, centre - half), min(1.0, centre + half))
+    low, high = proportion_confint(rate * n, n, alpha=2.0 * norm.sf(z), method="wilson")
+    return (float(low), float(high))
 
 
 def _rate(rate: float, n: int) -> str:
