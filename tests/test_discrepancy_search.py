@@ -282,8 +282,8 @@ SECTION = {**load_section("discrepancy"), "n_jobs": 2, "n_folds": 4}
 
 INVISIBLE = {
     "sensor_lag": "the baseline absorbs the sensors' lags into its node heat capacities: the "
-    "campaigns cannot show it; a heat pulse on a light part can, when one fits in the twin's "
-    "safety envelope (2 seeds of 5, see the README)",
+    "campaigns cannot show it; a heat pulse on the motor can, after a small calibration pulse "
+    "(see the README)",
     "thermal_bending": "the column's front-rear difference tracks its mean rise on these test "
     "plans; a heater on one column half separates them",
 }
