@@ -30,6 +30,11 @@ COMMANDS = {
     ),
     "discrepancy": ("pipeline.stages.discrepancy", "twin vs measurements: which effect is missing"),
     "track": ("pipeline.stages.track", "log the scores to MLflow"),
+    "retrain": (
+        "pipeline.retraining.retrain",
+        "pull new campaigns, dvc repro, report the promotion gate",
+    ),
+    "rollback": ("pipeline.retraining.rollback", "move an axis' @champion back to @previous"),
     "summary": ("pipeline.reporting.summary", "print where the results are and how to open MLflow"),
     "ui-check": ("pipeline.tracking.ui_check", "check in Chromium what the MLflow UI shows"),
     "contract-doc": ("pipeline.io.contract_doc", "write the tables of docs/data-contract.md"),

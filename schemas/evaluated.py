@@ -22,9 +22,10 @@ SCORE_ROLES = ("fit", "prediction", "validation")
 MODES = ("static", "one_step", "free_run")
 """``static``: from temperatures only; ``one_step``: with the measured error up to the previous
 sample; ``free_run``: the model's own predictions fed back as error history."""
-SCHEMES = ("campaign", "loso", "loco", "pooled")
+SCHEMES = ("campaign", "loso", "loco", "forward", "pooled")
 """Training unit: one campaign; all training campaigns but one season's (leave-one-season-out);
-all but one campaign (leave-one-campaign-out, when there is one season); all of them."""
+all but one campaign (leave-one-campaign-out, when there is one season); the campaigns that
+ended before one started (rolling origin, forward in time); all of them."""
 
 
 class CrossSeasonScoresModel(StrictModel):

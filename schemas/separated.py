@@ -22,7 +22,8 @@ class SpindleThermalErrorModel(SamplesModel):
 
     The samples columns plus ``axis`` (the displacement axis of the row), ``run_id`` (the first
     campaign of the run the campaign belongs to) and ``run_elapsed_s`` (s since that run's
-    start), the campaign's split and season, ``warm_start`` (the campaign does not start from
+    start), ``campaign_start`` (the campaign's ``start``: the time order of the forward
+    scheme), the campaign's split and season, ``warm_start`` (the campaign does not start from
     its run's reference), ``reference`` (what the error is counted from, in words),
     ``displacement_um`` (stitched across re-zeroed cuts) and ``thermal_error_um`` =
     ``displacement_um`` minus its value at the run's reference (um); sensor columns (degC),
@@ -33,6 +34,7 @@ class SpindleThermalErrorModel(SamplesModel):
     axis: Series[str]
     run_id: Series[str]
     run_elapsed_s: Series[float]
+    campaign_start: Series[pd.Timestamp] | None = pa.Field(nullable=True)
     split: Series[str] = pa.Field(isin=SPLITS)
     season: Series[str] = pa.Field(isin=SEASONS)
     synthetic: Series[bool]

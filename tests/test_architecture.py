@@ -42,6 +42,7 @@ ALLOWED = {
     "protocol": {"separation", "selection", "models", "discrepancy", "thermal"},
     "reporting": {"protocol", "separation"},
     "tracking": {"protocol", "separation", "discrepancy"},
+    "retraining": {"tracking"},
     "stages": {
         "io",
         "validation",

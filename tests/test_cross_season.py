@@ -5,7 +5,7 @@ from sklearn.base import BaseEstimator, RegressorMixin
 from sklearn.linear_model import LinearRegression
 
 from pipeline.protocol.cross_season import Candidate, fit_and_score, modes_of
-from pipeline.protocol.units import campaign_series, protocol_scheme, stack, training_units
+from pipeline.protocol.units import campaign_series, held_out_schemes, stack, training_units
 
 GAINS = np.array([3.0, -1.5])
 CAMPAIGNS = [
@@ -75,9 +75,9 @@ def test_one_season_gives_leave_one_campaign_out_units():
         ("not_K2", "loco"): ("K1", "K3"),
         ("not_K3", "loco"): ("K1", "K2"),
     }
-    assert protocol_scheme(units) == "loco"
+    assert held_out_schemes(units) == ["loco"]
     single = training_units(series[:1] + series[3:])
-    assert protocol_scheme(single) is None
+    assert held_out_schemes(single) == []
     assert [u.scheme for u in single] == ["campaign", "pooled"]
 
 

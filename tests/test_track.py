@@ -39,6 +39,7 @@ from pipeline.protocol.champion import champion_card, choose_champion
 from pipeline.protocol.cross_season import Candidate, fit_and_score
 from pipeline.protocol.evaluation import champion_metrics, ranked_summary, round_tree
 from pipeline.protocol.scoring import candidate_summary, group_scores, metrics_tree
+from pipeline.protocol.serving import predict_table
 from pipeline.protocol.units import (
     INDEX_NAMES,
     POOLED_UNIT,
@@ -302,6 +303,9 @@ def write_scores(root: Path, scores: pd.DataFrame, cards: dict) -> None:
 
 def write_champion(root: Path, outputs: EvaluateOutputs) -> None:
     table, _ = temperature_table()
+    separated = separated_table()
+    (root / "data" / "separated").mkdir(parents=True, exist_ok=True)
+    separated.to_parquet(root / "data" / "separated" / "spindle_thermal_error.parquet")
     for axis in AXES:
         folder = root / "data" / "models" / "champion" / axis
         folder.mkdir(parents=True, exist_ok=True)
@@ -309,6 +313,46 @@ def write_champion(root: Path, outputs: EvaluateOutputs) -> None:
         card = json.dumps(outputs.cards[axis], indent=2, sort_keys=True)
         (folder / "champion.json").write_text(card)
         table.head(5).to_csv(folder / "input_example.csv", index=False)
+        heldout_of(separated[separated["axis"] == axis], outputs.estimators[axis]).to_parquet(
+            folder / "heldout.parquet"
+        )
+
+
+def separated_table() -> pd.DataFrame:
+    """The separated table the promotion gate reads: each campaign its own cold run (degC)."""
+    frames = []
+    for axis in AXES:
+        for item in synthetic_series(axis):
+            elapsed = item.features.index.get_level_values("elapsed_s").to_numpy()
+            frames.append(
+                pd.DataFrame(
+                    {
+                        "axis": axis,
+                        "campaign_id": item.campaign_id,
+                        "run_id": item.campaign_id,
+                        "elapsed_s": elapsed,
+                        "run_elapsed_s": elapsed,
+                        "rpm": 0.0,
+                        "split": item.split,
+                        "thermal_error_um": item.target,
+                        **{s: COLD_DEGC + item.features[s].to_numpy() for s in ("T1", "T2", "T3")},
+                    }
+                )
+            )
+    return pd.concat(frames, ignore_index=True)
+
+
+def heldout_of(rows: pd.DataFrame, estimator) -> pd.DataFrame:
+    """The champion's predictions as its registered model makes them (a challenger no better)."""
+    log = rows[["campaign_id", "elapsed_s", "T1", "T2", "T3"]]
+    return pd.DataFrame(
+        {
+            "campaign_id": rows["campaign_id"].to_numpy(),
+            "elapsed_s": rows["elapsed_s"].to_numpy(),
+            "measured_um": rows["thermal_error_um"].to_numpy(),
+            "predicted_um": predict_table(estimator, log, SPEC),
+        }
+    )
 
 
 def write_evaluate_outputs(root: Path, outputs: EvaluateOutputs) -> None:
@@ -805,9 +849,12 @@ def _change_data(root: Path, outputs: EvaluateOutputs) -> None:
 
 
 @pytest.mark.parametrize("change", [_change_scores, _change_params, _change_data])
-def test_changed_scores_params_or_data_log_a_new_parent(workdir, client, outputs, change):
+def test_changed_scores_params_or_data_log_a_new_parent_and_gate_its_champion(
+    workdir, client, outputs, change
+):
     track.main([])
     first = record(workdir)
+    assert [d["action"] for d in first["promotion"]] == ["promote"] * len(AXES)
     change(workdir, outputs)
     track.main([])
     second = record(workdir)
@@ -816,25 +863,31 @@ def test_changed_scores_params_or_data_log_a_new_parent(workdir, client, outputs
     parents, children = split_runs(all_runs(client))
     assert len(parents) == 2
     assert len(children) == 2 * len(CHILDREN)
-    assert versions(client) == ["1", "2"]  # the new parent registers the champion again
-    assert second["champions"]["Z"]["version"] == "2"
-    alias = client.get_model_version_by_alias(NAMES["Z"], "champion")
-    assert (
-        client.get_run(alias.run_id).data.tags[records.PARENT_RUN_TAG] == (second["parent_run_id"])
-    )
+    assert versions(client) == ["1", "2"]  # the new parent registers its champion as well...
+    # ...but it predicts V01, the one campaign version 1 never saw, no better: the alias stays
+    (gate,) = [d for d in second["promotion"] if d["axis"] == "Z"]
+    assert gate["action"] == "keep" and gate["challenger_version"] == "2"
+    assert [c["campaign_id"] for c in gate["campaigns"]] == ["V01"]
+    assert "not better by the margin" in gate["reason"]
+    assert second["champions"]["Z"]["version"] == "1"
+    assert str(client.get_model_version_by_alias(NAMES["Z"], "challenger").version) == "2"
+    assert client.get_model_version(NAMES["Z"], "2").tags["gate"] == "keep"
+    report = (workdir / "reports" / "promotion" / "promotion.md").read_text()
+    assert "| Z | **keep** | v1 | v2 (mlr/pair/static) | 1 |" in report
 
 
-def test_returning_to_logged_inputs_points_the_alias_back_at_their_version(workdir, client):
+def test_returning_to_logged_inputs_leaves_the_alias_where_the_gate_put_it(workdir, client):
     track.main([])
     original = (workdir / "params.yaml").read_text()
     _change_params(workdir, None)
     track.main([])
-    assert str(client.get_model_version_by_alias(NAMES["Z"], "champion").version) == "2"
+    assert str(client.get_model_version_by_alias(NAMES["Z"], "champion").version) == "1"
     (workdir / "params.yaml").write_text(original)
     track.main([])
     back = record(workdir)
     assert back["reused"] is True and back["champions"]["Z"]["version"] == "1"
-    assert str(client.get_model_version_by_alias(NAMES["X"], "champion").version) == "1"
+    (gate,) = [d for d in back["promotion"] if d["axis"] == "X"]
+    assert gate["action"] == "keep" and "already the champion" in gate["reason"]
 
 
 def test_identity_is_stable_and_sees_renamed_files(tmp_path, outputs):

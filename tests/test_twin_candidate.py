@@ -155,11 +155,23 @@ def test_twin_rows_exist_for_every_unit_and_campaign_with_finite_scores(hidden, 
     _, _, series = hidden
     scores, results = baseline_scores
     twin = scores[scores["model"] == TWIN_MODEL]
-    units = [u.name for u in training_units(series)]
-    assert units == ["H01", "H02", "H03", "not_winter", "not_summer", "all_training"]
+    all_units = training_units(series)
+    units = [u.name for u in all_units]
+    assert units == [
+        "H01",
+        "H02",
+        "H03",
+        "not_winter",
+        "not_summer",
+        "before_H03",  # a forecast's fit has at least half of the training campaigns
+        "all_training",
+    ]
     assert set(twin["selection"]) == {TWIN_SELECTION} and set(twin["mode"]) == {"static"}
     pairs = set(zip(twin["train_unit"], twin["test_campaign"], strict=True))
-    assert pairs == {(u, s.campaign_id) for u in units for s in series}
+    assert pairs == {
+        (u.name, s.campaign_id) for u in all_units for s in series if u.scores(s.campaign_id)
+    }
+    assert {c for u, c in pairs if u == "before_H03"} == {"H03"}
     assert np.isfinite(twin[["rmse_um", "resid_std_um"]].to_numpy()).all()
     assert (twin["n_samples"] == 71).all()  # 210 min every 3 min, every sample scored
     own = twin[twin["train_unit"] == twin["test_campaign"]]

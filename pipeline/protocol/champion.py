@@ -34,6 +34,7 @@ from dataclasses import dataclass, field, replace
 import pandas as pd
 
 from pipeline.protocol.cross_season import FREE_RUN, STATIC, UnitResult
+from pipeline.protocol.scoring import SCHEME_PREFIX
 from pipeline.protocol.units import POOLED_UNIT, PROTOCOL_NAMES
 from pipeline.separation.features import InputSpec
 
@@ -45,8 +46,8 @@ KEYS = ("model", "selection", "mode")
 
 
 def protocol_column(protocol: str | None) -> str | None:
-    """Summary column the champion is chosen on: ``<protocol>_Mn_rms_um`` (None: no protocol)."""
-    return None if protocol is None else f"{protocol}_Mn_rms_um"
+    """Summary column the champion is chosen on, e.g. ``loso_Mn_rms_um`` (None: no protocol)."""
+    return None if protocol is None else f"{SCHEME_PREFIX[protocol]}Mn_rms_um"
 
 
 @dataclass(frozen=True)

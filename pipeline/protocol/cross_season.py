@@ -157,20 +157,21 @@ def fit_and_score(
     estimator: RegressorMixin,
     sensors: list[str],
 ) -> UnitResult:
-    """Fit ``estimator`` on the unit's campaigns using ``sensors`` and score every campaign.
+    """Fit ``estimator`` on the unit's campaigns using ``sensors`` and score its test campaigns.
 
     Returns
     -------
     UnitResult
-        ``scores`` has the columns of ``schemas.CrossSeasonScoresModel``; campaigns without a
-        finite residual get no row.
+        ``scores`` has the columns of ``schemas.CrossSeasonScoresModel``; campaigns the unit is
+        not scored on (:meth:`TrainingUnit.scores`) and campaigns without a finite residual
+        get no row.
     """
     training = [c for c in campaigns if c.campaign_id in unit.campaigns]
     X, y = stack(training, sensors)
     model = clone(estimator).fit(X, y)
     rows, predictions = [], {}
     for mode in modes_of(model):
-        for test in campaigns:
+        for test in (c for c in campaigns if unit.scores(c.campaign_id)):
             predicted = predict_campaign(model, test, sensors, mode)
             predictions[(mode, test.campaign_id)] = predicted
             row = score_row(candidate, unit, mode, test, predicted)

@@ -26,7 +26,8 @@ from pipeline.protocol.champion import (
     standing,
 )
 from pipeline.protocol.cross_season import UnitResult
-from pipeline.protocol.scoring import metrics_tree
+from pipeline.protocol.ranking import AUTO, RankingChoice, check_rank_by, ranking_scheme
+from pipeline.protocol.scoring import SCHEME_PREFIX, metrics_tree
 from pipeline.protocol.twin_candidate import (
     TWIN_MODEL,
     TWIN_SELECTION,
@@ -38,7 +39,7 @@ from pipeline.protocol.units import (
     POOLED_UNIT,
     CampaignSeries,
     TrainingUnit,
-    protocol_scheme,
+    UnitSettings,
     training_units,
 )
 from pipeline.separation.features import InputSpec, SpeedResponses
@@ -80,6 +81,9 @@ class AxisEvaluation:
     scores : DataFrame
         Long score rows (``schemas.CrossSeasonScoresModel``).
     results : list of UnitResult
+    ranking : RankingChoice
+        The held-out scheme that ranks the candidates, and why
+        (:func:`pipeline.protocol.ranking.ranking_scheme`).
     skipped : dict of str to str
         Candidate (``model/selection``) -> why it was not scored.
     decision : Decision or None
@@ -91,13 +95,14 @@ class AxisEvaluation:
     units: list[TrainingUnit]
     scores: pd.DataFrame
     results: list[UnitResult]
+    ranking: RankingChoice
     skipped: dict[str, str] = field(default_factory=dict)
     decision: Decision | None = None
 
     @property
     def protocol(self) -> str | None:
-        """``loso``, ``loco`` or None."""
-        return protocol_scheme(self.units)
+        """The ranking scheme: ``loso``, ``loco``, ``forward`` or None."""
+        return self.ranking.scheme
 
 
 def evaluate_axis(
@@ -107,6 +112,7 @@ def evaluate_axis(
     params: dict,
     twin: TwinSetup | None = None,
     twin_skipped: str | None = None,
+    protocol: dict | None = None,
 ) -> AxisEvaluation:
     """Score every candidate of one axis on every training unit.
 
@@ -123,6 +129,9 @@ def evaluate_axis(
         Needed when ``candidates`` has ``twin: roles`` and ``twin_skipped`` is None.
     twin_skipped : str, optional
         Why the twin is not scored on this axis.
+    protocol : dict, optional
+        The ``protocol`` section: the held-out units' buffer and rolling origin
+        (:class:`pipeline.protocol.units.UnitSettings`) and ``rank_by``.
 
     Returns
     -------
@@ -133,7 +142,9 @@ def evaluate_axis(
     ValueError
         If the twin is a candidate, not skipped, and ``twin`` is not given.
     """
-    units = training_units(series)
+    protocol = dict(protocol or {})
+    units = training_units(series, UnitSettings.from_params(protocol))
+    ranking = ranking_scheme(series, units, check_rank_by(protocol.get("rank_by", AUTO)))
     pairs, with_twin = split_twin(params["candidates"])
     candidates = candidate_list(pairs, selected, bool(params.get("full_grid")))
     model_params = params.get("model_params") or {}
@@ -154,7 +165,7 @@ def evaluate_axis(
         results = results + run_twin(units, series, setup, n_jobs)
     scores = pd.concat([r.scores for r in results], ignore_index=True)
     scores = CrossSeasonScoresModel.validate(scores, lazy=True)
-    return AxisEvaluation(axis, series, units, scores, results, skipped)
+    return AxisEvaluation(axis, series, units, scores, results, ranking, skipped)
 
 
 def decide(
@@ -166,6 +177,7 @@ def decide(
     min_coverage = float(settings.get("min_coverage", DEFAULT_COVERAGE))
     for item in evaluations:
         item.decision = choose_champion(summary, item.axis, item.protocol, margin, min_coverage)
+        LOGGER.info("axis %s: ranked by %s: %s", item.axis, item.protocol, item.ranking.reason)
         LOGGER.info(
             "axis %s: champion %s: %s", item.axis, item.decision.label, item.decision.reason
         )
@@ -203,7 +215,8 @@ def held_out_prediction(
     """Return a candidate's prediction of ``campaign`` (um) by a fit that did not see it.
 
     Validation campaigns: the fit on all training campaigns; training campaigns: the fit of the
-    protocol unit that left the campaign out; None without one.
+    ranking scheme's unit that left the campaign out and was scored on it (the forecast of the
+    rolling origin); None without one.
     """
     for result in item.results:
         if (result.candidate.model, result.candidate.selection) != (row["model"], row["selection"]):
@@ -211,7 +224,10 @@ def held_out_prediction(
         unit = result.unit
         held_out = campaign.campaign_id not in unit.campaigns
         if (campaign.split == "validation" and unit.name == POOLED_UNIT) or (
-            campaign.split == "train" and unit.scheme == item.protocol and held_out
+            campaign.split == "train"
+            and unit.scheme == item.protocol
+            and held_out
+            and unit.scores(campaign.campaign_id)
         ):
             return result.predictions.get((row["mode"], campaign.campaign_id))
     return None
@@ -280,17 +296,23 @@ def empty_scores() -> pd.DataFrame:
 def champion_metrics(card: dict) -> dict:
     """Return an axis' champion entry of ``metrics/cross_season.json``.
 
-    The champion's held-out and validation scores under their one name (``loso_Mn_rms_um``,
-    ``loso_eta``, ``pooled_Mn_val_rms_um``, ``pooled_eta_val``; ``loco_`` for
-    leave-one-campaign-out), ``compensate``, and under ``none`` what no compensation leaves on
-    the same held-out samples.
+    The champion's held-out scores of the ranking scheme and of every other held-out scheme
+    beside it, and its validation scores, under their one name (``loso_Mn_rms_um``,
+    ``loso_eta``, ``forward_Mn_rms_um``, ``loco_Mn_rms_um``, ``pooled_Mn_val_rms_um``,
+    ``pooled_eta_val``), ``compensate`` and under ``none`` what no compensation leaves on the
+    ranking scheme's held-out samples.
     """
     scores = card["scores"]
     protocol = card["protocol"]
-    names = [f"{protocol}_Mn_rms_um", f"{protocol}_eta"] if protocol else []
+    schemes = ([protocol] if protocol else []) + list(card.get("other_protocols") or [])
+    names = [
+        f"{SCHEME_PREFIX[scheme]}{statistic}"
+        for scheme in schemes
+        for statistic in ("Mn_rms_um", "eta")
+    ]
     entry = {name: scores.get(name) for name in [*names, "pooled_Mn_val_rms_um", "pooled_eta_val"]}
     if protocol:
-        entry["none"] = {f"{protocol}_Mn_rms_um": card["none_score_um"]}
+        entry["none"] = {f"{SCHEME_PREFIX[protocol]}Mn_rms_um": card["none_score_um"]}
     return {"compensate": card["compensate"], **entry}
 
 
@@ -315,11 +337,15 @@ class Champion:
         Its fit on all training campaigns (the estimator that is saved).
     example : DataFrame
         The first rows of a training campaign as the registered model takes them.
+    heldout : DataFrame
+        Its prediction of every campaign by a fit that did not see it
+        (:func:`heldout_table`).
     """
 
     card: dict
     result: UnitResult
     example: pd.DataFrame
+    heldout: pd.DataFrame
 
 
 def champion_of(
@@ -345,8 +371,45 @@ def champion_of(
     times = [np.diff(s.features.index.get_level_values("elapsed_s")) for s in training]
     interval = float(np.median(np.concatenate(times))) if times else float("nan")
     card = champion_card(item.decision, result, spec, interval)
+    card["ranking_reason"] = item.ranking.reason
+    card["other_protocols"] = list(item.ranking.others)
     rows = table[table["axis"] == item.axis]
-    return Champion(card, result, input_example(rows, spec, training[0].campaign_id))
+    example = input_example(rows, spec, training[0].campaign_id)
+    return Champion(card, result, example, heldout_table(item, best))
+
+
+HELDOUT_COLUMNS = ["campaign_id", "elapsed_s", "measured_um", "predicted_um"]
+
+
+def heldout_table(item: AxisEvaluation, row: pd.Series) -> pd.DataFrame:
+    """Return a candidate's prediction of each campaign by a fit that did not see it (um).
+
+    Training campaigns: the ranking scheme's fit that left the campaign out (the rolling
+    origin's forecast of it); validation campaigns: the fit on all training campaigns
+    (:func:`held_out_prediction`). Campaigns without such a fit are left out; rows in time
+    order with ``campaign_id``, ``elapsed_s`` (s), ``measured_um`` (the thermal error) and
+    ``predicted_um`` (NaN where an input is missing). This is how the promotion gate scores a
+    new champion on campaigns the registered one never saw, without letting it see them.
+    """
+    frames = []
+    for campaign in item.series:
+        predicted = held_out_prediction(item, row, campaign)
+        if predicted is None:
+            continue
+        elapsed = campaign.features.index.get_level_values("elapsed_s").to_numpy(dtype=float)
+        frames.append(
+            pd.DataFrame(
+                {
+                    "campaign_id": campaign.campaign_id,
+                    "elapsed_s": elapsed,
+                    "measured_um": campaign.target,
+                    "predicted_um": predicted,
+                }
+            )
+        )
+    if not frames:
+        return pd.DataFrame({name: pd.Series(dtype=float) for name in HELDOUT_COLUMNS})
+    return pd.concat(frames, ignore_index=True)
 
 
 def evaluation_metrics(

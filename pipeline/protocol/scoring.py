@@ -30,7 +30,13 @@ import pandas as pd
 from pipeline.protocol.units import SCHEMES
 
 SCORE_COLUMNS = {"resid_std_um": "", "rmse_um": "_rms"}
-SCHEME_PREFIX = {"campaign": "", "loso": "loso_", "loco": "loco_", "pooled": "pooled_"}
+SCHEME_PREFIX = {
+    "campaign": "",
+    "loso": "loso_",
+    "loco": "loco_",
+    "forward": "forward_",
+    "pooled": "pooled_",
+}
 """Column prefix of each scheme's summary in :func:`candidate_summary`."""
 
 
@@ -178,9 +184,10 @@ def candidate_summary(scores: pd.DataFrame) -> pd.DataFrame:
 
     Columns are the candidate keys, then ``S_um``, ``Mn_um``... of the ``campaign`` scheme (the
     PCDL paper's protocol), ``loso_`` or ``loco_`` + the same for leave-one-season-out or
-    leave-one-campaign-out and ``pooled_`` + the same for the model built on all training
-    campaigns; all in um (``eta``: dimensionless); ``<prefix>coverage``, the share of the
-    held-out samples ``none`` was scored on that the candidate predicted too
+    leave-one-campaign-out, ``forward_`` + the same for the rolling origin (each campaign
+    predicted by the campaigns that ended before it) and ``pooled_`` + the same for the model
+    built on all training campaigns; all in um (``eta``: dimensionless); ``<prefix>coverage``,
+    the share of the held-out samples ``none`` was scored on that the candidate predicted too
     (:func:`coverage`; when ``none`` was scored).
     """
     rows = []
@@ -223,8 +230,9 @@ def _split_order(column: pd.Series) -> pd.Series:
     return column.map({"train": 0, "validation": 1}) if column.name == "test_split" else column
 
 
-HELD_OUT_PREFIX = "not_"
-"""Training units of the held-out schemes are named ``not_<season>`` or ``not_<campaign>``."""
+HELD_OUT_PREFIXES = ("not_", "before_")
+"""Training units of the held-out schemes are named ``not_<season>``, ``not_<campaign>`` or
+``before_<campaign>`` (forward)."""
 GROUP_COLUMNS = [*CANDIDATE_KEYS, "scheme", "split", "held_out"]
 
 
@@ -234,12 +242,13 @@ def group_score_name(scheme: str, split: str, held_out: str, statistic: str) -> 
     Parameters
     ----------
     scheme : str
-        ``loso``, ``loco`` (the group left out of training) or ``pooled`` (the fit on all
-        training campaigns, applied to the validation campaigns).
+        ``loso``, ``loco`` (the group left out of training), ``forward`` (the campaign forecast
+        by the campaigns before it) or ``pooled`` (the fit on all training campaigns, applied
+        to the validation campaigns).
     split : str
         ``train`` (a held-out training season or campaign) or ``validation``.
     held_out : str
-        Season (``loso`` and validation) or campaign id (``loco``).
+        Season (``loso`` and validation) or campaign id (``loco``, ``forward``).
     statistic : str
         ``rms_um`` (mean RMS of the residual over the group's campaigns, um) or ``eta``.
     """
@@ -251,9 +260,9 @@ def group_scores(scores: pd.DataFrame) -> pd.DataFrame:
     """Held-out scores per season (or campaign): how well each candidate predicts, e.g., winter.
 
     Groups, per candidate: for leave-one-season-out (``loso``) each season, for
-    leave-one-campaign-out (``loco``) each campaign, scored by the fit that did not see it
-    (rows of role ``prediction``); for the fit on all training campaigns (``pooled``) the
-    validation campaigns of each season (role ``validation``).
+    leave-one-campaign-out (``loco``) and the rolling origin (``forward``) each campaign, scored
+    by the fit that did not see it (rows of role ``prediction``); for the fit on all training
+    campaigns (``pooled``) the validation campaigns of each season (role ``validation``).
 
     Parameters
     ----------
@@ -269,8 +278,13 @@ def group_scores(scores: pd.DataFrame) -> pd.DataFrame:
         (1 - their ratio, as :func:`summarise`) and ``name`` (:func:`group_score_name` of
         ``rms_um``); one row per group.
     """
-    held = scores[scores["scheme"].isin(["loso", "loco"]) & (scores["role"] == "prediction")]
-    held = held.assign(split="train", held_out=held["train_unit"].str.removeprefix(HELD_OUT_PREFIX))
+    held = scores[
+        scores["scheme"].isin(["loso", "loco", "forward"]) & (scores["role"] == "prediction")
+    ]
+    names = held["train_unit"]
+    for prefix in HELD_OUT_PREFIXES:
+        names = names.str.removeprefix(prefix)
+    held = held.assign(split="train", held_out=names)
     val = scores[(scores["scheme"] == "pooled") & (scores["role"] == "validation")]
     val = val.assign(split="validation", held_out=val["test_season"])
     rows = []

@@ -281,7 +281,7 @@ def as_thermal_error(z_um: np.ndarray, measured: np.ndarray, reference: str, n: 
 def fit_and_score_twin(
     unit: TrainingUnit, series: Sequence[CampaignSeries], setup: TwinSetup
 ) -> UnitResult:
-    """Calibrate the twin on the unit's campaigns and score it on every campaign.
+    """Calibrate the twin on the unit's campaigns and score it on the unit's test campaigns.
 
     Parameters
     ----------
@@ -305,7 +305,7 @@ def fit_and_score_twin(
         calibration = calibrate(model, training, **setup.calibration)
         fitted = CalibratedTwin(setup.roles, setup.effects, calibration, setup.load_roles)
         rows, predictions = [], {}
-        for test in series:
+        for test in (t for t in series if unit.scores(t.campaign_id)):
             z = predict(model, calibration, setup.campaigns[test.campaign_id]).z_um
             predicted = as_thermal_error(z, test.target, setup.cold_reference, setup.cold_n)
             predictions[(STATIC, test.campaign_id)] = predicted

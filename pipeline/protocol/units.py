@@ -7,33 +7,62 @@ A *training unit* is the set of campaigns one model is built on:
 - scheme ``loso``: leave one season out, all training campaigns of the other seasons (unit
   ``not_<season>``), applied to the held-out season and the validation campaigns; when the
   training campaigns span a single season, scheme ``loco`` instead: leave one campaign out
-  (unit ``not_<campaign>``). Either is the *selection protocol*: a fit on several campaigns,
-  like the deployed one, scored on campaigns it has not seen; the champion is chosen on it;
+  (unit ``not_<campaign>``);
+- scheme ``forward``: rolling origin (Tashman 2000, "Out-of-sample tests of forecasting
+  accuracy: an analysis and review", International Journal of Forecasting 16(4); Bergmeir and
+  Benitez 2012, "On the use of cross-validation for time series predictor evaluation",
+  Information Sciences 191): campaigns in the order of their start, each one predicted by a
+  fit on the training campaigns that *ended before it started* (unit ``before_<campaign>``),
+  and scored on it alone: what a model trained up to now leaves on the next campaign. Only
+  forecasts whose fit has at least ``forward_min_share`` of the training campaigns (and at
+  least ``forward_min_train``) count: the registered model is fitted on all of them, and a
+  forecast from a fit on far fewer campaigns says more about learning from little data than
+  about the model that will run (Tashman 2000, section 2, on the length of the fit period);
 - scheme ``pooled``: every training campaign (unit ``all_training``), the model a user deploys;
   it is the one registered as MLflow champion.
 
-Splits follow campaigns and seasons, never random samples. Each displacement axis has its own
-series (:func:`series_by_axis`); the units are the same for every axis that has the same
+**Buffer (hv-block).** Campaigns cut from one continuous record (a *run*,
+:mod:`pipeline.separation.runs`) are not independent: the hours just before and after a
+held-out campaign carry its thermal state. Leave-one-out schemes (``loso``, ``loco``) therefore
+also leave out of training the ``buffer_campaigns`` campaigns of the same run on either side of
+each held-out campaign, as hv-block cross-validation leaves h observations on either side of the
+validation block (Racine 2000, "Consistent cross-validatory model-selection for dependent data:
+hv-block cross-validation", Journal of Econometrics 99(1)); a unit left with no campaign is
+dropped. Here the block is a whole campaign, not h samples: a campaign is the unit a user adds
+and the unit the deployed model is applied to.
+
+Splits follow campaigns, seasons and time, never random samples. Each displacement axis has its
+own series (:func:`series_by_axis`); the units are the same for every axis that has the same
 campaigns.
 """
 
 from __future__ import annotations
 
+import logging
+import math
 from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
 
-from pipeline.errors import InputDataError
+from pipeline.errors import InputDataError, ParamsError
 from pipeline.separation.features import input_column, input_names
 
+LOGGER = logging.getLogger(__name__)
+
 TARGET = "thermal_error_um"
+HELD_OUT_PREFIX = "not_"
 INDEX_NAMES = ("campaign_id", "elapsed_s")
 POOLED_UNIT = "all_training"
-CAMPAIGN, LOSO, LOCO, POOLED = "campaign", "loso", "loco", "pooled"
-SCHEMES = (CAMPAIGN, LOSO, LOCO, POOLED)
-HELD_OUT_SCHEMES = (LOSO, LOCO)
-PROTOCOL_NAMES = {LOSO: "leave-one-season-out", LOCO: "leave-one-campaign-out"}
+FORWARD_PREFIX = "before_"
+CAMPAIGN, LOSO, LOCO, FORWARD, POOLED = "campaign", "loso", "loco", "forward", "pooled"
+SCHEMES = (CAMPAIGN, LOSO, LOCO, FORWARD, POOLED)
+HELD_OUT_SCHEMES = (LOSO, LOCO, FORWARD)
+PROTOCOL_NAMES = {
+    LOSO: "leave-one-season-out",
+    LOCO: "leave-one-campaign-out",
+    FORWARD: "rolling origin (forward in time)",
+}
 
 
 @dataclass(frozen=True)
@@ -57,6 +86,8 @@ class CampaignSeries:
         The run the campaign belongs to (:mod:`pipeline.separation.runs`).
     warm_start : bool
         Whether the campaign starts away from its run's reference.
+    start : Timestamp or None
+        Local time of ``elapsed_s`` = 0 (campaign.yaml ``start``); None when unknown.
     """
 
     campaign_id: str
@@ -67,6 +98,21 @@ class CampaignSeries:
     axis: str = "Z"
     run_id: str = ""
     warm_start: bool = False
+    start: pd.Timestamp | None = None
+
+    @property
+    def first_time(self) -> pd.Timestamp | None:
+        """Local time of the first sample; None when ``start`` is unknown."""
+        return None if self.start is None else self.start + pd.Timedelta(seconds=self._elapsed(0))
+
+    @property
+    def last_time(self) -> pd.Timestamp | None:
+        """Local time of the last sample; None when ``start`` is unknown."""
+        return None if self.start is None else self.start + pd.Timedelta(seconds=self._elapsed(-1))
+
+    def _elapsed(self, position: int) -> float:
+        elapsed = self.features.index.get_level_values("elapsed_s")
+        return float(elapsed[position]) if len(elapsed) else 0.0
 
 
 @dataclass(frozen=True)
@@ -82,11 +128,73 @@ class TrainingUnit:
         ``campaign``, ``loso``, ``loco`` or ``pooled``.
     campaigns : tuple of str
         Campaign ids, in time order of the table.
+    tests : tuple of str
+        The campaigns a fit on this unit is scored on; empty: every campaign. A ``forward``
+        unit is scored on the campaign it forecasts only.
     """
 
     name: str
     scheme: str
     campaigns: tuple[str, ...]
+    tests: tuple[str, ...] = ()
+
+    def scores(self, campaign_id: str) -> bool:
+        """Whether a fit on this unit is scored on ``campaign_id``."""
+        return not self.tests or campaign_id in self.tests
+
+
+@dataclass(frozen=True)
+class UnitSettings:
+    """How the held-out training units are built (``params.yaml`` ``protocol``).
+
+    Attributes
+    ----------
+    buffer_campaigns : int
+        hv-block buffer: campaigns of the same run on either side of a held-out campaign that
+        are left out of training too (0: plain leave-one-out).
+    forward_min_train : int
+        Rolling origin: training campaigns that must have ended before the first forecast one
+        started.
+    forward_min_share : float
+        Rolling origin: share of all training campaigns (0 to 1, rounded up) that must have
+        ended before a forecast one started.
+    """
+
+    buffer_campaigns: int = 1
+    forward_min_train: int = 1
+    forward_min_share: float = 0.5
+
+    @classmethod
+    def from_params(cls, section: dict | None) -> UnitSettings:
+        """Build from the ``protocol`` mapping (missing keys keep their defaults).
+
+        Raises
+        ------
+        ParamsError
+            On an unknown key or a value that is not a whole number >= 0 (>= 1 for
+            ``forward_min_train``).
+        """
+        section = dict(section or {})
+        known = {"buffer_campaigns", "forward_min_train", "forward_min_share", "rank_by"}
+        unknown = sorted(set(section) - known)
+        if unknown:
+            raise ParamsError(
+                f"params.yaml protocol: unknown key(s) {unknown}; known: {sorted(known)}"
+            )
+        values = {}
+        for name, least in (("buffer_campaigns", 0), ("forward_min_train", 1)):
+            value = section.get(name, getattr(cls, name))
+            if isinstance(value, bool) or not isinstance(value, int) or value < least:
+                raise ParamsError(
+                    f"params.yaml protocol.{name} is {value!r}; use a whole number >= {least}"
+                )
+            values[name] = value
+        share = section.get("forward_min_share", cls.forward_min_share)
+        if isinstance(share, bool) or not isinstance(share, int | float) or not 0 <= share <= 1:
+            raise ParamsError(
+                f"params.yaml protocol.forward_min_share is {share!r}; use a fraction in [0, 1]"
+            )
+        return cls(**values, forward_min_share=float(share))
 
 
 def campaign_series(table: pd.DataFrame, inputs: list[str], features: str) -> list[CampaignSeries]:
@@ -125,6 +233,7 @@ def campaign_series(table: pd.DataFrame, inputs: list[str], features: str) -> li
                 axis=str(rows["axis"].iloc[0]) if "axis" in rows else "Z",
                 run_id=str(rows["run_id"].iloc[0]) if "run_id" in rows else str(campaign_id),
                 warm_start=bool(rows["warm_start"].iloc[0]) if "warm_start" in rows else False,
+                start=_start_of(rows),
             )
         )
     return series
@@ -139,17 +248,23 @@ def series_by_axis(table: pd.DataFrame, features: str) -> dict[str, list[Campaig
     }
 
 
-def training_units(series: list[CampaignSeries]) -> list[TrainingUnit]:
-    """Every training unit of the protocol: each campaign, each season or campaign left out, all.
+def training_units(
+    series: list[CampaignSeries], settings: UnitSettings | None = None
+) -> list[TrainingUnit]:
+    """Every training unit of the protocol: each campaign, the held-out schemes, all.
 
     Leave-one-season-out units exist when the training campaigns span two seasons or more;
-    otherwise leave-one-campaign-out units, when there are two training campaigns or more.
+    otherwise leave-one-campaign-out units, when there are two training campaigns or more;
+    both leave out the hv-block buffer of :class:`UnitSettings`. Forward units exist for every
+    training campaign with enough training campaigns ended before it started
+    (:func:`forward_units`; start times known).
 
     Raises
     ------
-    ValueError
+    InputDataError
         If no campaign has split ``train``.
     """
+    settings = settings or UnitSettings()
     training = [s for s in series if s.split == "train"]
     if not training:
         raise InputDataError(
@@ -159,20 +274,119 @@ def training_units(series: list[CampaignSeries]) -> list[TrainingUnit]:
     units = [TrainingUnit(s.campaign_id, CAMPAIGN, (s.campaign_id,)) for s in training]
     seasons = list(dict.fromkeys(s.season for s in training))
     if len(seasons) >= 2:
-        for season in seasons:
-            kept = tuple(s.campaign_id for s in training if s.season != season)
-            units.append(TrainingUnit(f"not_{season}", LOSO, kept))
+        groups = [(season, [s for s in training if s.season == season]) for season in seasons]
+        units += _leave_out_units(series, groups, LOSO, settings.buffer_campaigns)
     elif len(training) >= 2:
-        for left_out in training:
-            kept = tuple(s.campaign_id for s in training if s is not left_out)
-            units.append(TrainingUnit(f"not_{left_out.campaign_id}", LOCO, kept))
+        groups = [(s.campaign_id, [s]) for s in training]
+        units += _leave_out_units(series, groups, LOCO, settings.buffer_campaigns)
+    least = max(settings.forward_min_train, math.ceil(settings.forward_min_share * len(training)))
+    units += forward_units(training, least)
     units.append(TrainingUnit(POOLED_UNIT, POOLED, tuple(s.campaign_id for s in training)))
     return units
 
 
-def protocol_scheme(units: list[TrainingUnit]) -> str | None:
-    """Return the held-out scheme of these units (``loso`` or ``loco``); None if there is none."""
-    return next((u.scheme for u in units if u.scheme in HELD_OUT_SCHEMES), None)
+def buffer_of(
+    training: list[CampaignSeries], held_out: list[CampaignSeries], buffer: int
+) -> set[str]:
+    """Campaigns of the held-out campaigns' runs within ``buffer`` places of one of them.
+
+    Parameters
+    ----------
+    training : list of CampaignSeries
+        Every training campaign.
+    held_out : list of CampaignSeries
+        The campaigns left out of a unit.
+    buffer : int
+        Places on either side, in the run's time order.
+    """
+    if buffer <= 0:
+        return set()
+    runs: dict[str, list[CampaignSeries]] = {}
+    for item in training:
+        runs.setdefault(item.run_id or item.campaign_id, []).append(item)
+    for members in runs.values():
+        members.sort(key=_time_key)
+    near = set()
+    for item in held_out:
+        members = runs[item.run_id or item.campaign_id]
+        place = members.index(item)
+        low, high = max(place - buffer, 0), place + buffer + 1
+        near |= {m.campaign_id for m in members[low:high]}
+    return near - {item.campaign_id for item in held_out}
+
+
+def _leave_out_units(
+    series: list[CampaignSeries],
+    groups: list[tuple[str, list[CampaignSeries]]],
+    scheme: str,
+    buffer: int,
+) -> list[TrainingUnit]:
+    """One unit per held-out group; the buffer campaigns are neither fitted nor scored."""
+    training = [s for s in series if s.split == "train"]
+    units = []
+    for name, held_out in groups:
+        buffered = buffer_of(training, held_out, buffer)
+        dropped = buffered | {s.campaign_id for s in held_out}
+        kept = tuple(s.campaign_id for s in training if s.campaign_id not in dropped)
+        if not kept:
+            LOGGER.info(
+                "unit not_%s dropped: with its buffer of %d campaign(s) on either side in its "
+                "run, no training campaign is left",
+                name,
+                buffer,
+            )
+            continue
+        tests = tuple(s.campaign_id for s in series if s.campaign_id not in buffered)
+        units.append(
+            TrainingUnit(f"{HELD_OUT_PREFIX}{name}", scheme, kept, tests if buffered else ())
+        )
+    return units
+
+
+def forward_units(training: list[CampaignSeries], min_train: int) -> list[TrainingUnit]:
+    """Rolling-origin units: each campaign predicted by the campaigns that ended before it.
+
+    Parameters
+    ----------
+    training : list of CampaignSeries
+        The training campaigns; those without a start time take no part.
+    min_train : int
+        Campaigns a unit must be built on.
+
+    Returns
+    -------
+    list of TrainingUnit
+        ``before_<campaign>``, scheme ``forward``, ``tests`` the forecast campaign, in the
+        order of the campaigns' first samples.
+    """
+    timed = sorted((s for s in training if s.start is not None), key=_time_key)
+    units = []
+    for target in timed:
+        before = tuple(s.campaign_id for s in timed if s.last_time < target.first_time)
+        if len(before) >= min_train:
+            units.append(
+                TrainingUnit(
+                    f"{FORWARD_PREFIX}{target.campaign_id}", FORWARD, before, (target.campaign_id,)
+                )
+            )
+    return units
+
+
+def _time_key(item: CampaignSeries) -> tuple:
+    first = item.first_time
+    return (first is None, first if first is not None else pd.Timestamp(0), item.campaign_id)
+
+
+def _start_of(rows: pd.DataFrame) -> pd.Timestamp | None:
+    if "campaign_start" not in rows or pd.isna(rows["campaign_start"].iloc[0]):
+        return None
+    return pd.Timestamp(rows["campaign_start"].iloc[0])
+
+
+def held_out_schemes(units: list[TrainingUnit]) -> list[str]:
+    """Return the held-out schemes these units have, in :data:`HELD_OUT_SCHEMES` order."""
+    present = {u.scheme for u in units}
+    return [scheme for scheme in HELD_OUT_SCHEMES if scheme in present]
 
 
 def stack(series: list[CampaignSeries], sensors: list[str]) -> tuple[pd.DataFrame, np.ndarray]:

@@ -27,27 +27,36 @@ OTHER_COLUMNS = {
 }
 
 
+OTHER_SCHEME_LABELS = {"loso": "season-out", "loco": "campaign-out", "forward": "forward"}
+"""Header of another held-out scheme's RMS beside the ranking one."""
+
+
 def _number(value: object) -> str:
     if value is None or (isinstance(value, float) and math.isnan(value)):
         return "-"
     return f"{float(value):.2f}"
 
 
-def _columns(summary: pd.DataFrame, protocol: str | None) -> dict[str, str]:
+def _columns(
+    summary: pd.DataFrame, protocol: str | None, others: Sequence[str] = ()
+) -> dict[str, str]:
     columns = {}
     if protocol is not None:
         columns.update({f"{protocol}_{k}": v for k, v in PROTOCOL_COLUMNS.items()})
+    for other in others:
+        columns[f"{other}_Mn_rms_um"] = f"{OTHER_SCHEME_LABELS.get(other, other)} RMS"
     columns.update(OTHER_COLUMNS)
     return {k: v for k, v in columns.items() if k in summary}
 
 
-def score_table(summary: pd.DataFrame, decision: Decision) -> str:
+def score_table(summary: pd.DataFrame, decision: Decision, others: Sequence[str] = ()) -> str:
     """Markdown table of one axis' candidates; the champion in bold.
 
     Candidates the machine can run from its own inputs come first, ranked by the protocol score
     (as the champion is chosen), then the others (``one_step``, ``twin``), which are never chosen.
+    ``others``: the held-out schemes scored beside the ranking one (their RMS columns follow).
     """
-    columns = _columns(summary, decision.protocol)
+    columns = _columns(summary, decision.protocol, others)
     header = (
         "| model | selection | mode | "
         + " | ".join(f"{label} `{name}`" for name, label in columns.items())
@@ -128,30 +137,43 @@ def _decision_text(axis: str, decision: Decision, card: Mapping) -> str:
     )
 
 
-def _protocol_text(decision: Decision, series: Sequence[CampaignSeries]) -> str:
-    """Which protocol chose, and when its held-out campaigns are not independent of training."""
-    train = [s for s in series if s.split == "train"]
+SCHEME_TEXT = {
+    "loso": "each fit built on the training campaigns but one season's, scored on the ones "
+    "left out",
+    "loco": "each fit built on the training campaigns but one, scored on the one left out",
+    "forward": "each campaign predicted by a fit on the training campaigns that ended before it "
+    "started",
+}
+
+
+def _protocol_text(
+    decision: Decision, series: Sequence[CampaignSeries], card: Mapping | None = None
+) -> str:
+    """Which score ranked the candidates and why; the other held-out scores beside it."""
+    card = card or {}
     if decision.protocol is None:
         return (
             "Selection protocol: **none** (a single training campaign: no fit can be scored on "
             "a training campaign it did not see)."
         )
     text = (
-        f"Selection protocol: **{PROTOCOL_NAMES[decision.protocol]}** (each fit built on the "
-        "training campaigns but "
-        + (
-            "one season's, scored on the ones"
-            if decision.protocol == "loso"
-            else "one, scored on the one"
-        )
-        + " left out)."
+        f"Ranked by **{PROTOCOL_NAMES[decision.protocol]}** (`{decision.column}`: "
+        f"{SCHEME_TEXT[decision.protocol]})"
     )
+    reason = card.get("ranking_reason")
+    text += f", because {reason}." if reason else "."
+    others = [s for s in card.get("other_protocols") or [] if s in PROTOCOL_NAMES]
+    if others:
+        text += " Beside it: " + "; ".join(
+            f"{PROTOCOL_NAMES[s]} (`{s}_Mn_rms_um`: {SCHEME_TEXT[s]})" for s in others
+        )
+        text += "."
+    train = [s for s in series if s.split == "train"]
     runs = {s.run_id for s in train}
-    if decision.protocol == "loco" and len(train) > 1 and len(runs) == 1:
+    if "loco" in [decision.protocol, *others] and len(train) > 1 and len(runs) < len(train):
         text += (
-            f" The training campaigns are one continuous run ({next(iter(runs))}): a held-out "
-            "campaign's neighbours in the same record are in the training set, so the held-out "
-            "score measures prediction between parts of one record, not on a new day."
+            " Leave-one-campaign-out leaves a held-out campaign's neighbours in the same "
+            "continuous record out of training too (hv-block buffer, `protocol.buffer_campaigns`)."
         )
     return text
 
@@ -288,10 +310,11 @@ def axis_section(
     n_validation = sum(s.split == "validation" for s in c.series)
     skipped_lines = "\n".join(f"- `{name}` not scored: {why}." for name, why in c.skipped.items())
     twin = twin_text if any(c.summary["model"] == "twin") else ""
+    protocol = _protocol_text(c.decision, c.series, c.card)
     heatmap_lines = "\n".join(f"![{path}]({path})" for path in figures.heatmaps)
     return f"""## Axis {c.axis}
 
-{n_train} training and {n_validation} validation campaigns. {_protocol_text(c.decision, c.series)}
+{n_train} training and {n_validation} validation campaigns. {protocol}
 
 {_decision_text(c.axis, c.decision, c.card)}
 
@@ -299,7 +322,7 @@ def axis_section(
 
 {_baseline_text(c.decision, c.plain)}
 
-{score_table(c.summary, c.decision)}
+{score_table(c.summary, c.decision, c.card.get("other_protocols") or ())}
 
 {group_table(c.summary, c.decision, c.groups)}
 {skipped_lines}

@@ -245,9 +245,10 @@ def spindle_thermal_error(
     table : DataFrame
         One row per (axis, sample) of each campaign that measured the axis: ``axis``,
         ``campaign_id``, ``run_id``, ``source_row``, ``elapsed_s``, ``run_elapsed_s``,
-        ``rpm``, ``split``, ``season``, ``synthetic``, ``warm_start``, ``reference`` (in
-        words), ``displacement_um`` (stitched), ``thermal_error_um``, each sensor (degC),
-        ``rise_<sensor>`` (K) and the speed responses.
+        ``campaign_start`` (the campaign's ``start``), ``rpm``, ``split``, ``season``,
+        ``synthetic``, ``warm_start``, ``reference`` (in words), ``displacement_um``
+        (stitched), ``thermal_error_um``, each sensor (degC), ``rise_<sensor>`` (K) and the
+        speed responses.
     record : dict
         JSON-ready: settings, runs (campaigns, links with gaps, temperature jumps and
         displacement stitches, notes) and each campaign's run, position and reference; with
@@ -313,6 +314,7 @@ def empty_table() -> pd.DataFrame:
         "source_row": "int64",
         "elapsed_s": "float64",
         "run_elapsed_s": "float64",
+        "campaign_start": "datetime64[ns]",
         "rpm": "float64",
         "split": "str",
         "season": "str",
@@ -438,6 +440,7 @@ def _campaign_frame(
             "source_row": rows["source_row"].to_numpy(dtype=np.int64),
             "elapsed_s": rows["elapsed_s"].to_numpy(dtype=float),
             "run_elapsed_s": tables.t_run[campaign_id],
+            "campaign_start": pd.Timestamp(meta["start"]),
             "rpm": rows["rpm"].to_numpy(dtype=float),
             "split": meta["split"],
             "season": meta["season"],

@@ -58,7 +58,7 @@ LOGGER = logging.getLogger(__name__)
 
 
 def write_champions(champions: dict[str, Champion]) -> None:
-    """Save each axis' champion: estimator (joblib), card (JSON), input example (CSV).
+    """Save each axis' champion: estimator, card, input example, held-out predictions.
 
     Folders of axes that no longer have a champion are removed.
     """
@@ -74,6 +74,7 @@ def write_champions(champions: dict[str, Champion]) -> None:
         card_text = json.dumps(champion.card, indent=2, sort_keys=True) + "\n"
         (folder / paths.CHAMPION_CARD_FILE).write_text(card_text)
         champion.example.to_csv(folder / paths.CHAMPION_EXAMPLE_FILE, index=False)
+        champion.heldout.to_parquet(folder / paths.CHAMPION_HELDOUT_FILE, index=False)
 
 
 def write_tables(
@@ -194,10 +195,11 @@ def sensor_roles() -> frozenset[str]:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Run the stage with the ``evaluate`` section of ``params.yaml``."""
+    """Run the stage with the ``evaluate`` and ``protocol`` sections of ``params.yaml``."""
     parser = argparse.ArgumentParser(prog="thermal evaluate", description=__doc__.splitlines()[0])
     parser.parse_args(argv)
     params = load_section("evaluate")
+    protocol = load_section("protocol")
     table = pd.read_parquet(paths.SPINDLE_THERMAL_ERROR)
     if not paths.SELECTED.is_file():
         raise MissingInputError(
@@ -221,7 +223,9 @@ def main(argv: list[str] | None = None) -> int:
             if skipped is None:
                 twin = read_twin_setup(table[table["axis"] == axis], series)
                 twin_source = twin.effects_source
-        evaluations.append(evaluate_axis(axis, series, selected[axis], params, twin, skipped))
+        evaluations.append(
+            evaluate_axis(axis, series, selected[axis], params, twin, skipped, protocol)
+        )
     summary = candidate_summary(all_scores(evaluations))
     decide(evaluations, summary, params.get("champion"))
     champions = {e.axis: champion_of(e, table, features, separation) for e in evaluations}

@@ -37,6 +37,7 @@ from pipeline.protocol.selection_runs import (
 )
 from pipeline.protocol.units import (
     TrainingUnit,
+    UnitSettings,
     series_by_axis,
     training_units,
 )
@@ -94,6 +95,7 @@ def main(argv: list[str] | None = None) -> int:
     params = load_section("select")
     features = check_feature_kind(str(params.get("features", "temperature_rise")))
     entries = method_entries(params["methods"])
+    unit_settings = UnitSettings.from_params(load_section("protocol"))
     table = pd.read_parquet(paths.SPINDLE_THERMAL_ERROR)
     selections, units, inputs, skipped = {}, {}, {}, {}
     for axis, series in series_by_axis(table, features).items():
@@ -104,7 +106,7 @@ def main(argv: list[str] | None = None) -> int:
             )
             LOGGER.warning("axis %s: %s; nothing selected", axis, skipped[axis])
             continue
-        units[axis] = training_units(series)
+        units[axis] = training_units(series, unit_settings)
         inputs[axis] = list(series[0].features.columns)
         selections[axis] = select_axis(series, units[axis], entries)
         for method, by_unit in selections[axis].items():

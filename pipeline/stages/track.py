@@ -15,8 +15,11 @@
 - one child run per candidate (axis, model, selection, mode) with its summary scores, every
   cross-campaign score and what each fit decided (see :mod:`pipeline.tracking.records`); the
   child of each axis' champion (tag ``champion: true``) also holds the champion model, with
-  its signature and an input example, registered as ``<track.registered_model>-<axis>`` with
-  the alias ``champion``.
+  its signature and an input example, registered as ``<track.registered_model>-<axis>``;
+- the promotion gate (:mod:`pipeline.tracking.promotion`): each registered version takes the
+  alias ``champion`` only when it proves better than the current champion on the campaigns
+  that one was not trained on (or when there is none yet); the decision goes to
+  ``reports/promotion/promotion.json`` and ``promotion.md``.
 
 The store is ``$MLFLOW_TRACKING_URI`` when set, else ``tracking.default_tracking_uri``
 (``sqlite:///mlflow.db`` in the working directory, artifacts in ``mlartifacts/`` beside it).
@@ -36,8 +39,12 @@ from pathlib import Path
 from pipeline.config import DEFAULT_PARAMS, load_section
 from pipeline.errors import ParamsError
 from pipeline.paths import (
+    PROMOTION,
+    PROMOTION_DECISION,
+    PROMOTION_REPORT,
     TRACKING_RECORD,
 )
+from pipeline.protocol.promotion import GateDecision, render_report
 from pipeline.tracking import records, store
 from pipeline.tracking.location import (
     DEFAULT_TRACKING_URI,
@@ -46,11 +53,14 @@ from pipeline.tracking.location import (
     unreachable_message,
 )
 from pipeline.tracking.pipeline_run import (
+    gate_inputs,
     log_pipeline_run,
     prepare,
 )
 
 logger = logging.getLogger(__name__)
+
+DEFAULT_PROMOTION_MARGIN = 0.05
 
 
 def _parse_args(argv: list[str]) -> argparse.Namespace:
@@ -78,6 +88,7 @@ def main(argv: list[str] | None = None) -> int:
             f"{args.params}: track.batch_size = {batch_size}; MLflow accepts 1 to 1000 metrics "
             "per log_batch call, set a value in that range"
         )
+    margin = promotion_margin(settings)
     prepared = prepare(Path(args.params))
     n_metrics = records.count_metrics([prepared.parent, *prepared.children])
     ready = time.perf_counter()
@@ -85,7 +96,13 @@ def main(argv: list[str] | None = None) -> int:
     uri = resolve_tracking_uri(store_settings)
     try:
         record = log_pipeline_run(
-            prepared, {**store_settings, **settings}, uri, experiment, batch_size, n_metrics
+            prepared,
+            {**store_settings, **settings},
+            uri,
+            experiment,
+            batch_size,
+            n_metrics,
+            gate_inputs(list(prepared.champions), margin),
         )
     except store.UNREACHABLE as error:
         raise SystemExit(unreachable_message(uri, error)) from error
@@ -99,4 +116,44 @@ def main(argv: list[str] | None = None) -> int:
     record["metrics"] = n_metrics
     TRACKING_RECORD.parent.mkdir(parents=True, exist_ok=True)
     TRACKING_RECORD.write_text(json.dumps(record, indent=2) + "\n", encoding="utf-8")
+    write_promotion(record)
     return 0
+
+
+def promotion_margin(settings: dict) -> float:
+    """``track.promotion.min_improvement`` (default 0.05), checked.
+
+    Raises
+    ------
+    ParamsError
+        If it is not a fraction in [0, 1) or the section has an unknown key.
+    """
+    section = dict(settings.get("promotion") or {})
+    unknown = sorted(set(section) - {"min_improvement"})
+    if unknown:
+        raise ParamsError(
+            f"params.yaml track.promotion: unknown key(s) {unknown}; known: ['min_improvement']"
+        )
+    value = section.get("min_improvement", DEFAULT_PROMOTION_MARGIN)
+    if isinstance(value, bool) or not isinstance(value, int | float) or not 0 <= value < 1:
+        raise ParamsError(
+            f"params.yaml track.promotion.min_improvement is {value!r}; use a fraction in "
+            "[0, 1), e.g. 0.05: a new model must leave 5 % less RMS than the champion"
+        )
+    return float(value)
+
+
+def write_promotion(record: dict) -> None:
+    """Write the gate's decisions: ``promotion.json`` and the Markdown ``promotion.md``."""
+    PROMOTION.mkdir(parents=True, exist_ok=True)
+    decisions = record.get("promotion") or []
+    document = {
+        "parent_run_id": record.get("parent_run_id"),
+        "tracking_uri": record.get("tracking_uri"),
+        "champions": record.get("champions"),
+        "axes": decisions,
+    }
+    PROMOTION_DECISION.write_text(json.dumps(document, indent=2) + "\n", encoding="utf-8")
+    PROMOTION_REPORT.write_text(
+        render_report([GateDecision.from_dict(d) for d in decisions]), encoding="utf-8"
+    )

@@ -1,4 +1,7 @@
-"""An axis' champion as an MLflow pyfunc model, logged from its child run, aliased ``champion``.
+"""An axis' champion as an MLflow pyfunc model, logged from its child run and registered.
+
+The registered version is the *challenger*: the promotion gate (:mod:`pipeline.tracking.promotion`)
+decides whether it takes the alias ``champion``.
 
 ``mlflow.pyfunc.load_model("models:/thermal-error-spindle-<axis>@champion").predict(table)``
 takes a table as the machine logs it -- one column per input sensor in degC, rows in time order,
@@ -34,7 +37,6 @@ from pipeline.separation.features import InputSpec
 
 logger = logging.getLogger(__name__)
 
-ALIAS = "champion"
 MODEL_NAME = "model"
 TRACKING_URI_ENV = "MLFLOW_TRACKING_URI"
 REQUIREMENTS = (
@@ -105,14 +107,17 @@ def model_description(card: dict) -> str:
         f"Thermal error of the spindle along {card['axis']} (um), predicted from the machine's "
         "own temperature sensors (degC) and spindle speed. Each `dvc repro` registers the "
         "champion of its candidates as a new version, logged from that candidate's child run "
-        "in the `thermal-error` experiment; the alias `champion` points at the current one: "
+        "in the `thermal-error` experiment. The alias `champion` points at the one the machine "
+        "runs, moved only by the promotion gate when a new version proves better on campaigns "
+        "the champion never saw (`previous`: the one before; `challenger`: the latest kept "
+        "out; tags `gate` and `gate_reason` say why): "
         f"`mlflow.pyfunc.load_model('models:/<this model>@champion')`. Read a version's "
         "description for its inputs, protocol and held-out scores."
     )
 
 
 def log_and_register(tracking_uri: str, run_id: str, registered_name: str, folder: Path) -> str:
-    """Log an axis' champion to its child run ``run_id``, register it and alias it.
+    """Log an axis' champion to its child run ``run_id`` and register it (no alias: the gate's).
 
     Parameters
     ----------
@@ -160,7 +165,6 @@ def log_and_register(tracking_uri: str, run_id: str, registered_name: str, folde
         mlflow.set_tracking_uri(previous_uri)
     version = str(info.registered_model_version)
     client = MlflowClient(tracking_uri=tracking_uri)
-    client.set_registered_model_alias(registered_name, ALIAS, version)
     client.update_model_version(registered_name, version, description=description(card))
     client.update_registered_model(registered_name, description=model_description(card))
     tags = {
@@ -177,5 +181,5 @@ def log_and_register(tracking_uri: str, run_id: str, registered_name: str, folde
     }
     for key, value in tags.items():
         client.set_model_version_tag(registered_name, version, key, value)
-    logger.info("registered %s version %s with alias @%s", registered_name, version, ALIAS)
+    logger.info("registered %s version %s", registered_name, version)
     return version

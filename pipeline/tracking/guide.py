@@ -41,10 +41,14 @@ SCHEMES = {
     "campaign": "the paper's per-campaign protocol: a model built on one training campaign, "
     "applied to every other campaign",
     "loso": "leave-one-season-out: built on all training campaigns of the other seasons, "
-    "applied to the left-out season (the selection protocol when the training campaigns span "
+    "applied to the left-out season (ranks the candidates when the training campaigns span "
     "two seasons or more)",
-    "loco": "leave-one-campaign-out: built on all other training campaigns, applied to the "
-    "left-out one (the selection protocol within one season)",
+    "loco": "leave-one-campaign-out: built on all other training campaigns but the left-out "
+    "one's neighbours in the same continuous record, applied to the left-out one (ranks within "
+    "one season of independent campaigns)",
+    "forward": "rolling origin: each training campaign predicted by a fit on the training "
+    "campaigns that ended before it started (ranks within one season when campaigns are cut "
+    "from one continuous record)",
     "pooled": "built on all training campaigns (the registered model's fit), applied to the "
     "validation campaigns",
 }
@@ -52,6 +56,8 @@ GROUPS = {
     "loso_<season>_rms_um": "mean RMS of the residual over one season's campaigns, predicted by "
     "the fit that left that season out (um); `loso_<season>_eta` its compensation ratio",
     "loco_<campaign>_rms_um": "the same for one left-out campaign",
+    "forward_<campaign>_rms_um": "the same for one campaign predicted by the fit on the "
+    "campaigns before it",
     "pooled_val_<season>_rms_um": "mean RMS over one season's validation campaigns, predicted by "
     "the fit on all training campaigns (um); `pooled_val_<season>_eta` its ratio",
 }

@@ -12,20 +12,23 @@ from __future__ import annotations
 
 import importlib.util
 import logging
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import pandas as pd
 import yaml
 
 from pipeline.paths import (
     AXIS_MODEL_METRICS,
     CHAMPION,
     CHAMPION_CARD_FILE,
+    CHAMPION_HELDOUT_FILE,
     CROSS_SEASON_METRICS,
     RAW,
     SELECTED,
+    SPINDLE_THERMAL_ERROR,
     TRACKING_RECORD,
 )
 from pipeline.tracking import guide, records, store, views
@@ -143,8 +146,9 @@ def log_pipeline_run(
     experiment: str,
     batch_size: int,
     n_metrics: int,
+    gate: GateInputs | None = None,
 ) -> dict[str, Any]:
-    """Log ``prepared`` to the store at ``uri`` unless it is there; return the run record.
+    """Log ``prepared`` to the store at ``uri`` unless it is there, gate; return the run record.
 
     Parameters
     ----------
@@ -160,11 +164,15 @@ def log_pipeline_run(
         Metrics per ``log_batch`` call (1 to 1000).
     n_metrics : int
         Metrics in the records, for the log line.
+    gate : GateInputs, optional
+        What the promotion gate scores on (:func:`gate_inputs`); None: the gate does not run
+        and no alias moves.
 
     Returns
     -------
     dict
-        ``reports/mlflow_run.json``: store, experiment, parent run, identity, champions, views.
+        ``reports/mlflow_run.json``: store, experiment, parent run, identity, champions, views,
+        and ``promotion``: the gate's decision per axis.
     """
     client = store.make_client(absolute_store_uri(uri))
     artifact_dir = str(settings.get("local_artifact_dir") or DEFAULT_ARTIFACT_DIR)
@@ -174,6 +182,7 @@ def log_pipeline_run(
     prefix = str(settings.get("registered_model") or DEFAULT_REGISTERED_MODEL)
     target = _Target(client, experiment_id, experiment, uri, prefix)
     parent_id, reused = _log_parent(target, prepared, batch_size, n_metrics)
+    decisions = [] if gate is None else _gate(target, parent_id, prepared, gate)
     store.describe_experiment(client, experiment_id, guide.experiment_description(experiment))
     ranked_by = {
         axis: str(card.get("chosen_on") or "") for axis, card in prepared.champions.items()
@@ -198,7 +207,50 @@ def log_pipeline_run(
         "synthetic": prepared.synthetic,
         "discrepancy_run_id": discrepancy if linked else None,
         "views": {key: views.view_path(experiment_id, key) for key in shared},
+        "promotion": [decision.to_dict() for decision in decisions],
     }
+
+
+@dataclass(frozen=True)
+class GateInputs:
+    """What the promotion gate scores on.
+
+    Attributes
+    ----------
+    table : DataFrame
+        ``data/separated/spindle_thermal_error.parquet``.
+    heldout : dict of str to DataFrame
+        Axis -> the challenger's held-out predictions (``heldout.parquet``).
+    margin : float
+        ``track.promotion.min_improvement``.
+    """
+
+    table: pd.DataFrame
+    heldout: dict[str, pd.DataFrame]
+    margin: float
+
+
+def gate_inputs(axes: Sequence[str], margin: float) -> GateInputs:
+    """Read the separated table and each axis' held-out predictions of its champion."""
+    table = pd.read_parquet(SPINDLE_THERMAL_ERROR)
+    heldout = {
+        axis: pd.read_parquet(CHAMPION / axis / CHAMPION_HELDOUT_FILE)
+        for axis in axes
+        if (CHAMPION / axis / CHAMPION_HELDOUT_FILE).is_file()
+    }
+    return GateInputs(table, heldout, margin)
+
+
+def _gate(target: _Target, parent_id: str, prepared: Prepared, gate: GateInputs) -> list:
+    """Run the promotion gate on the versions this execution registered (or reused)."""
+    from pipeline.tracking.promotion import run_gate
+
+    names = {axis: registered_name(target.prefix, axis) for axis in prepared.champions}
+    found = store.parent_versions(
+        target.client, target.experiment_id, parent_id, list(names.values())
+    )
+    challengers = {axis: found.get(name) for axis, name in names.items()}
+    return run_gate(target.client, names, challengers, gate.table, gate.heldout, gate.margin)
 
 
 @dataclass(frozen=True)
@@ -238,8 +290,6 @@ def _log_parent(
             target.experiment,
             store.public_uri(uri),
         )
-        names = [registered_name(target.prefix, axis) for axis in prepared.champions]
-        store.restore_champions(client, experiment_id, parent_id, names, "champion")
         return parent_id, True
     hook = champion_hook(absolute_store_uri(uri), target.prefix, prepared.champions)
     parent_id = store.log_pipeline(

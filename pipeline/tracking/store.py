@@ -368,24 +368,23 @@ def link_runs(client: MlflowClient, parent_id: str, other_id: str, name: str) ->
     return True
 
 
-def restore_champions(
-    client: MlflowClient, experiment_id: str, parent_id: str, names: Sequence[str], alias: str
-) -> None:
-    """Point each model's ``alias`` back at the version registered under ``parent_id``.
+def parent_versions(
+    client: MlflowClient, experiment_id: str, parent_id: str, names: Sequence[str]
+) -> dict[str, str]:
+    """Return the latest version of each model registered from a child run of ``parent_id``.
 
-    When a pipeline execution is reused (same identity), another execution may have moved the
-    alias since; the record then must not pair this execution's champion with its version.
-    Models with no version from this parent keep their alias.
+    Models with no version from this parent are left out.
     """
     children = client.search_runs(
         [experiment_id], filter_string=f"tags.{PARENT_RUN_TAG} = '{parent_id}'", max_results=5000
     )
     ids = {run.info.run_id for run in children}
+    found = {}
     for name in names:
         mine = [v for v in client.search_model_versions(f"name = '{name}'") if v.run_id in ids]
         if mine:
-            latest = max(mine, key=lambda v: int(v.version))
-            client.set_registered_model_alias(name, alias, str(latest.version))
+            found[name] = str(max(mine, key=lambda v: int(v.version)).version)
+    return found
 
 
 def champion_version(client: MlflowClient, registered_name: str, alias: str) -> str | None:

@@ -1,0 +1,1 @@
+"""Retraining as campaigns arrive: pull, reproduce, report the promotion gate; roll back."""

@@ -1,0 +1,38 @@
+"""``thermal rollback --axis X``: move an axis' ``@champion`` back to ``@previous``.
+
+The two aliases swap, so a second rollback undoes the first. The registered model is
+``<track.registered_model>-<axis>`` in the store of ``params.yaml`` ``tracking`` (or
+``$MLFLOW_TRACKING_URI``), as the ``track`` stage logs it.
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import sys
+
+from pipeline.config import DEFAULT_PARAMS, load_section
+from pipeline.errors import UserError
+
+LOGGER = logging.getLogger(__name__)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Roll back one axis; print what moved."""
+    parser = argparse.ArgumentParser(prog="thermal rollback", description=__doc__.splitlines()[0])
+    parser.add_argument("--axis", required=True, help="displacement axis, e.g. Z")
+    parser.add_argument("--params", default=str(DEFAULT_PARAMS), help="params file (params.yaml)")
+    args = parser.parse_args(argv)
+    from pipeline.tracking.location import absolute_store_uri, resolve_tracking_uri
+    from pipeline.tracking.promotion import rollback
+    from pipeline.tracking.store import make_client
+
+    prefix = str(load_section("track", args.params).get("registered_model"))
+    uri = resolve_tracking_uri(load_section("tracking", args.params))
+    name = f"{prefix}-{args.axis}"
+    try:
+        before, now = rollback(make_client(absolute_store_uri(uri)), name)
+    except LookupError as error:
+        raise UserError(str(error)) from None
+    sys.stdout.write(f"{name}: @champion v{before} -> v{now} (@previous is now v{before})\n")
+    return 0
