@@ -79,7 +79,7 @@ def test_actionlint_rejects_a_broken_workflow(tmp_path):
     assert "runs-on" in output
 
 
-def test_retrain_runs_weekly_and_on_demand_and_reproduces_the_pipeline():
+def test_retrain_runs_weekly_and_on_demand_and_runs_thermal_retrain():
     workflow = load(RETRAIN)
     on = triggers(workflow)
     assert "workflow_dispatch" in on
@@ -88,7 +88,16 @@ def test_retrain_runs_weekly_and_on_demand_and_reproduces_the_pipeline():
     assert (day, month) == ("*", "*") and weekday not in {"*", "?"}  # once a week
     runs = "\n".join(step.get("run", "") for step in steps(workflow))
     assert "make install" in runs
-    assert ".venv/bin/dvc repro" in runs
+    assert ".venv/bin/thermal retrain --report reports/retrain.md" in runs
+    env = workflow["jobs"]["retrain"]["env"]
+    for secret in ("MLFLOW_TRACKING_URI", "DVC_REMOTE_URL", "AWS_SECRET_ACCESS_KEY"):
+        assert env[secret] == "${{ secrets." + secret + " }}"
+    (proposal,) = [
+        s for s in steps(workflow) if s.get("uses", "").startswith("peter-evans/create-pull")
+    ]
+    assert proposal["with"]["add-paths"] == "dvc.lock"
+    assert proposal["with"]["body-path"] == "reports/retrain.md"
+    assert workflow["permissions"] == {"contents": "write", "pull-requests": "write"}
     uploads = [
         s for s in steps(workflow) if s.get("uses", "").startswith("actions/upload-artifact@")
     ]

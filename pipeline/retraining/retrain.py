@@ -3,7 +3,8 @@
 The one command a scheduled job runs, and a person can run:
 
 1. **pull**: when the repository has a DVC remote and DVC-tracked data (``*.dvc`` files, e.g.
-   ``data/raw.dvc`` after ``dvc add data/raw``), ``dvc pull`` brings the campaigns pushed since
+   ``data/raw.dvc`` after ``dvc add data/raw``), ``dvc pull <those files>`` brings the campaigns
+   pushed since
    (``--no-pull`` skips it; without a remote there is nothing to pull and the campaigns in
    ``data/raw`` are used as they are);
 2. **reproduce**: ``dvc repro``; its ``track`` stage registers each axis' new champion (the
@@ -78,14 +79,17 @@ def pull(dvc: str) -> str:
             f"DVC remote {configured[0]} configured but no data is DVC-tracked (dvc add "
             "data/raw): nothing to pull"
         )
-    LOGGER.info("dvc pull (%s)", ", ".join(p.as_posix() for p in tracked))
-    done = subprocess.run([dvc, "pull"], check=False)
+    names = [p.as_posix() for p in tracked]
+    LOGGER.info("dvc pull %s", " ".join(names))
+    # Only the added data: the stage outputs of dvc.lock are rebuilt by dvc repro, and a
+    # remote that never received them would fail a plain `dvc pull`.
+    done = subprocess.run([dvc, "pull", *names], check=False)
     if done.returncode != 0:
         raise UserError(
             f"dvc pull failed (exit {done.returncode}): check the remote's address and "
             "credentials (dvc remote list; AWS_ACCESS_KEY_ID/AWS_SECRET_ACCESS_KEY for S3)"
         )
-    return f"pulled {', '.join(p.as_posix() for p in tracked)} from the DVC remote"
+    return f"pulled {', '.join(names)} from the DVC remote {configured[0]}"
 
 
 def reproduce(dvc: str) -> None:
