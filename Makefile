@@ -6,7 +6,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: install run test test-fast bench trials trials-quick demo-check ui-check lint simulate clean
+.PHONY: install run test test-fast bench trials trials-quick demo-check day-two-check ui-check lint simulate clean
 
 install: $(STAMP)
 
@@ -41,6 +41,10 @@ trials-quick: install
 
 demo-check: install
 	$(BIN)/python -m benchmarks.discrepancy_demo_check --out reports/discrepancy_demo_check
+
+# Trained on day 1, how good on day 2: the ranking score against later campaigns (workshop twin).
+day-two-check: install
+	PATH="$(CURDIR)/$(BIN):$$PATH" $(BIN)/python -m benchmarks.day_two_check --out reports/day_two_check
 
 # The MLflow UI in headless Chromium after `make run`: screenshots and checks in reports/ui/.
 ui-check: install

@@ -137,7 +137,7 @@ def weeks(tmp_path_factory):
     with running_s3_server(tmp, BUCKET) as endpoint, running_mlflow_server(tmp) as uri:
         env = {**base, "MLFLOW_TRACKING_URI": uri, "GITHUB_STEP_SUMMARY": str(summary)}
         write_week(1, lab / "data" / "raw", tmp, base)
-        run(["git add -A", "git commit -q -m 'week 1 and the shop params'"], lab, base)
+        run(["git add data/raw params.yaml", "git commit -q -m 'week 1, shop params'"], lab, base)
         run(readme_block("data under DVC"), lab, base, endpoint)
         run([f"git clone -q {lab} {tmp / 'ci'}"], tmp, base)
         ci = tmp / "ci"

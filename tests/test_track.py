@@ -1187,3 +1187,11 @@ def test_incomplete_attempts_of_the_same_execution_are_deleted_live_and_others_k
     assert version.version not in {v.version for v in client.search_model_versions("name = 'm'")}
     # a RUNNING parent counts as abandoned once it is older than stale_after_s
     assert store.discard_incomplete(client, experiment_id, "same", stale_after_s=0.0) == [running]
+
+
+def test_a_score_column_of_whole_numbers_is_read_as_floats(workdir, client, outputs):
+    # `none` as the only candidate leaves eta = 0 in every row, written as "0"
+    write_scores(workdir, outputs.scores.assign(eta=0.0), outputs.cards)
+    assert "eta" in (workdir / "reports" / "cross_season_scores.csv").read_text()
+    assert track.main([]) == 0
+    assert record(workdir)["child_runs"] == len(CHILDREN)

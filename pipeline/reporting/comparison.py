@@ -127,8 +127,9 @@ def _decision_text(axis: str, decision: Decision, card: Mapping) -> str:
             f"Champion: **{decision.label}** on {', '.join(card['inputs']) or 'no input'}. "
             f"{decision.reason[0].upper()}{decision.reason[1:]}. Fitted on all training "
             f"campaigns and registered in MLflow by the `track` stage as "
-            f"`<track.registered_model>-{axis}` (by default `thermal-error-spindle-{axis}`), "
-            "alias `champion`."
+            f"a new version of `<track.registered_model>-{axis}` (by default "
+            f"`thermal-error-spindle-{axis}`); it takes the alias `champion` when the promotion "
+            "gate finds it better than the current one (`reports/promotion/promotion.md`)."
         )
     return (
         f"**Do not compensate axis {axis} with these inputs.** {decision.reason[0].upper()}"

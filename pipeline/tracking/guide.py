@@ -138,7 +138,9 @@ def experiment_description(experiment: str) -> str:
         "The parent run holds each axis' champion as `<axis>.champion.<score name>` (and "
         "`<axis>.champion.none.<score name>`: no compensation on the same samples), the whole "
         "params.yaml and the report files. The champion is registered from its child run as "
-        "`thermal-error-spindle-<axis>`, alias `champion`.",
+        "a new version of `thermal-error-spindle-<axis>`; the promotion gate gives it the alias "
+        "`champion` when it proves better than the current one (version tags `gate`, "
+        "`gate_reason`).",
     ]
     return "\n".join(lines)
 

@@ -137,6 +137,11 @@ def read_scores(path: Path) -> list[dict[str, Any]]:
     )
     if table.empty:
         return []
+    # A column of whole numbers (e.g. eta = 0 of every row when `none` is the only candidate)
+    # is read as integers: the scores are floats.
+    for column in [*records.SCORE_COLUMNS, "uncompensated_rms_um"]:
+        if column in table and pd.api.types.is_integer_dtype(table[column]):
+            table[column] = table[column].astype(float)
     try:
         table = CrossSeasonScoresModel.validate(table, lazy=True)
     except pa.errors.SchemaErrors as errors:
