@@ -20,6 +20,7 @@ from typing import Any
 import pandas as pd
 import yaml
 
+from pipeline.errors import MissingInputError
 from pipeline.paths import (
     AXIS_MODEL_METRICS,
     CHAMPION,
@@ -230,8 +231,23 @@ class GateInputs:
     margin: float
 
 
-def gate_inputs(axes: Sequence[str], margin: float) -> GateInputs:
-    """Read the separated table and each axis' held-out predictions of its champion."""
+def gate_inputs(axes: Sequence[str], margin: float) -> GateInputs | None:
+    """Read the separated table and each axis' held-out predictions of its champion.
+
+    None when no axis has a champion (nothing to gate).
+
+    Raises
+    ------
+    MissingInputError
+        If the separated table is missing.
+    """
+    if not axes:
+        return None
+    if not SPINDLE_THERMAL_ERROR.is_file():
+        raise MissingInputError(
+            f"{SPINDLE_THERMAL_ERROR} not found: the promotion gate scores the champions on it; "
+            "run `dvc repro separate_spindle` first"
+        )
     table = pd.read_parquet(SPINDLE_THERMAL_ERROR)
     heldout = {
         axis: pd.read_parquet(CHAMPION / axis / CHAMPION_HELDOUT_FILE)

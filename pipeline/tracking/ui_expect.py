@@ -40,7 +40,13 @@ HEAT_MAP = records.HEATMAP
 SCORES_TABLE = records.SCORES_TABLE
 EVIDENCE = (HEAT_MAP, SCORES_TABLE)
 # For the pages only, when the parent has no ranked_by.<axis> tag; the check still fails.
-FALLBACK_METRICS = ("loso_Mn_rms_um", "loco_Mn_rms_um", "loso.Mn_rms_um", "loco.Mn_rms_um")
+FALLBACK_METRICS = (
+    "loso_Mn_rms_um",
+    "forward_Mn_rms_um",
+    "loco_Mn_rms_um",
+    "loso.Mn_rms_um",
+    "loco.Mn_rms_um",
+)
 
 
 @dataclass(frozen=True)
