@@ -107,3 +107,27 @@ def test_summary_links_the_run_list_not_the_genai_overview(tmp_path, capsys):
     assert main(["summary", "--root", str(tmp_path)]) == 0
     out = capsys.readouterr().out
     assert "http://127.0.0.1:5000/#/experiments/7?workflowType=machine_learning" in out
+
+
+def test_summary_says_what_the_promotion_gate_decided(tmp_path, capsys):
+    record = {
+        "tracking_uri": "sqlite:///mlflow.db",
+        "experiment": "thermal-error",
+        "experiment_id": "7",
+        "parent_run_id": "abc",
+        "champions": {},
+        "promotion": [
+            {
+                "axis": "Z",
+                "action": "keep",
+                "challenger_version": "3",
+                "reason": "Kept, not better by the margin: 1.20 um against 1.00 um",
+            }
+        ],
+    }
+    (tmp_path / "reports").mkdir()
+    (tmp_path / "reports" / "mlflow_run.json").write_text(json.dumps(record))
+    assert main(["summary", "--root", str(tmp_path)]) == 0
+    out = capsys.readouterr().out
+    assert "gate Z           keep v3: kept, not better by the margin: 1.20 um" in out
+    assert "reports/promotion/promotion.md" in out

@@ -103,6 +103,7 @@ def summary_lines(root: Path) -> list[str]:
         for axis, champion in (tracking.get("champions") or {}).items():
             if champion.get("uri"):
                 lines.append(f'  model {axis:<10} mlflow.pyfunc.load_model("{champion["uri"]}")')
+        lines += gate_lines(tracking.get("promotion") or [])
     if uri.startswith("sqlite:"):
         lines += [
             "",
@@ -111,6 +112,19 @@ def summary_lines(root: Path) -> list[str]:
         ]
     else:
         lines += ["", f"Open the MLflow UI of your tracking server: {uri.rstrip('/')}{runs_page}"]
+    return lines
+
+
+def gate_lines(decisions: list[dict]) -> list[str]:
+    """One line per axis on the promotion gate's decision (``reports/promotion/promotion.md``)."""
+    lines = []
+    for decision in decisions:
+        reason = decision["reason"]
+        lines.append(
+            f"  gate {decision['axis']:<11} {decision['action']} "
+            f"v{decision.get('challenger_version') or '-'}: {reason[0].lower()}{reason[1:]} "
+            f"({paths.PROMOTION_REPORT})"
+        )
     return lines
 
 
