@@ -31,6 +31,7 @@ from pipeline.protocol.promotion import (
     compare_campaigns,
     decide_promotion,
 )
+from pipeline.separation.features import is_speed_feature
 
 logger = logging.getLogger(__name__)
 
@@ -71,7 +72,8 @@ def registered_predictions(model_uri: str, table: pd.DataFrame, inputs: Sequence
     table : DataFrame
         One axis' rows of ``data/separated/spindle_thermal_error.parquet``.
     inputs : sequence of str
-        The model's input sensors (degC columns of the table).
+        The model's inputs (its version's ``inputs`` tag): the sensors are passed in degC, the
+        speed responses are computed by the model from ``rpm``.
 
     Returns
     -------
@@ -82,6 +84,7 @@ def registered_predictions(model_uri: str, table: pd.DataFrame, inputs: Sequence
     import mlflow.pyfunc
 
     model = mlflow.pyfunc.load_model(model_uri)
+    sensors = [name for name in inputs if not is_speed_feature(name)]  # speed: from rpm
     frames = []
     for run_id, rows in table.groupby("run_id", sort=False):
         rows = rows.sort_values("run_elapsed_s")
@@ -90,10 +93,10 @@ def registered_predictions(model_uri: str, table: pd.DataFrame, inputs: Sequence
                 "campaign_id": str(run_id),
                 "elapsed_s": rows["run_elapsed_s"].to_numpy(dtype=float),
                 "rpm": rows["rpm"].to_numpy(dtype=float),
-                **{s: rows[s].to_numpy(dtype=float) for s in inputs if s in rows},
+                **{s: rows[s].to_numpy(dtype=float) for s in sensors if s in rows},
             }
         )
-        missing = [s for s in inputs if s not in rows]
+        missing = [s for s in sensors if s not in rows]
         for sensor in missing:
             machine_log[sensor] = np.nan
         predicted = np.asarray(model.predict(machine_log), dtype=float)
