@@ -309,7 +309,7 @@ def buffer_of(
     near = set()
     for item in held_out:
         members = runs[item.run_id or item.campaign_id]
-        place = members.index(item)
+        place = [m.campaign_id for m in members].index(item.campaign_id)
         low, high = max(place - buffer, 0), place + buffer + 1
         near |= {m.campaign_id for m in members[low:high]}
     return near - {item.campaign_id for item in held_out}
