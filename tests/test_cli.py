@@ -94,14 +94,20 @@ def test_an_internal_error_keeps_its_traceback(monkeypatch):
         main(["summary"])
 
 
-def test_summary_links_the_run_list_not_the_genai_overview(tmp_path, capsys):
-    record = {
+def _tracking_record(**extra) -> dict:
+    """A ``reports/mlflow_run.json`` of a local store."""
+    return {
         "tracking_uri": "sqlite:///mlflow.db",
         "experiment": "thermal-error",
         "experiment_id": "7",
         "parent_run_id": "abc",
         "champions": {},
+        **extra,
     }
+
+
+def test_summary_links_the_run_list_not_the_genai_overview(tmp_path, capsys):
+    record = _tracking_record()
     (tmp_path / "reports").mkdir()
     (tmp_path / "reports" / "mlflow_run.json").write_text(json.dumps(record))
     assert main(["summary", "--root", str(tmp_path)]) == 0
@@ -110,21 +116,13 @@ def test_summary_links_the_run_list_not_the_genai_overview(tmp_path, capsys):
 
 
 def test_summary_says_what_the_promotion_gate_decided(tmp_path, capsys):
-    record = {
-        "tracking_uri": "sqlite:///mlflow.db",
-        "experiment": "thermal-error",
-        "experiment_id": "7",
-        "parent_run_id": "abc",
-        "champions": {},
-        "promotion": [
-            {
-                "axis": "Z",
-                "action": "keep",
-                "challenger_version": "3",
-                "reason": "Kept, not better by the margin: 1.20 um against 1.00 um",
-            }
-        ],
+    decision = {
+        "axis": "Z",
+        "action": "keep",
+        "challenger_version": "3",
+        "reason": "Kept, not better by the margin: 1.20 um against 1.00 um",
     }
+    record = _tracking_record(promotion=[decision])
     (tmp_path / "reports").mkdir()
     (tmp_path / "reports" / "mlflow_run.json").write_text(json.dumps(record))
     assert main(["summary", "--root", str(tmp_path)]) == 0
