@@ -9,14 +9,12 @@ Usage (in a test marked ``@pytest.mark.slow``)::
         ...
 
 The server is moto's standalone server (``moto[server]``), a separate process speaking the S3
-HTTP API; it keeps its objects in memory. Its output goes to ``<tmp_path>/s3-server/s3.log``.
+HTTP API; it keeps its objects in memory. Its output goes to ``<tmp_path>/s3-server/s3.log``;
+its process group is stopped as the MLflow server's is (:func:`stop_group`).
 """
 
 from __future__ import annotations
 
-import os
-import signal
-import socket
 import subprocess
 import sys
 import time
@@ -28,18 +26,14 @@ from pathlib import Path
 
 import boto3
 
+from pipeline.tracking.ui_browser import free_port, stop_group
+
 S3_CREDENTIALS = {
     "AWS_ACCESS_KEY_ID": "testing",
     "AWS_SECRET_ACCESS_KEY": "testing",
     "AWS_DEFAULT_REGION": "us-east-1",
 }
 """What a client sends the local server (moto accepts any key)."""
-
-
-def _free_port() -> int:
-    with socket.socket() as probe:
-        probe.bind(("127.0.0.1", 0))
-        return int(probe.getsockname()[1])
 
 
 @contextmanager
@@ -53,7 +47,7 @@ def running_s3_server(tmp_path: Path, bucket: str, timeout_s: float = 60.0) -> I
     """
     folder = Path(tmp_path) / "s3-server"
     folder.mkdir(parents=True, exist_ok=True)
-    port = _free_port()
+    port = free_port()
     endpoint = f"http://127.0.0.1:{port}"
     log = folder / "s3.log"
     command = [str(Path(sys.executable).parent / "moto_server"), "-H", "127.0.0.1", "-p", str(port)]
@@ -78,13 +72,7 @@ def running_s3_server(tmp_path: Path, bucket: str, timeout_s: float = 60.0) -> I
         client.create_bucket(Bucket=bucket)
         yield endpoint
     finally:
-        if process.poll() is None:
-            os.killpg(process.pid, signal.SIGTERM)
-            try:
-                process.wait(timeout=10)
-            except subprocess.TimeoutExpired:
-                os.killpg(process.pid, signal.SIGKILL)
-                process.wait()
+        stop_group(process)
 
 
 def _wait(endpoint: str, process: subprocess.Popen, log: Path, timeout_s: float) -> None:

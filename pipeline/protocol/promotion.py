@@ -97,12 +97,7 @@ class GateDecision:
 
     def means(self) -> dict[str, float]:
         """Mean RMS over the compared campaigns (um): ``current``, ``challenger``, ``none``."""
-        if not self.campaigns:
-            return {"current": math.nan, "challenger": math.nan, "none": math.nan}
-        return {
-            key: float(np.mean([getattr(c, f"{key}_rms_um") for c in self.campaigns]))
-            for key in ("current", "challenger", "none")
-        }
+        return mean_rms(self.campaigns)
 
     @classmethod
     def from_dict(cls, record: dict) -> GateDecision:
@@ -123,6 +118,16 @@ class GateDecision:
             for c in self.campaigns
         ]
         return record
+
+
+def mean_rms(comparisons: list[CampaignComparison]) -> dict[str, float]:
+    """Mean RMS over campaigns (um): ``current``, ``challenger``, ``none``; NaN without any."""
+    return {
+        key: float(np.mean([getattr(c, f"{key}_rms_um") for c in comparisons]))
+        if comparisons
+        else math.nan
+        for key in ("current", "challenger", "none")
+    }
 
 
 def _finite(value: float) -> float | None:
@@ -244,7 +249,7 @@ def decide_promotion(
             "for both: nothing shows the challenger is better"
         )
         return GateDecision(action=KEEP, reason=reason, **base)
-    means = GateDecision(action=KEEP, reason="", **base).means()
+    means = mean_rms(comparisons)
     now, new, none = means["current"], means["challenger"], means["none"]
     gain = 1.0 - new / now if now > 0 else 0.0
     figures = (

@@ -163,7 +163,7 @@ def _protocol_text(
     )
     reason = card.get("ranking_reason")
     text += f", because {reason}." if reason else "."
-    others = [s for s in card.get("other_protocols") or [] if s in PROTOCOL_NAMES]
+    others = list(card.get("other_protocols") or [])
     if others:
         text += " Beside it: " + "; ".join(
             f"{PROTOCOL_NAMES[s]} (`{s}_Mn_rms_um`: {SCHEME_TEXT[s]})" for s in others
