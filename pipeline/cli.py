@@ -29,7 +29,15 @@ COMMANDS = {
         "fit models, score every campaign against every other",
     ),
     "discrepancy": ("pipeline.stages.discrepancy", "twin vs measurements: which effect is missing"),
+    "compensation": (
+        "pipeline.stages.compensation",
+        "each axis' runtime bundle, controller exports, replay proof, sensor budget",
+    ),
     "track": ("pipeline.stages.track", "log the scores to MLflow"),
+    "compensate": (
+        "pipeline.compensation.cli",
+        "run the compensation: live inputs from a file or OPC UA -> per-axis offsets",
+    ),
     "retrain": (
         "pipeline.retraining.retrain",
         "pull new campaigns, dvc repro, report the promotion gate",

@@ -43,6 +43,8 @@ ALLOWED = {
     "reporting": {"protocol", "separation"},
     "tracking": {"protocol", "separation", "discrepancy"},
     "retraining": {"tracking"},
+    # the runtime loads the registry's champion through tracking (download_bundle)
+    "compensation": {"protocol", "separation", "selection", "models", "tracking"},
     "stages": {
         "io",
         "validation",
@@ -53,6 +55,7 @@ ALLOWED = {
         "discrepancy",
         "reporting",
         "tracking",
+        "compensation",
     },
     "cli": set(),
     "__main__": {"cli"},

@@ -209,10 +209,10 @@ def find_result(item: AxisEvaluation, model: str, selection: str, unit: str) -> 
     )
 
 
-def held_out_prediction(
+def held_out_result(
     item: AxisEvaluation, row: pd.Series, campaign: CampaignSeries
-) -> np.ndarray | None:
-    """Return a candidate's prediction of ``campaign`` (um) by a fit that did not see it.
+) -> UnitResult | None:
+    """Return the candidate's fit that predicted ``campaign`` without seeing it.
 
     Validation campaigns: the fit on all training campaigns; training campaigns: the fit of the
     ranking scheme's unit that left the campaign out and was scored on it (the forecast of the
@@ -229,8 +229,47 @@ def held_out_prediction(
             and held_out
             and unit.scores(campaign.campaign_id)
         ):
-            return result.predictions.get((row["mode"], campaign.campaign_id))
+            return result
     return None
+
+
+def held_out_prediction(
+    item: AxisEvaluation, row: pd.Series, campaign: CampaignSeries
+) -> np.ndarray | None:
+    """Return a candidate's prediction of ``campaign`` (um) by a fit that did not see it.
+
+    The fit is :func:`held_out_result`'s; None without one.
+    """
+    result = held_out_result(item, row, campaign)
+    return None if result is None else result.predictions.get((row["mode"], campaign.campaign_id))
+
+
+def held_out_fits(item: AxisEvaluation, row: pd.Series) -> dict[str, dict]:
+    """Return the candidate's fits that predicted campaigns they did not see, by unit.
+
+    Returns
+    -------
+    dict
+        Unit name -> ``{"estimator", "inputs", "trained_on", "campaigns"}`` (the campaigns it
+        predicted held out, :func:`held_out_result`): what the replay proof runs each campaign
+        with.
+    """
+    fits: dict[str, dict] = {}
+    for campaign in item.series:
+        result = held_out_result(item, row, campaign)
+        if result is None:
+            continue
+        entry = fits.setdefault(
+            result.unit.name,
+            {
+                "estimator": result.estimator,
+                "inputs": list(result.sensors),
+                "trained_on": sorted(result.unit.campaigns),
+                "campaigns": [],
+            },
+        )
+        entry["campaigns"].append(campaign.campaign_id)
+    return fits
 
 
 def best_plain_baseline(summary: pd.DataFrame, column: str | None) -> pd.Series | None:
@@ -340,12 +379,15 @@ class Champion:
     heldout : DataFrame
         Its prediction of every campaign by a fit that did not see it
         (:func:`heldout_table`).
+    heldout_fits : dict
+        Those fits, by unit (:func:`held_out_fits`).
     """
 
     card: dict
     result: UnitResult
     example: pd.DataFrame
     heldout: pd.DataFrame
+    heldout_fits: dict = field(default_factory=dict)
 
 
 def champion_of(
@@ -375,7 +417,7 @@ def champion_of(
     card["other_protocols"] = list(item.ranking.others)
     rows = table[table["axis"] == item.axis]
     example = input_example(rows, spec, training[0].campaign_id)
-    return Champion(card, result, example, heldout_table(item, best))
+    return Champion(card, result, example, heldout_table(item, best), held_out_fits(item, best))
 
 
 HELDOUT_COLUMNS = ["campaign_id", "elapsed_s", "measured_um", "predicted_um"]

@@ -58,7 +58,7 @@ LOGGER = logging.getLogger(__name__)
 
 
 def write_champions(champions: dict[str, Champion]) -> None:
-    """Save each axis' champion: estimator, card, input example, held-out predictions.
+    """Save each axis' champion: estimator, card, input example, held-out predictions and fits.
 
     Folders of axes that no longer have a champion are removed.
     """
@@ -75,6 +75,7 @@ def write_champions(champions: dict[str, Champion]) -> None:
         (folder / paths.CHAMPION_CARD_FILE).write_text(card_text)
         champion.example.to_csv(folder / paths.CHAMPION_EXAMPLE_FILE, index=False)
         champion.heldout.to_parquet(folder / paths.CHAMPION_HELDOUT_FILE, index=False)
+        joblib.dump(champion.heldout_fits, folder / paths.HELDOUT_FITS_FILE)
 
 
 def write_tables(

@@ -32,12 +32,17 @@ from mlflow.tracking import MlflowClient
 from mlflow.types.schema import ColSpec, Schema
 
 from pipeline import paths
+from pipeline.errors import MissingInputError
 from pipeline.protocol.serving import predict_table
 from pipeline.separation.features import InputSpec
 
 logger = logging.getLogger(__name__)
 
 MODEL_NAME = "model"
+BUNDLE_ARTIFACTS = "compensation/bundle"
+"""Artifacts of the champion's run: the compensation runtime's bundle of the axis."""
+REPORT_ARTIFACTS = "compensation/report"
+"""Artifacts of the champion's run: controller exports, the replay proof and its figures."""
 TRACKING_URI_ENV = "MLFLOW_TRACKING_URI"
 REQUIREMENTS = (
     "numpy==2.4.6",
@@ -159,6 +164,7 @@ def log_and_register(tracking_uri: str, run_id: str, registered_name: str, folde
             input_example=example,
             registered_model_name=registered_name,
         )
+        log_compensation(card["axis"])
     finally:
         mlflow.end_run(status="RUNNING")
         # set_tracking_uri also sets the environment variable: restore the caller's.
@@ -183,3 +189,66 @@ def log_and_register(tracking_uri: str, run_id: str, registered_name: str, folde
         client.set_model_version_tag(registered_name, version, key, value)
     logger.info("registered %s version %s", registered_name, version)
     return version
+
+
+def log_compensation(axis: str) -> None:
+    """Log the axis' compensation bundle, exports and replay proof to the active run.
+
+    The bundle (``data/models/compensation/<axis>/``) goes to ``compensation/bundle`` (what
+    ``thermal compensate --registry`` loads), the reports (``reports/compensation/<axis>/``) to
+    ``compensation/report``, and the replay's means as metrics ``replay.<name>`` (um; ``ratio``
+    is the replayed over the offline held-out RMS). Nothing is logged for a part not written.
+    """
+    bundle = paths.COMPENSATION_BUNDLES / axis
+    if bundle.is_dir():
+        mlflow.log_artifacts(str(bundle), BUNDLE_ARTIFACTS)
+    report = paths.COMPENSATION_REPORTS / axis
+    if report.is_dir():
+        mlflow.log_artifacts(str(report), REPORT_ARTIFACTS)
+    if paths.COMPENSATION_SUMMARY.is_file():
+        document = json.loads(paths.COMPENSATION_SUMMARY.read_text(encoding="utf-8"))
+        proof = (document.get("axes", {}).get(axis) or {}).get("proof") or {}
+        metrics = {
+            f"replay.{name}": float(value)
+            for name, value in proof.items()
+            if isinstance(value, int | float) and value == value
+        }
+        if metrics:
+            mlflow.log_metrics(metrics)
+
+
+def download_bundle(tracking_uri: str, registered_name: str, alias: str, dest: Path) -> Path:
+    """Download the compensation bundle of the version ``registered_name@alias``.
+
+    Returns
+    -------
+    Path
+        The local folder of the bundle (``bundle.json`` and the estimators).
+
+    Raises
+    ------
+    MissingInputError
+        When the registry has no such alias, or its run logged no bundle.
+    """
+    client = MlflowClient(tracking_uri=tracking_uri)
+    try:
+        version = client.get_model_version_by_alias(registered_name, alias)
+    except mlflow.exceptions.MlflowException as error:
+        raise MissingInputError(
+            f"{tracking_uri}: no version of {registered_name} with alias '{alias}' ({error}); "
+            "run `dvc repro` (track registers it) or check MLFLOW_TRACKING_URI"
+        ) from None
+    try:
+        folder = mlflow.artifacts.download_artifacts(
+            run_id=version.run_id,
+            artifact_path=BUNDLE_ARTIFACTS,
+            dst_path=str(dest),
+            tracking_uri=tracking_uri,
+        )
+    except (OSError, mlflow.exceptions.MlflowException) as error:
+        raise MissingInputError(
+            f"{registered_name} version {version.version} (run {version.run_id}) has no "
+            f"{BUNDLE_ARTIFACTS} artifacts ({error}); it was registered before the compensation "
+            "stage existed: rerun `dvc repro`, or give --bundle DIR"
+        ) from None
+    return Path(folder)

@@ -1,0 +1,175 @@
+"""``thermal compensate``: run the compensation between a source of readings and a sink.
+
+Examples::
+
+    # a logger's CSV file as it grows -> offsets logged to a CSV file
+    thermal compensate --source csv:logger/today.csv --sink csv:offsets.csv
+    # a controller's OPC UA server, both ways, models of the MLflow registry's @champion
+    thermal compensate --source opc.tcp://10.0.0.5:4840 --sink opc.tcp://10.0.0.5:4840 \
+        --registry --nodes nodes.yaml
+
+Models: each axis' bundle under ``data/models/compensation/<axis>/`` (written by ``dvc
+repro``), ``--bundle DIR`` for bundles copied elsewhere, or ``--registry``: the version of
+``<registered model>-<axis>`` under the alias ``champion`` (its run's ``compensation/bundle``
+artifacts), from ``$MLFLOW_TRACKING_URI`` or ``params.yaml`` ``tracking``. Limits and fallback
+timing: ``params.yaml`` ``compensation`` (``--params``), else the defaults
+(:class:`pipeline.compensation.settings.CompensationSettings`). Every event goes to ``--log``
+(JSON lines).
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import signal
+import sys
+import tempfile
+from pathlib import Path
+
+from pipeline import paths
+from pipeline.compensation.bundle import AxisBundle, bundle_axes, read_bundle
+from pipeline.compensation.files import CsvTailSource, FileSink
+from pipeline.compensation.opcua import NodeMap, OpcUaSink, OpcUaSource
+from pipeline.compensation.runtime import CompensationRuntime, EventLog
+from pipeline.compensation.settings import CompensationSettings
+from pipeline.config import load_section
+from pipeline.errors import MissingInputError, ParamsError
+from pipeline.tracking.champion_model import download_bundle
+from pipeline.tracking.location import resolve_tracking_uri
+
+LOGGER = logging.getLogger(__name__)
+OPCUA_SCHEME = "opc.tcp://"
+DEFAULT_LOG = paths.COMPENSATION_EVENTS
+
+
+def _parse_args(argv: list[str] | None) -> argparse.Namespace:
+    parser = argparse.ArgumentParser(
+        prog="thermal compensate",
+        description="Read the machine's inputs, write each axis' bounded thermal offset.",
+    )
+    parser.add_argument(
+        "--source", required=True, help="csv:<file a logger appends to> or opc.tcp://host:port"
+    )
+    parser.add_argument(
+        "--sink", required=True, help="csv:<file>, jsonl:<file> or opc.tcp://host:port"
+    )
+    models = parser.add_mutually_exclusive_group()
+    models.add_argument("--bundle", action="append", type=Path, help="a bundle folder (repeat)")
+    models.add_argument("--registry", action="store_true", help="the registry's @champion")
+    parser.add_argument("--axis", action="append", help="only these axes (repeat)")
+    parser.add_argument("--alias", default="champion", help="registry alias (champion)")
+    parser.add_argument("--nodes", type=Path, help="OPC UA node map (YAML)")
+    parser.add_argument("--params", type=Path, default=Path("params.yaml"))
+    parser.add_argument("--log", type=Path, default=DEFAULT_LOG, help="event log (JSON lines)")
+    parser.add_argument(
+        "--no-follow", action="store_true", help="csv source: stop at the end of the file"
+    )
+    parser.add_argument("--max-cycles", type=int, help="stop after this many cycles")
+    return parser.parse_args(argv)
+
+
+def load_settings(params: Path) -> CompensationSettings:
+    """Return the ``compensation`` section of ``params`` if the file has one, else the defaults."""
+    if not params.is_file():
+        return CompensationSettings()
+    try:
+        section = load_section("compensation", params)
+    except ParamsError:
+        return CompensationSettings()
+    return CompensationSettings.from_params(section)
+
+
+def load_bundles(args: argparse.Namespace, workdir: Path) -> list[AxisBundle]:
+    """Return the bundles asked for (``--bundle``, ``--registry`` or the pipeline's), per axis."""
+    if args.bundle:
+        bundles = [read_bundle(folder) for folder in args.bundle]
+    elif args.registry:
+        tracking = load_section("tracking", args.params) if args.params.is_file() else {}
+        track = load_section("track", args.params) if args.params.is_file() else {}
+        prefix = str(track.get("registered_model", "thermal-error-spindle"))
+        axes = args.axis or bundle_axes(paths.COMPENSATION_BUNDLES) or ["Z"]
+        uri = resolve_tracking_uri(tracking)
+        bundles = [
+            read_bundle(download_bundle(uri, f"{prefix}-{axis}", args.alias, workdir / axis))
+            for axis in axes
+        ]
+    else:
+        axes = bundle_axes(paths.COMPENSATION_BUNDLES)
+        if not axes:
+            raise MissingInputError(
+                f"no bundle under {paths.COMPENSATION_BUNDLES}; run `dvc repro` first, or "
+                "give --bundle DIR or --registry"
+            )
+        bundles = [read_bundle(paths.COMPENSATION_BUNDLES / axis) for axis in axes]
+    if args.axis:
+        bundles = [b for b in bundles if b.axis in args.axis]
+    if not bundles:
+        raise MissingInputError(f"no bundle for axis {args.axis}")
+    return bundles
+
+
+def open_source(text: str, nodes: NodeMap | None, follow: bool):
+    """Open the source named by ``--source``."""
+    if text.startswith(OPCUA_SCHEME):
+        return OpcUaSource(text, nodes)
+    if text.startswith("csv:"):
+        return CsvTailSource(Path(text[4:]), follow=follow)
+    raise ParamsError(f"--source {text!r}: use csv:<file> or opc.tcp://host:port")
+
+
+def open_sink(text: str, nodes: NodeMap | None):
+    """Open the sink named by ``--sink``."""
+    if text.startswith(OPCUA_SCHEME):
+        return OpcUaSink(text, nodes)
+    for prefix in ("csv:", "jsonl:"):
+        if text.startswith(prefix):
+            return FileSink(Path(text[len(prefix) :]))
+    raise ParamsError(f"--sink {text!r}: use csv:<file>, jsonl:<file> or opc.tcp://host:port")
+
+
+def node_map(args: argparse.Namespace, bundles: list[AxisBundle]) -> NodeMap:
+    """Return the OPC UA node map: ``--nodes`` over the defaults."""
+    sensors = list(dict.fromkeys(s for b in bundles for s in b.sensors))
+    axes = [b.axis for b in bundles]
+    speed = any(b.needs_speed for b in bundles)
+    if args.nodes:
+        return NodeMap.from_file(args.nodes, sensors, axes, speed)
+    return NodeMap.defaults(sensors, axes, speed)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the runtime until the source ends, ``--max-cycles``, SIGTERM or Ctrl-C; return 0."""
+    args = _parse_args(argv)
+    settings = load_settings(args.params)
+    stop = {"now": False}
+
+    def request_stop(signum, frame) -> None:
+        stop["now"] = True
+
+    signal.signal(signal.SIGTERM, request_stop)
+    with tempfile.TemporaryDirectory(prefix="thermal-bundle-") as workdir:
+        bundles = load_bundles(args, Path(workdir))
+        nodes = node_map(args, bundles)
+        source = open_source(args.source, nodes, not args.no_follow)
+        sink = open_sink(args.sink, nodes)
+        log = EventLog(args.log)
+        runtime = CompensationRuntime(bundles, settings, source, sink, log)
+        try:
+            runtime.run(args.max_cycles, should_stop=lambda: stop["now"])
+        except KeyboardInterrupt:
+            LOGGER.info("stopped by Ctrl-C")
+        finally:
+            source.close()
+            sink.close()
+            log.close()
+    counts = runtime.counts
+    sys.stdout.write(
+        f"thermal compensate: {counts.cycles} cycles, {counts.writes} writes, "
+        f"{counts.refused} refused, {counts.failed} failed, {counts.stalls} stalled; modes "
+        + "; ".join(
+            f"{axis}: " + ", ".join(f"{m} {n}" for m, n in sorted(modes.items()))
+            for axis, modes in counts.modes.items()
+        )
+        + f"; events in {args.log}\n"
+    )
+    return 0

@@ -1,0 +1,246 @@
+"""DVC stage ``compensation``: from each axis' champion to what the machine runs, and its proof.
+
+Reads each axis' champion (``data/models/champion/<axis>/``: card, estimator, held-out
+predictions and fits), the separated thermal error
+(``data/separated/spindle_thermal_error.parquet``), the selections made on each training unit
+(``reports/selection/selected.json``) and the linear-axis model (``reports/axis_model.json``).
+For each axis it writes
+
+- the runtime's bundle (``data/models/compensation/<axis>/``,
+  :mod:`pipeline.compensation.bundle`): the champion, one fallback per sensor it reads
+  (:func:`pipeline.compensation.sensor_budget.fallback_fits`), the range of every input seen in
+  training and the input checks of the ``validate`` stage;
+- the controller exports (``reports/compensation/<axis>/``, :mod:`pipeline.compensation.exports`):
+  ``coefficients.json`` for models linear in their inputs, ``controller.json`` (the Heidenhain
+  ``TEMPCOMP`` formula or why none fits, the SINUMERIK K0 / tan beta / P0 mapping);
+- the proof on replay (:mod:`pipeline.compensation.replay`): ``proof.csv``, ``trace.csv`` and
+  one figure per held-out campaign;
+
+and, over all axes, ``reports/compensation/compensation.{json,md}``,
+``metrics/compensation.json`` and the sensor budget (``reports/sensor_budget.{csv,png}``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import logging
+import shutil
+from dataclasses import replace
+
+import joblib
+import pandas as pd
+
+from pipeline import paths
+from pipeline.compensation.bundle import (
+    AxisBundle,
+    InputChecks,
+    ModelEntry,
+    input_ranges,
+    write_bundle,
+)
+from pipeline.compensation.exports import (
+    LinearForm,
+    coefficients_document,
+    linear_form,
+    sinumerik_mapping,
+    spindle_k0_mapping,
+    tempcomp_formula,
+)
+from pipeline.compensation.replay import AxisProof, proof_figure, replay_axis
+from pipeline.compensation.report import render_report, summary_record
+from pipeline.compensation.sensor_budget import budget_figure, fallback_fits, sensor_budget
+from pipeline.compensation.settings import CompensationSettings
+from pipeline.config import DEFAULT_PARAMS, load_section
+from pipeline.errors import MissingInputError
+from pipeline.protocol.units import UnitSettings, series_by_axis, training_units
+from pipeline.separation.features import InputSpec
+
+LOGGER = logging.getLogger(__name__)
+
+
+def _parse_args(argv: list[str] | None) -> argparse.Namespace:
+    parser = argparse.ArgumentParser(
+        prog="thermal compensation",
+        description=(
+            "Build each axis' compensation bundle, controller exports, replay proof and "
+            "sensor budget from its champion (the DVC stage `compensation`)."
+        ),
+    )
+    parser.add_argument("--params", default=str(DEFAULT_PARAMS), help="params file (params.yaml)")
+    return parser.parse_args(argv)
+
+
+def champion_axes() -> list[str]:
+    """Axes with a saved champion, sorted."""
+    if not paths.CHAMPION.is_dir():
+        return []
+    return sorted(
+        p.name for p in paths.CHAMPION.iterdir() if (p / paths.CHAMPION_CARD_FILE).is_file()
+    )
+
+
+def axis_bundle(axis: str, rows: pd.DataFrame, fallbacks: list, checks: InputChecks) -> AxisBundle:
+    """Return the runtime's bundle of an axis: champion, fallbacks, training ranges, checks."""
+    folder = paths.CHAMPION / axis
+    card = json.loads((folder / paths.CHAMPION_CARD_FILE).read_text(encoding="utf-8"))
+    spec = InputSpec.from_dict(card["input_spec"])
+    protocol_score = (card.get("scores") or {}).get(f"{card.get('protocol')}_Mn_rms_um")
+    champion = ModelEntry(
+        "champion", spec, joblib.load(folder / paths.CHAMPION_ESTIMATOR_FILE), protocol_score
+    )
+    entries = tuple(
+        ModelEntry(
+            f"without_{item.lost}",
+            replace(spec, inputs=tuple(item.inputs)),
+            item.estimator,
+            item.heldout_rms_um,
+        )
+        for item in fallbacks
+        if item.estimator is not None
+    )
+    training = rows[rows["campaign_id"].isin(card.get("trained_on") or [])]
+    specs = [champion.spec, *(e.spec for e in entries)]
+    return AxisBundle(axis, card, champion, entries, input_ranges(training, specs), checks)
+
+
+def fallback_record(item) -> dict:
+    """Return a fallback's entry of the stage's record (no estimator)."""
+    return {
+        "lost": item.lost,
+        "inputs": list(item.inputs),
+        "heldout_rms_um": item.heldout_rms_um,
+        "champion_rms_um": item.champion_rms_um,
+        "none_rms_um": item.none_rms_um,
+        "n_campaigns": item.n_campaigns,
+        "inputs_rule": item.inputs_rule,
+        "note": item.note,
+    }
+
+
+def controller_document(
+    bundle: AxisBundle, form: LinearForm | str, axis_model: dict | None, offset_sign: int
+) -> dict:
+    """Return what each controller takes for a spindle axis (``controller.json``)."""
+    spec = bundle.champion.spec
+    if isinstance(form, LinearForm):
+        formula, reason = tempcomp_formula(form, spec, training_ranges=bundle.input_ranges)
+    else:
+        formula, reason = None, form
+    return {
+        "axis": bundle.axis,
+        "runtime_offset": (
+            "thermal compensate writes the offset (um) cyclically: SINUMERIK SD43900 (K0), "
+            "a FANUC PMC offset, Heidenhain PLC module 9231 or LinuxCNC axis.L.eoffset"
+        ),
+        "heidenhain_tempcomp": {"formula": formula, "reason": reason},
+        "sinumerik_spindle": spindle_k0_mapping(bundle.axis, offset_sign),
+        "sinumerik_linear_axis": sinumerik_mapping(axis_model or {}, bundle.axis),
+    }
+
+
+def write_linear_axes(axis_model: dict | None) -> dict:
+    """Write the SINUMERIK mapping of each laser-measured linear axis; return them by axis."""
+    mappings = {}
+    for axis in (axis_model or {}).get("axis") or []:
+        mapping = sinumerik_mapping(axis_model, str(axis))
+        if mapping is None:
+            continue
+        out = paths.COMPENSATION_REPORTS / f"linear_{axis}"
+        out.mkdir(parents=True, exist_ok=True)
+        (out / "sinumerik.json").write_text(json.dumps(mapping, indent=2) + "\n")
+        mappings[str(axis)] = mapping
+    return mappings
+
+
+def write_axis(
+    bundle: AxisBundle, proof: AxisProof, axis_model: dict | None, settings: CompensationSettings
+) -> dict:
+    """Write an axis' bundle, exports, proof table, traces and figures; return its record."""
+    axis = bundle.axis
+    write_bundle(paths.COMPENSATION_BUNDLES / axis, bundle)
+    out = paths.COMPENSATION_REPORTS / axis
+    out.mkdir(parents=True)
+    form = linear_form(bundle.champion.estimator, bundle.champion.spec)
+    coefficients = coefficients_document(
+        form, bundle.champion.spec, bundle.input_ranges, bundle.card
+    )
+    (out / "coefficients.json").write_text(json.dumps(coefficients, indent=2) + "\n")
+    controller = controller_document(bundle, form, axis_model, settings.offset_sign)
+    (out / "controller.json").write_text(json.dumps(controller, indent=2) + "\n")
+    proof.table.to_csv(out / "proof.csv", index=False, float_format="%.4f")
+    proof.traces.to_csv(out / "trace.csv", index=False, float_format="%.4f")
+    for campaign_id, part in proof.traces.groupby("campaign_id", sort=True):
+        proof_figure(axis, part, out / f"replay_{campaign_id}.png")
+    return summary_record(bundle, proof, coefficients, controller)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the stage; return 0."""
+    args = _parse_args(argv)
+    settings = CompensationSettings.from_params(load_section("compensation", args.params))
+    checks = InputChecks.from_params(
+        load_section("validate", args.params), settings.range_margin_degC
+    )
+    evaluate = load_section("evaluate", args.params)
+    protocol = load_section("protocol", args.params)
+    if not paths.SPINDLE_THERMAL_ERROR.is_file():
+        raise MissingInputError(
+            f"{paths.SPINDLE_THERMAL_ERROR} not found; run `dvc repro separate_spindle` first"
+        )
+    table = pd.read_parquet(paths.SPINDLE_THERMAL_ERROR)
+    selected = json.loads(paths.SELECTED.read_text(encoding="utf-8")).get("axes", {})
+    axis_model = (
+        json.loads(paths.AXIS_MODEL_REPORT.read_text(encoding="utf-8"))
+        if paths.AXIS_MODEL_REPORT.is_file()
+        else None
+    )
+    features = load_section("select", args.params).get("features", "temperature_rise")
+    series = series_by_axis(table, features)
+    model_params = evaluate.get("model_params") or {}
+    n_jobs = int(evaluate.get("n_jobs", 1))
+    records, budgets, tables = {}, [], {}
+    for stale in (paths.COMPENSATION_REPORTS, paths.COMPENSATION_BUNDLES):
+        if stale.is_dir():
+            shutil.rmtree(stale)
+    paths.COMPENSATION_REPORTS.mkdir(parents=True)
+    for axis in champion_axes():
+        folder = paths.CHAMPION / axis
+        card = json.loads((folder / paths.CHAMPION_CARD_FILE).read_text(encoding="utf-8"))
+        units = training_units(series[axis], UnitSettings.from_params(protocol))
+        chosen = selected.get(axis)
+        fallbacks = fallback_fits(
+            series[axis], units, card, model_params, card.get("protocol"), chosen, n_jobs=n_jobs
+        )
+        rows = table[table["axis"] == axis]
+        bundle = axis_bundle(axis, rows, fallbacks, checks)
+        fits = joblib.load(folder / paths.HELDOUT_FITS_FILE)
+        heldout = pd.read_parquet(folder / paths.CHAMPION_HELDOUT_FILE)
+        proof = replay_axis(bundle, rows, fits, heldout, settings)
+        records[axis] = write_axis(bundle, proof, axis_model, settings)
+        tables[axis] = proof.table
+        records[axis]["fallbacks"] = [fallback_record(item) for item in fallbacks]
+        budgets.append(
+            sensor_budget(
+                series[axis],
+                units,
+                card,
+                model_params,
+                card.get("protocol"),
+                chosen,
+                n_jobs=n_jobs,
+            )
+        )
+        LOGGER.info("axis %s: %s", axis, records[axis]["headline"])
+    budget = pd.concat(budgets, ignore_index=True) if budgets else pd.DataFrame()
+    paths.COMPENSATION_REPORTS.mkdir(parents=True, exist_ok=True)
+    paths.METRICS.mkdir(parents=True, exist_ok=True)
+    budget.to_csv(paths.SENSOR_BUDGET, index=False, float_format="%.4f")
+    budget_figure(budget, paths.SENSOR_BUDGET_PLOT)
+    linear = write_linear_axes(axis_model)
+    document = {"settings": settings.model_dump(), "axes": records, "linear_axes": linear}
+    paths.COMPENSATION_SUMMARY.write_text(json.dumps(document, indent=2, default=str) + "\n")
+    paths.COMPENSATION_REPORT.write_text(render_report(document, budget, tables))
+    metrics = {axis: record["proof"] for axis, record in records.items()}
+    paths.COMPENSATION_METRICS.write_text(json.dumps(metrics, indent=2, sort_keys=True) + "\n")
+    return 0
