@@ -39,7 +39,8 @@ from pipeline.tracking.location import resolve_tracking_uri
 
 LOGGER = logging.getLogger(__name__)
 OPCUA_SCHEME = "opc.tcp://"
-DEFAULT_LOG = paths.COMPENSATION_EVENTS
+DEFAULT_LOG = Path("reports/compensation_events.jsonl")
+"""The event log when ``--log`` is not given (not a stage output; git-ignored)."""
 
 
 def _parse_args(argv: list[str] | None) -> argparse.Namespace:

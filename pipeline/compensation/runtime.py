@@ -214,6 +214,7 @@ class CompensationRuntime:
         self.steps: list[AxisStep] = []
         self._last_reading_wall: float | None = None
         self._last_t_s: float | None = None
+        self._last_reading_t_s: float | None = None
         self._bad: dict[str, dict[str, str]] = {axis: {} for axis in self.axes}
         self._modes: dict[str, str] = {}
 
@@ -225,12 +226,13 @@ class CompensationRuntime:
                 if should_stop():
                     break
                 readings = self.source.poll(self.settings.cycle_s)
+                for reading in readings:
+                    self.cycle([reading])
                 if readings:
-                    self.cycle(readings)
-                elif self.source.exhausted:
+                    continue
+                if self.source.exhausted:
                     break
-                else:
-                    self.check_stall()
+                self.check_stall()
         finally:
             self.log.record("stop", self._last_t_s, counts=asdict(self.counts))
 
@@ -240,7 +242,7 @@ class CompensationRuntime:
             self._take(reading)
         self._last_reading_wall = self.clock()
         raw = self.history.raw()
-        t_s = readings[-1].t_s
+        t_s = self._last_reading_t_s = readings[-1].t_s
         steps = [
             compensator.step(self.history.clean(axis, raw), self._bad[axis], t_s)
             for axis, compensator in self.axes.items()
@@ -249,13 +251,13 @@ class CompensationRuntime:
 
     def check_stall(self) -> list[AxisStep]:
         """Hold and decay every axis when no reading came for ``stall_s`` (one write per call)."""
-        if self._last_reading_wall is None or self._last_t_s is None:
+        if self._last_reading_wall is None or self._last_reading_t_s is None:
             return []
         waited = self.clock() - self._last_reading_wall
         if waited < self.settings.stall_s:
             return []
         self.counts.stalls += 1
-        t_s = self._last_t_s + waited
+        t_s = self._last_reading_t_s + waited
         why = f"source stalled: no reading for {waited:.0f} s"
         return self._write(t_s, [axis.hold(t_s, why) for axis in self.axes.values()])
 
