@@ -218,6 +218,45 @@ def _check_champion_loads(work: Path, uri: str, scores: pd.DataFrame) -> None:
     assert rmse == pytest.approx(logged_rmse, rel=1e-4)
 
 
+def _check_compensation(work: Path, uri: str, client) -> None:
+    """The replay proof holds, its bundle is the champion run's, the runtime loads it from there."""
+    document = json.loads((work / "reports" / "compensation" / "compensation.json").read_text())
+    proof = document["axes"]["Z"]["proof"]
+    assert proof["n_campaigns"] == 18 and proof["ratio"] <= 1.1
+    assert proof["rms_after_um"] < 0.2 * proof["rms_before_um"]
+    record = json.loads((work / "reports" / "mlflow_run.json").read_text())
+    champion = record["champions"]["Z"]
+    version = client.get_model_version(champion["registered_model"], champion["version"])
+    run = client.get_run(version.run_id)
+    assert run.data.metrics["replay.ratio"] == pytest.approx(proof["ratio"])
+    logged = {a.path for a in client.list_artifacts(version.run_id, "compensation/bundle")}
+    assert "compensation/bundle/bundle.json" in logged
+    card = json.loads((work / "data" / "models" / "champion" / "Z" / "champion.json").read_text())
+    separated = pd.read_parquet(work / "data" / "separated" / "spindle_thermal_error.parquet")
+    logger = separated.query("campaign_id == 'V02'").sort_values("elapsed_s")
+    sensors = [s for s in card["input_spec"]["inputs"] if not s.startswith("speed")]
+    logger[["elapsed_s", "rpm", *sensors]].to_csv(work / "logger.csv", index=False)
+    out = _run(
+        [
+            str(BIN / "thermal"),
+            "compensate",
+            "--registry",
+            "--source",
+            "csv:logger.csv",
+            "--no-follow",
+            "--sink",
+            "csv:offsets.csv",
+        ],
+        work,
+        _env(uri),
+    )
+    assert f"{len(logger)} cycles, {len(logger)} writes, 0 refused" in out
+    written = pd.read_csv(work / "offsets.csv")["offset_um"].to_numpy()
+    replayed = pd.read_csv(work / "reports" / "compensation" / "Z" / "trace.csv")
+    expected = replayed.query("campaign_id == 'V02'")["offset_um"].to_numpy()
+    np.testing.assert_allclose(written, expected, atol=1e-3)
+
+
 def test_every_score_reaches_a_real_mlflow_server_once_and_the_champion_loads(tmp_path):
     work = copy_repository(ROOT, tmp_path / "repo")
     with running_mlflow_server(tmp_path / "server") as uri:
@@ -243,6 +282,7 @@ def test_every_score_reaches_a_real_mlflow_server_once_and_the_champion_loads(tm
         assert twin["rmse_um"].notna().all()
         _check_discrepancy_run(work, client, params["discrepancy"]["experiment"], parents[0])
         _check_champion_loads(work, uri, scores)
+        _check_compensation(work, uri, client)
 
         _repro(work, env)
         again = client.search_runs([experiment.experiment_id], max_results=1000)

@@ -143,3 +143,19 @@ def test_every_axis_is_scored_held_out_ranked_forward_and_registered(workshop):
             assert held_out <= 0.9 * card["none_score_um"]
         needs_speed = any(name.startswith("speed") for name in card["inputs"])
         assert version.tags["needs_speed_log"] == str(needs_speed).lower()
+
+
+def test_the_replayed_compensation_leaves_what_the_champion_left_offline(workshop):
+    work, _, _, _ = workshop
+    document = _json(work, "reports/compensation/compensation.json")
+    assert set(document["axes"]) == set(AXES)
+    for axis, record in document["axes"].items():
+        proof = record["proof"]
+        # W04-W06, each forecast by the campaigns before it, replayed from the run's cold start
+        assert proof["n_campaigns"] == 3, axis
+        assert proof["ratio"] <= 1.1, (axis, proof)
+        table = pd.read_csv(work / "reports" / "compensation" / axis / "proof.csv")
+        assert set(table["campaign_id"]) == {"W04", "W05", "W06"}
+        assert set(table["unit"]) == {"before_W04", "before_W05", "before_W06"}
+    budget = pd.read_csv(work / "reports" / "sensor_budget.csv")
+    assert set(budget["axis"]) == set(AXES) and budget["heldout_rms_um"].notna().all()

@@ -166,10 +166,13 @@ class AxisBundle:
 def input_ranges(rows: pd.DataFrame, specs: list[InputSpec]) -> dict[str, tuple[float, float]]:
     """Range of every model input column seen in ``rows`` (the training campaigns).
 
+    The inputs (``rise_<sensor>`` in K or ``<sensor>`` in degC, speed responses in
+    (krpm)^a) and the sensors' readings (degC).
+
     Parameters
     ----------
     rows : DataFrame
-        Rows of the separated table (``rise_<sensor>`` in K, ``<sensor>`` in degC).
+        Rows of the separated table.
     specs : list of InputSpec
 
     Returns
@@ -177,7 +180,8 @@ def input_ranges(rows: pd.DataFrame, specs: list[InputSpec]) -> dict[str, tuple[
     dict of str to (float, float)
         Columns absent from ``rows`` or without a finite value are left out.
     """
-    columns = {input_column(name, spec.features) for spec in specs for name in spec.sensors}
+    columns = {input_column(name, spec.features) for spec in specs for name in spec.inputs}
+    columns |= {name for spec in specs for name in spec.sensors}  # the readings, degC
     ranges = {}
     for column in sorted(columns):
         if column in rows:

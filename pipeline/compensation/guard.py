@@ -46,7 +46,7 @@ def reading_problem(value: float, checks: InputChecks) -> str | None:
 
 
 def stuck_sensors(history: pd.DataFrame, sensors: Sequence[str], checks: InputChecks) -> dict:
-    """Sensors whose newest reading ends a stuck run (:func:`schemas.checks.stuck_free`).
+    """Return the sensors whose newest reading ends a stuck run (:func:`schemas.checks.stuck_free`).
 
     Parameters
     ----------
@@ -62,14 +62,21 @@ def stuck_sensors(history: pd.DataFrame, sensors: Sequence[str], checks: InputCh
     """
     if len(history) < checks.stuck_min_samples:
         return {}
+    tail = history[list(sensors)].to_numpy(dtype=float)[-checks.stuck_min_samples :]
+    # a stuck run ending now repeats the newest reading over the last stuck_min_samples at least
+    candidates = [
+        s for s, column in zip(sensors, tail.T, strict=True) if (column == column[-1]).all()
+    ]
+    if not candidates:
+        return {}
     step = np.diff(history["elapsed_s"].to_numpy(dtype=float)[-checks.stuck_min_samples :])
     interval = float(np.median(step)) if step.size else 0.0
     needed = checks.stuck_min_samples
     if interval > 0:
         needed = max(needed, int(np.ceil(checks.stuck_min_s / interval)))
-    tail = history.iloc[-(needed + 1) :]
+    recent = history.iloc[-(needed + 1) :]
     ok = stuck_free(
-        tail,
+        recent,
         list(sensors),
         min_samples=checks.stuck_min_samples,
         min_other_change=checks.stuck_min_other_change_degC,
@@ -78,9 +85,9 @@ def stuck_sensors(history: pd.DataFrame, sensors: Sequence[str], checks: InputCh
     )
     last = ok.iloc[-1]
     return {
-        s: f"stuck at {tail[s].iloc[-1]:g} degC for {len(tail)} samples while others moved"
-        for s in sensors
-        if s in last.index and not bool(last[s])
+        s: f"stuck at {recent[s].iloc[-1]:g} degC for {len(recent)} samples while others moved"
+        for s in candidates
+        if not bool(last[s])
     }
 
 

@@ -124,7 +124,11 @@ def _plain(value):
 
 
 class RunHistory:
-    """The current run's readings (raw) and, per axis, which cells were bad."""
+    """The current run's readings (raw) and, per axis, which cells were bad.
+
+    Rows are kept in a growing array (doubled when full), so a cycle costs one pass over the
+    run, not one Python operation per past sample.
+    """
 
     def __init__(self, sensors: list[str], axes: list[str]) -> None:
         self.columns = ["elapsed_s", RPM, *sensors]
@@ -134,29 +138,41 @@ class RunHistory:
     def reset(self, run: str | None, t0_s: float | None) -> None:
         """Start a new run."""
         self.run, self.t0_s = run, t0_s
-        self.rows: list[list[float]] = []
-        self.bad: dict[str, list[set[str]]] = {axis: [] for axis in self.axes}
+        self.n = 0
+        self._values = np.empty((64, len(self.columns)))
+        self._bad = {axis: np.zeros((64, len(self.columns)), dtype=bool) for axis in self.axes}
+
+    @property
+    def last_elapsed_s(self) -> float:
+        """Time of the newest reading since the run's first, s."""
+        return float(self._values[self.n - 1, 0])
 
     def append(self, reading: Reading) -> None:
         """Append one reading (its time counted from the run's first reading)."""
         if self.t0_s is None:
             self.t0_s = reading.t_s
+        if self.n == len(self._values):
+            self._values = np.vstack([self._values, np.empty_like(self._values)])
+            self._bad = {a: np.vstack([m, np.zeros_like(m)]) for a, m in self._bad.items()}
         values = [_number(reading.values.get(name)) for name in self.columns[1:]]
-        self.rows.append([reading.t_s - self.t0_s, *values])
-        for axis in self.axes:
-            self.bad[axis].append(set())
+        self._values[self.n] = [reading.t_s - self.t0_s, *values]
+        self.n += 1
+
+    def mark_bad(self, axis: str, names: set[str]) -> None:
+        """Mark inputs of the newest reading bad for ``axis``."""
+        for name in names:
+            self._bad[axis][self.n - 1, self.columns.index(name)] = True
 
     def raw(self) -> pd.DataFrame:
         """Return the run's readings as read."""
-        return pd.DataFrame(self.rows, columns=self.columns)
+        return pd.DataFrame(self._values[: self.n], columns=self.columns)
 
     def clean(self, axis: str, raw: pd.DataFrame) -> pd.DataFrame:
         """Return the run's readings with every cell found bad for ``axis`` set to NaN."""
-        frame = raw.copy()
-        for row, names in enumerate(self.bad[axis]):
-            for name in names:
-                frame.iat[row, self.columns.index(name)] = np.nan
-        return frame
+        bad = self._bad[axis][: self.n]
+        if not bad.any():
+            return raw
+        return pd.DataFrame(np.where(bad, np.nan, raw.to_numpy()), columns=self.columns)
 
 
 def _number(value) -> float:
@@ -264,11 +280,11 @@ class CompensationRuntime:
     def _take(self, reading: Reading) -> None:
         history = self.history
         if (
-            not history.rows
+            not history.n
             or reading.run != history.run
-            or (reading.t_s < history.t0_s + history.rows[-1][0])
+            or reading.t_s < history.t0_s + history.last_elapsed_s
         ):
-            if history.rows:
+            if history.n:
                 self.log.record("new_run", reading.t_s, run=reading.run, previous=history.run)
             history.reset(reading.run, reading.t_s)
         history.append(reading)
@@ -284,7 +300,7 @@ class CompensationRuntime:
                 reference=(spec.reference, spec.reference_n),
                 needs_speed=bundle.needs_speed,
             )
-            history.bad[axis][-1] = set(bad)
+            history.mark_bad(axis, set(bad) & set(history.columns))
             if bad != self._bad[axis]:
                 self.log.record("inputs", reading.t_s, warn=bool(bad), axis=axis, bad=bad)
             self._bad[axis] = bad

@@ -49,6 +49,7 @@ def summary_lines(root: Path) -> list[str]:
         lines.append(
             f"  champion {path.parent.name:<7} " + champion_line(json.loads(path.read_text()))
         )
+    lines += compensation_lines(root)
     axis = root / paths.AXIS_MODEL_METRICS
     if axis.is_file():
         figures = json.loads(axis.read_text())
@@ -112,6 +113,29 @@ def summary_lines(root: Path) -> list[str]:
         ]
     else:
         lines += ["", f"Open the MLflow UI of your tracking server: {uri.rstrip('/')}{runs_page}"]
+    return lines
+
+
+def compensation_lines(root: Path) -> list[str]:
+    """One line per axis on the replay proof (``reports/compensation/compensation.md``)."""
+    summary = root / paths.COMPENSATION_SUMMARY
+    if not summary.is_file():
+        return []
+    document = json.loads(summary.read_text())
+    lines = [
+        f"  replay {axis:<9} {record['headline']} ({paths.COMPENSATION_REPORT})"
+        for axis, record in (document.get("axes") or {}).items()
+    ]
+    budget = root / paths.SENSOR_BUDGET
+    if budget.is_file():
+        lines.append(
+            f"  sensor budget    {paths.SENSOR_BUDGET}, {paths.SENSOR_BUDGET_PLOT} (best model "
+            "with k sensors, held-out RMS)"
+        )
+    lines.append(
+        f"  compensate       .venv/bin/thermal compensate --source csv:<logger file> --sink "
+        f"csv:<offsets.csv>  (bundles in {paths.COMPENSATION_BUNDLES}/)"
+    )
     return lines
 
 
