@@ -15,6 +15,7 @@ from pipeline.compensation.axis import bound
 from pipeline.compensation.bundle import read_bundle, write_bundle
 from pipeline.compensation.files import CsvTailSource, FileSink, MemorySink, TableSource
 from pipeline.compensation.guard import bad_inputs
+from pipeline.compensation.replay import replay_run
 from pipeline.compensation.runtime import CompensationRuntime, EventLog
 from pipeline.compensation.settings import AxisLimits, CompensationSettings
 from pipeline.errors import ParamsError
@@ -258,3 +259,16 @@ def test_thermal_compensate_runs_a_bundle_on_a_logger_file(bundle, tmp_path):
     sink.write(1.0, {"Z": -2.5})
     sink.close()
     assert json.loads((tmp_path / "offsets.jsonl").read_text())["offsets_um"] == {"Z": -2.5}
+
+
+def test_a_campaign_late_in_a_run_is_replayed_with_the_runs_past_read_first(bundle):
+    first, second = campaign(HELD_OUT), campaign(HELD_OUT + 1)
+    second["elapsed_s"] += first["elapsed_s"].iloc[-1] + 60.0
+    run = pd.concat([first, second], ignore_index=True)
+    run = run.assign(run_elapsed_s=run["elapsed_s"])
+    scored = np.arange(len(run)) >= len(first)
+    every = replay_run(bundle, run, LOOSE)
+    late = replay_run(bundle, run, LOOSE, scored=scored)
+    assert list(late.index) == list(run.index[scored])
+    np.testing.assert_allclose(late["offset_um"], every.loc[scored, "offset_um"], atol=1e-9)
+    assert set(late["mode"]) == {"champion"}

@@ -60,7 +60,9 @@ def _parse_args(argv: list[str] | None) -> argparse.Namespace:
     parser.add_argument("--axis", action="append", help="only these axes (repeat)")
     parser.add_argument("--alias", default="champion", help="registry alias (champion)")
     parser.add_argument("--nodes", type=Path, help="OPC UA node map (YAML)")
-    parser.add_argument("--params", type=Path, default=Path("params.yaml"))
+    parser.add_argument(
+        "--params", type=Path, default=Path("params.yaml"), help="limits: its compensation section"
+    )
     parser.add_argument("--log", type=Path, default=DEFAULT_LOG, help="event log (JSON lines)")
     parser.add_argument(
         "--no-follow", action="store_true", help="csv source: stop at the end of the file"

@@ -17,7 +17,9 @@ from the measured drift:
 Per campaign: largest |drift| before and after over the test, drift range (max - min) before
 and after, RMS before and after, and the offline held-out RMS of the same samples (the
 champion's cross-campaign prediction, no runtime). A campaign that is part of a longer record
-(a run) is replayed from the run's start, as the runtime on the machine would have seen it.
+(a run) is replayed with the run's earlier samples read first as its past
+(:meth:`~pipeline.compensation.runtime.CompensationRuntime.warm_up`): rises and speed responses
+count from the run's start, as for a runtime that had been running since then.
 """
 
 from __future__ import annotations
@@ -89,22 +91,40 @@ def unit_bundle(base: AxisBundle, fit: Mapping, rows: pd.DataFrame, spec: InputS
 
 
 def replay_run(
-    bundle: AxisBundle, run_rows: pd.DataFrame, settings: CompensationSettings
+    bundle: AxisBundle,
+    run_rows: pd.DataFrame,
+    settings: CompensationSettings,
+    scored: np.ndarray | None = None,
 ) -> pd.DataFrame:
-    """Replay one run's samples (time order) through the runtime; one row per sample.
+    """Replay one run's samples (time order) through the runtime.
+
+    Parameters
+    ----------
+    bundle : AxisBundle
+    run_rows : DataFrame
+        The run's rows of the separated table, in time order (``run_elapsed_s``, ``rpm``, the
+        sensors in degC).
+    settings : CompensationSettings
+    scored : ndarray of bool, optional
+        Rows whose offsets are wanted; the rows before the first of them are the run's past,
+        read by :meth:`CompensationRuntime.warm_up` (a runtime that had been running since the
+        run's start would be tracking by then). None: every row is a cycle.
 
     Returns
     -------
     DataFrame
-        ``offset_um`` and ``mode`` of each sample of ``run_rows`` (same order).
+        ``offset_um``, ``mode`` and ``limited`` of each cycle, on the rows from the first
+        scored one (``run_rows``' index).
     """
     spec = bundle.champion.spec
     columns = ["elapsed_s", *(["rpm"] if spec.needs_speed else []), *spec.sensors]
     table = run_rows.assign(elapsed_s=run_rows["run_elapsed_s"])[columns]
-    sink = MemorySink()
+    first = 0 if scored is None or not scored.any() else int(np.argmax(scored))
+    source = TableSource(table)
     runtime = CompensationRuntime(
-        [bundle], settings, TableSource(table), sink, EventLog(None, echo=False)
+        [bundle], settings, source, MemorySink(), EventLog(None, echo=False)
     )
+    runtime.warm_up([source.poll(0.0)[0] for _ in range(first)])
     runtime.run()
     steps = runtime.steps
     return pd.DataFrame(
@@ -112,7 +132,8 @@ def replay_run(
             "offset_um": [s.offset_um for s in steps],
             "mode": [s.mode for s in steps],
             "limited": [s.limited for s in steps],
-        }
+        },
+        index=run_rows.index[first:],
     )
 
 
@@ -146,8 +167,11 @@ def replay_axis(
             run = rows[rows["run_id"] == run_id].sort_values("run_elapsed_s")
             last = run["run_elapsed_s"][run["campaign_id"].isin(fit["campaigns"])].max()
             run = run[run["run_elapsed_s"] <= last].reset_index(drop=True)
-            written = replay_run(bundle, run, settings)
-            frame = run[["campaign_id", "season", "elapsed_s", "thermal_error_um"]].join(written)
+            mine = run["campaign_id"].isin(fit["campaigns"]).to_numpy()
+            written = replay_run(bundle, run, settings, scored=mine)
+            frame = run[["campaign_id", "season", "elapsed_s", "thermal_error_um"]].join(
+                written, how="inner"
+            )
             traces.append(frame[frame["campaign_id"].isin(fit["campaigns"])].assign(unit=unit))
     if not traces:
         return AxisProof(base.axis, pd.DataFrame(columns=PROOF_COLUMNS), pd.DataFrame(), {})

@@ -66,6 +66,24 @@ def proof_markdown(axis: str, table: pd.DataFrame) -> list[str]:
     return [*lines, ""]
 
 
+def fallback_markdown(fallbacks: list[dict]) -> list[str]:
+    """Return the fallbacks' table: each sensor lost, what its fallback leaves held out."""
+    if not fallbacks:
+        return ["No fallback model: a lost sensor holds the last offset, then decays it.", ""]
+    lines = [
+        "When a sensor is lost the runtime falls back to the champion's family without it:",
+        "",
+        "| sensor lost | fallback held-out RMS (um) | champion (um) | no compensation (um) |",
+        "|---|---|---|---|",
+    ]
+    for item in fallbacks:
+        lines.append(
+            f"| {item['lost']} | {_um(item.get('heldout_rms_um'))} | "
+            f"{_um(item.get('champion_rms_um'))} | {_um(item.get('none_rms_um'))} |"
+        )
+    return [*lines, ""]
+
+
 def render_report(document: dict, budget: pd.DataFrame, tables: dict[str, pd.DataFrame]) -> str:
     """Return ``reports/compensation/compensation.md``."""
     lines = [
@@ -84,12 +102,7 @@ def render_report(document: dict, budget: pd.DataFrame, tables: dict[str, pd.Dat
         lines += [f"## Axis {axis}", "", record["headline"] + ".", ""]
         if axis in tables:
             lines += proof_markdown(axis, tables[axis])
-        for item in record.get("fallbacks") or []:
-            lines.append(
-                f"- sensor {item['lost']} lost: fallback on {', '.join(item['inputs'])}, "
-                f"held-out RMS {_um(item.get('heldout_rms_um'))} um (champion "
-                f"{_um(item.get('champion_rms_um'))} um, none {_um(item.get('none_rms_um'))} um)"
-            )
+        lines += fallback_markdown(record.get("fallbacks") or [])
         tempcomp = record.get("tempcomp") or {}
         lines += [
             "",

@@ -252,6 +252,19 @@ class CompensationRuntime:
         finally:
             self.log.record("stop", self._last_t_s, counts=asdict(self.counts))
 
+    def warm_up(self, readings: list[Reading]) -> None:
+        """Take readings of the run's past into the history without predicting or writing.
+
+        What a runtime started in the middle of a run reads first: the run's earlier samples
+        are checked and kept (rises and speed responses count from the run's start), and the
+        first cycle after them may move each axis' offset as far as the time they span allows.
+        """
+        for reading in readings:
+            self._take(reading)
+        if readings:
+            for compensator in self.axes.values():
+                compensator.last_t_s = readings[0].t_s
+
     def cycle(self, readings: list[Reading]) -> list[AxisStep]:
         """One cycle: take the readings, compute and write every axis' offset."""
         for reading in readings:
