@@ -26,7 +26,7 @@ import argparse
 import json
 import logging
 import shutil
-from dataclasses import replace
+from dataclasses import dataclass, replace
 
 import joblib
 import pandas as pd
@@ -175,6 +175,44 @@ def write_axis(
     return summary_record(bundle, proof, coefficients, controller)
 
 
+@dataclass(frozen=True)
+class AxisWork:
+    """One axis' inputs to the stage: its series, training units, rows and selections."""
+
+    axis: str
+    series: list
+    units: list
+    rows: pd.DataFrame
+    selected: dict
+
+
+def compensate_axis(
+    work: AxisWork,
+    checks: InputChecks,
+    settings: CompensationSettings,
+    axis_model: dict | None,
+    model_params: dict,
+    n_jobs: int,
+) -> tuple[dict, pd.DataFrame, pd.DataFrame]:
+    """Build, write and prove one axis' compensation; return its record, proof and budget."""
+    folder = paths.CHAMPION / work.axis
+    card = json.loads((folder / paths.CHAMPION_CARD_FILE).read_text(encoding="utf-8"))
+    scheme = card.get("protocol")
+    fallbacks = fallback_fits(
+        work.series, work.units, card, model_params, scheme, work.selected, n_jobs=n_jobs
+    )
+    bundle = axis_bundle(work.axis, work.rows, fallbacks, checks)
+    fits = joblib.load(folder / paths.HELDOUT_FITS_FILE)
+    heldout = pd.read_parquet(folder / paths.CHAMPION_HELDOUT_FILE)
+    proof = replay_axis(bundle, work.rows, fits, heldout, settings)
+    record = write_axis(bundle, proof, axis_model, settings)
+    record["fallbacks"] = [fallback_record(item) for item in fallbacks]
+    budget = sensor_budget(
+        work.series, work.units, card, model_params, scheme, work.selected, n_jobs=n_jobs
+    )
+    return record, proof.table, budget
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run the stage; return 0."""
     args = _parse_args(argv)
@@ -205,32 +243,12 @@ def main(argv: list[str] | None = None) -> int:
             shutil.rmtree(stale)
     paths.COMPENSATION_REPORTS.mkdir(parents=True)
     for axis in champion_axes():
-        folder = paths.CHAMPION / axis
-        card = json.loads((folder / paths.CHAMPION_CARD_FILE).read_text(encoding="utf-8"))
         units = training_units(series[axis], UnitSettings.from_params(protocol))
-        chosen = selected.get(axis)
-        fallbacks = fallback_fits(
-            series[axis], units, card, model_params, card.get("protocol"), chosen, n_jobs=n_jobs
+        work = AxisWork(axis, series[axis], units, table[table["axis"] == axis], selected)
+        records[axis], tables[axis], budget = compensate_axis(
+            work, checks, settings, axis_model, model_params, n_jobs
         )
-        rows = table[table["axis"] == axis]
-        bundle = axis_bundle(axis, rows, fallbacks, checks)
-        fits = joblib.load(folder / paths.HELDOUT_FITS_FILE)
-        heldout = pd.read_parquet(folder / paths.CHAMPION_HELDOUT_FILE)
-        proof = replay_axis(bundle, rows, fits, heldout, settings)
-        records[axis] = write_axis(bundle, proof, axis_model, settings)
-        tables[axis] = proof.table
-        records[axis]["fallbacks"] = [fallback_record(item) for item in fallbacks]
-        budgets.append(
-            sensor_budget(
-                series[axis],
-                units,
-                card,
-                model_params,
-                card.get("protocol"),
-                chosen,
-                n_jobs=n_jobs,
-            )
-        )
+        budgets.append(budget)
         LOGGER.info("axis %s: %s", axis, records[axis]["headline"])
     budget = pd.concat(budgets, ignore_index=True) if budgets else pd.DataFrame()
     paths.COMPENSATION_REPORTS.mkdir(parents=True, exist_ok=True)
