@@ -272,3 +272,31 @@ def test_a_campaign_late_in_a_run_is_replayed_with_the_runs_past_read_first(bund
     assert list(late.index) == list(run.index[scored])
     np.testing.assert_allclose(late["offset_um"], every.loc[scored, "offset_um"], atol=1e-9)
     assert set(late["mode"]) == {"champion"}
+
+
+class _FlakySource(TableSource):
+    def __init__(self, table, failures):
+        super().__init__(table)
+        self.failures = failures
+
+    def poll(self, timeout_s):
+        if self.failures:
+            self.failures -= 1
+            raise ConnectionError("BadConnectionClosed")
+        return super().poll(timeout_s)
+
+
+def test_a_failing_source_is_logged_and_the_runtime_goes_on(bundle):
+    table = campaign(HELD_OUT).head(10)[["elapsed_s", "rpm", *SENSORS]]
+    runtime = CompensationRuntime(
+        [bundle],
+        LOOSE,
+        _FlakySource(table, 2),
+        MemorySink(),
+        EventLog(None),
+        sleep=lambda s: None,
+    )
+    runtime.run()
+    assert runtime.counts.source_errors == 2 and runtime.counts.writes == 10
+    errors = [e for e in runtime.log.events if e["event"] == "source_error"]
+    assert len(errors) == 2 and "BadConnectionClosed" in errors[0]["error"]

@@ -21,6 +21,7 @@ and, ideally, a time node, and takes per-axis offsets. The node ids come from a 
 
 from __future__ import annotations
 
+import logging
 import queue
 import time
 from collections.abc import Mapping
@@ -34,6 +35,7 @@ from asyncua.sync import Client
 from pipeline.compensation.runtime import Reading
 from pipeline.errors import InputDataError
 
+LOGGER = logging.getLogger(__name__)
 DEFAULT_NAMESPACE = 2
 
 
@@ -128,19 +130,23 @@ class OpcUaSource:
     """
 
     def __init__(self, url: str, nodes: NodeMap, publishing_ms: float = 50.0) -> None:
-        self.nodes = nodes
-        self.client = Client(url, timeout=4)
-        self.client.connect()
-        names = list(nodes.sensors) + (["rpm"] if nodes.rpm else [])
-        ids = list(nodes.sensors.values()) + ([nodes.rpm] if nodes.rpm else [])
-        self._names = names
-        self._nodes = [self.client.get_node(node_id) for node_id in ids]
+        self.url, self.nodes, self.publishing_ms = url, nodes, publishing_ms
+        self._names = list(nodes.sensors) + (["rpm"] if nodes.rpm else [])
+        self._ids = list(nodes.sensors.values()) + ([nodes.rpm] if nodes.rpm else [])
         self._handler = _TimeHandler()
-        self._subscription = None
         self._last_time: float | None = None
-        if nodes.time:
-            self._subscription = self.client.create_subscription(publishing_ms, self._handler)
-            self._subscription.subscribe_data_change(self.client.get_node(nodes.time))
+        self.client: Client | None = None
+        self._connect()
+
+    def _connect(self) -> None:
+        """Connect, and subscribe to the time node when there is one."""
+        self.client = Client(self.url, timeout=4)
+        self.client.connect()
+        self._nodes = [self.client.get_node(node_id) for node_id in self._ids]
+        self._subscription = None
+        if self.nodes.time:
+            self._subscription = self.client.create_subscription(self.publishing_ms, self._handler)
+            self._subscription.subscribe_data_change(self.client.get_node(self.nodes.time))
 
     @property
     def exhausted(self) -> bool:
@@ -148,7 +154,18 @@ class OpcUaSource:
         return False
 
     def poll(self, timeout_s: float) -> list[Reading]:
-        """Return a reading per change of the time node (or one per call without a time node)."""
+        """Return a reading per change of the time node (or one per call without a time node).
+
+        A connection found lost is reopened first; a failure raises (the runtime logs it and
+        counts the source as silent).
+        """
+        if self.client is None:
+            self._connect()
+        try:
+            self.client.check_connection()
+        except Exception:
+            self._drop()
+            raise
         if self._subscription is None:
             time.sleep(timeout_s)
             return [Reading(time.time(), self._read(), None)]
@@ -174,8 +191,18 @@ class OpcUaSource:
             out[name] = float(number) if isinstance(number, int | float) else float("nan")
         return out
 
+    def _drop(self) -> None:
+        """Forget a lost connection (reopened at the next poll)."""
+        client, self.client = self.client, None
+        try:
+            client.disconnect()
+        except Exception:  # already gone: nothing to release
+            LOGGER.debug("disconnecting a lost OPC UA connection failed", exc_info=True)
+
     def close(self) -> None:
         """Delete the subscription and disconnect."""
+        if self.client is None:
+            return
         try:
             if self._subscription is not None:
                 self._subscription.delete()

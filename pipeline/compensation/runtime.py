@@ -3,7 +3,8 @@
 One *cycle* per new reading of the source (a file row, an OPC UA time-node change): the
 reading is checked (:mod:`pipeline.compensation.guard`), appended to the run's history, and
 each axis' offset is computed (:class:`pipeline.compensation.axis.AxisCompensator`) and written,
-all axes in one write. When no reading arrives for ``stall_s`` of wall-clock time the source is
+all axes in one write. When no reading arrives for ``stall_s`` of wall-clock time (or the
+source fails: a lost connection is logged and retried at the next poll) the source is
 *stalled*: each axis holds its last good offset, then decays it to zero, one write per
 ``cycle_s``. A write the sink refuses is retried ``write_retries`` times, then reported; the
 axes keep the offset last written. Every write, every change of mode (fallback, hold, decay,
@@ -191,6 +192,7 @@ class RuntimeCounts:
     refused: int = 0
     failed: int = 0
     stalls: int = 0
+    source_errors: int = 0
     modes: dict[str, dict[str, int]] = field(default_factory=dict)
 
 
@@ -241,7 +243,7 @@ class CompensationRuntime:
             while max_cycles is None or self.counts.cycles < max_cycles:
                 if should_stop():
                     break
-                readings = self.source.poll(self.settings.cycle_s)
+                readings = self._poll()
                 for reading in readings:
                     self.cycle([reading])
                 if readings:
@@ -251,6 +253,16 @@ class CompensationRuntime:
                 self.check_stall()
         finally:
             self.log.record("stop", self._last_t_s, counts=asdict(self.counts))
+
+    def _poll(self) -> list[Reading]:
+        """Return the source's readings; a source that fails is logged and counts as silent."""
+        try:
+            return self.source.poll(self.settings.cycle_s)
+        except Exception as error:  # a lost connection must not stop the runtime: it stalls
+            self.counts.source_errors += 1
+            self.log.record("source_error", self._last_reading_t_s, warn=True, error=repr(error))
+            self.sleep(self.settings.retry_wait_s)
+            return []
 
     def warm_up(self, readings: list[Reading]) -> None:
         """Take readings of the run's past into the history without predicting or writing.
