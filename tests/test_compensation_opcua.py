@@ -197,3 +197,64 @@ def test_a_controller_refusing_the_offset_is_reported_and_the_runtime_keeps_runn
     logged = [json.loads(line) for line in events.read_text().splitlines()]
     refused = [e for e in logged if e["event"] == "write_refused"]
     assert len(refused) == 20 and "BadUserAccessDenied" in refused[0]["error"]
+
+
+@pytest.mark.slow
+def test_a_controller_that_restarts_stalls_the_runtime_which_reconnects(tmp_path):
+    bundle = fitted_bundle()
+    folder = tmp_path / "Z"
+    write_bundle(folder, bundle)
+    table = campaign(HELD_OUT, n=20)
+    params = tmp_path / "params.yaml"
+    params.write_text("compensation:\n  stall_s: 1.0\n  cycle_s: 0.2\n  retry_wait_s: 0.05\n")
+    port = free_port()
+    url = f"opc.tcp://127.0.0.1:{port}/controller"
+    logs = [tmp_path / "server.log", tmp_path / "runtime.log"]
+    events = tmp_path / "events.jsonl"
+    command = [sys.executable, "-m", "tests.opcua_controller", str(port), *SENSORS]
+    server = _start(command, logs[0])
+    runtime = None
+    try:
+        _wait_for(lambda: "ready ns=2" in logs[0].read_text(), 30.0, "the server", logs)
+        runtime = _start(
+            [
+                str(ROOT / "bin" / "thermal"),
+                "compensate",
+                "--bundle",
+                str(folder),
+                "--source",
+                url,
+                "--sink",
+                url,
+                "--log",
+                str(events),
+                "--params",
+                str(params),
+            ],
+            logs[1],
+        )
+        _wait_for(
+            lambda: events.is_file() and "start" in events.read_text(), 60.0, "the runtime", logs
+        )
+        for part in (table.iloc[:10], table.iloc[10:]):
+            client = Client(url, timeout=4)
+            client.connect()
+            try:
+                _replay(client, part, logs)
+            finally:
+                client.disconnect()
+            if part.index[0] == 0:
+                stop_group(server)
+                _wait_for(lambda: "source_error" in events.read_text(), 30.0, "a stall", logs)
+                server = _start(command, logs[0])
+                _wait_for(lambda: logs[0].read_text().count("ready") == 1, 30.0, "restart", logs)
+        os.killpg(runtime.pid, 15)
+        assert runtime.wait(timeout=30) == 0, logs[1].read_text()
+    finally:
+        for process in (runtime, server):
+            if process is not None:
+                stop_group(process)
+    logged = [json.loads(line) for line in events.read_text().splitlines()]
+    kinds = [e["event"] for e in logged]
+    assert "source_error" in kinds and kinds.count("write") >= 20
+    assert kinds.index("source_error") < max(i for i, k in enumerate(kinds) if k == "write")

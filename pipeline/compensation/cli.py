@@ -111,10 +111,20 @@ def load_bundles(args: argparse.Namespace, workdir: Path) -> list[AxisBundle]:
     return bundles
 
 
+def _connected(kind, url: str, nodes: NodeMap):
+    try:
+        return kind(url, nodes)
+    except (OSError, TimeoutError) as error:
+        raise MissingInputError(
+            f"{url}: cannot connect ({error!r}); check the address and that the OPC UA server "
+            "runs and accepts anonymous connections without security"
+        ) from None
+
+
 def open_source(text: str, nodes: NodeMap | None, follow: bool):
     """Open the source named by ``--source``."""
     if text.startswith(OPCUA_SCHEME):
-        return OpcUaSource(text, nodes)
+        return _connected(OpcUaSource, text, nodes)
     if text.startswith("csv:"):
         return CsvTailSource(Path(text[4:]), follow=follow)
     raise ParamsError(f"--source {text!r}: use csv:<file> or opc.tcp://host:port")
@@ -123,7 +133,7 @@ def open_source(text: str, nodes: NodeMap | None, follow: bool):
 def open_sink(text: str, nodes: NodeMap | None):
     """Open the sink named by ``--sink``."""
     if text.startswith(OPCUA_SCHEME):
-        return OpcUaSink(text, nodes)
+        return _connected(OpcUaSink, text, nodes)
     for prefix in ("csv:", "jsonl:"):
         if text.startswith(prefix):
             return FileSink(Path(text[len(prefix) :]))

@@ -211,28 +211,49 @@ class OpcUaSource:
 
 
 class OpcUaSink:
-    """Per-axis offsets written to an OPC UA server (Double, um)."""
+    """Per-axis offsets written to an OPC UA server (Double, um).
 
-    def __init__(self, url: str, nodes: NodeMap, client: Client | None = None) -> None:
-        self.nodes = nodes
-        self._own = client is None
-        self.client = client or Client(url, timeout=4)
-        if self._own:
-            self.client.connect()
-        self._offsets = {axis: self.client.get_node(n) for axis, n in nodes.offsets.items()}
-        self._cycle = self.client.get_node(nodes.cycle) if nodes.cycle else None
+    A write that fails on a lost connection drops it; the next write reconnects.
+    """
+
+    def __init__(self, url: str, nodes: NodeMap) -> None:
+        self.url, self.nodes = url, nodes
+        self.client: Client | None = None
+        self._connect()
+
+    def _connect(self) -> None:
+        self.client = Client(self.url, timeout=4)
+        self.client.connect()
+        self._offsets = {a: self.client.get_node(n) for a, n in self.nodes.offsets.items()}
+        self._cycle = self.client.get_node(self.nodes.cycle) if self.nodes.cycle else None
 
     def write(self, t_s: float, offsets: Mapping[str, float]) -> None:
         """Write every axis' offset, then the cycle node; raises when the server refuses."""
+        missing = [axis for axis in offsets if axis not in self.nodes.offsets]
+        if missing:
+            raise InputDataError(f"no offset node for axis {missing}; add it to the node map")
+        if self.client is None:
+            self._connect()
+        try:
+            self.client.check_connection()
+        except Exception:
+            self._drop()
+            raise
         for axis, offset in offsets.items():
-            node = self._offsets.get(axis)
-            if node is None:
-                raise InputDataError(f"no offset node for axis {axis}; add it to the node map")
-            node.write_value(ua.DataValue(ua.Variant(float(offset), ua.VariantType.Double)))
+            self._offsets[axis].write_value(
+                ua.DataValue(ua.Variant(float(offset), ua.VariantType.Double))
+            )
         if self._cycle is not None:
             self._cycle.write_value(ua.DataValue(ua.Variant(float(t_s), ua.VariantType.Double)))
 
+    def _drop(self) -> None:
+        client, self.client = self.client, None
+        try:
+            client.disconnect()
+        except Exception:  # already gone: nothing to release
+            LOGGER.debug("disconnecting a lost OPC UA connection failed", exc_info=True)
+
     def close(self) -> None:
-        """Disconnect (when the sink opened the connection)."""
-        if self._own:
+        """Disconnect."""
+        if self.client is not None:
             self.client.disconnect()
