@@ -34,7 +34,7 @@ from pipeline.compensation.runtime import CompensationRuntime, EventLog
 from pipeline.compensation.settings import CompensationSettings
 from pipeline.config import load_section
 from pipeline.errors import MissingInputError, ParamsError
-from pipeline.tracking.champion_model import download_bundle
+from pipeline.tracking.champion_model import download_bundle, registered_axes
 from pipeline.tracking.location import resolve_tracking_uri
 
 LOGGER = logging.getLogger(__name__)
@@ -90,8 +90,8 @@ def load_bundles(args: argparse.Namespace, workdir: Path) -> list[AxisBundle]:
         tracking = load_section("tracking", args.params) if args.params.is_file() else {}
         track = load_section("track", args.params) if args.params.is_file() else {}
         prefix = str(track.get("registered_model", "thermal-error-spindle"))
-        axes = args.axis or bundle_axes(paths.COMPENSATION_BUNDLES) or ["Z"]
         uri = resolve_tracking_uri(tracking)
+        axes = args.axis or registered_axes(uri, prefix)
         bundles = [
             read_bundle(download_bundle(uri, f"{prefix}-{axis}", args.alias, workdir / axis))
             for axis in axes

@@ -25,7 +25,7 @@ import logging
 import queue
 import time
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 import yaml
@@ -67,7 +67,6 @@ class NodeMap:
     time: str | None
     offsets: dict[str, str]
     cycle: str | None = None
-    extra: dict = field(default_factory=dict)
 
     @classmethod
     def defaults(cls, sensors: list[str], axes: list[str], speed: bool) -> NodeMap:

@@ -217,6 +217,13 @@ def log_compensation(axis: str) -> None:
             mlflow.log_metrics(metrics)
 
 
+def registered_axes(tracking_uri: str, prefix: str) -> list[str]:
+    """Axes with a registered model ``<prefix>-<axis>`` in the store, sorted."""
+    client = MlflowClient(tracking_uri=tracking_uri)
+    models = client.search_registered_models(filter_string=f"name LIKE '{prefix}-%'")
+    return sorted(m.name.removeprefix(f"{prefix}-") for m in models)
+
+
 def download_bundle(tracking_uri: str, registered_name: str, alias: str, dest: Path) -> Path:
     """Download the compensation bundle of the version ``registered_name@alias``.
 
@@ -249,6 +256,6 @@ def download_bundle(tracking_uri: str, registered_name: str, alias: str, dest: P
         raise MissingInputError(
             f"{registered_name} version {version.version} (run {version.run_id}) has no "
             f"{BUNDLE_ARTIFACTS} artifacts ({error}); it was registered before the compensation "
-            "stage existed: rerun `dvc repro`, or give --bundle DIR"
+            "stage existed: give --bundle DIR, or --alias challenger (the latest version has one)"
         ) from None
     return Path(folder)
