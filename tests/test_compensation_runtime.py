@@ -15,7 +15,8 @@ from pipeline.compensation.axis import bound
 from pipeline.compensation.bundle import read_bundle, write_bundle
 from pipeline.compensation.files import CsvTailSource, FileSink, MemorySink, TableSource
 from pipeline.compensation.guard import bad_inputs
-from pipeline.compensation.replay import replay_run
+from pipeline.compensation.replay import replay_axis, replay_run
+from pipeline.compensation.report import summary_record
 from pipeline.compensation.runtime import CompensationRuntime, EventLog
 from pipeline.compensation.settings import AxisLimits, CompensationSettings
 from pipeline.errors import ParamsError
@@ -300,3 +301,12 @@ def test_a_failing_source_is_logged_and_the_runtime_goes_on(bundle):
     assert runtime.counts.source_errors == 2 and runtime.counts.writes == 10
     errors = [e for e in runtime.log.events if e["event"] == "source_error"]
     assert len(errors) == 2 and "BadConnectionClosed" in errors[0]["error"]
+
+
+def test_an_axis_without_held_out_campaigns_has_an_empty_proof_that_says_so(bundle):
+    rows = campaign(HELD_OUT).assign(campaign_id="C9", run_id="C9", season="winter")
+    proof = replay_axis(bundle, rows, {}, pd.DataFrame(), LOOSE)
+    assert proof.table.empty and proof.traces.empty and proof.summary == {}
+    assert list(proof.traces.groupby("campaign_id")) == []
+    record = summary_record(bundle, proof, {"linear": False}, {})
+    assert record["headline"] == "dl/test/static: no held-out campaign to replay"

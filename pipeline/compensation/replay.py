@@ -55,6 +55,19 @@ PROOF_COLUMNS = [
     "limited_share",
     "fallback_cycles",
 ]
+TRACE_COLUMNS = [
+    "campaign_id",
+    "season",
+    "elapsed_s",
+    "before_um",
+    "offset_um",
+    "mode",
+    "limited",
+    "unit",
+    "after_um",
+    "offline_predicted_um",
+    "offline_um",
+]
 
 
 @dataclass(frozen=True)
@@ -174,7 +187,9 @@ def replay_axis(
             )
             traces.append(frame[frame["campaign_id"].isin(fit["campaigns"])].assign(unit=unit))
     if not traces:
-        return AxisProof(base.axis, pd.DataFrame(columns=PROOF_COLUMNS), pd.DataFrame(), {})
+        return AxisProof(
+            base.axis, pd.DataFrame(columns=PROOF_COLUMNS), pd.DataFrame(columns=TRACE_COLUMNS), {}
+        )
     trace = pd.concat(traces, ignore_index=True).rename(columns={"thermal_error_um": "before_um"})
     trace["after_um"] = trace["before_um"] - settings.offset_sign * trace["offset_um"]
     offline = heldout.rename(columns={"predicted_um": "offline_predicted_um"})
