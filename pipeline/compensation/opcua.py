@@ -105,6 +105,14 @@ class NodeMap:
         )
 
 
+def _dropped(client: Client) -> None:
+    """Disconnect a lost connection as far as it still can; return None (reopened later)."""
+    try:
+        client.disconnect()
+    except Exception:  # already gone: nothing to release
+        LOGGER.debug("disconnecting a lost OPC UA connection failed", exc_info=True)
+
+
 class _TimeHandler:
     """Subscription handler: each new value of the time node goes to a queue."""
 
@@ -163,7 +171,7 @@ class OpcUaSource:
         try:
             self.client.check_connection()
         except Exception:
-            self._drop()
+            self.client = _dropped(self.client)
             raise
         if self._subscription is None:
             time.sleep(timeout_s)
@@ -189,14 +197,6 @@ class OpcUaSource:
             number = value.Value.Value if good and value.Value is not None else None
             out[name] = float(number) if isinstance(number, int | float) else float("nan")
         return out
-
-    def _drop(self) -> None:
-        """Forget a lost connection (reopened at the next poll)."""
-        client, self.client = self.client, None
-        try:
-            client.disconnect()
-        except Exception:  # already gone: nothing to release
-            LOGGER.debug("disconnecting a lost OPC UA connection failed", exc_info=True)
 
     def close(self) -> None:
         """Delete the subscription and disconnect."""
@@ -236,7 +236,7 @@ class OpcUaSink:
         try:
             self.client.check_connection()
         except Exception:
-            self._drop()
+            self.client = _dropped(self.client)
             raise
         for axis, offset in offsets.items():
             self._offsets[axis].write_value(
@@ -244,13 +244,6 @@ class OpcUaSink:
             )
         if self._cycle is not None:
             self._cycle.write_value(ua.DataValue(ua.Variant(float(t_s), ua.VariantType.Double)))
-
-    def _drop(self) -> None:
-        client, self.client = self.client, None
-        try:
-            client.disconnect()
-        except Exception:  # already gone: nothing to release
-            LOGGER.debug("disconnecting a lost OPC UA connection failed", exc_info=True)
 
     def close(self) -> None:
         """Disconnect."""
