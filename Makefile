@@ -47,8 +47,9 @@ day-two-check: install
 	PATH="$(CURDIR)/$(BIN):$$PATH" $(BIN)/python -m benchmarks.day_two_check --out reports/day_two_check
 
 # The MLflow UI in headless Chromium after `make run`: screenshots and checks in reports/ui/.
+# Playwright (tests/ui/) drives Debian's chromium (apt-get install -y chromium, or CHROMIUM=path).
 ui-check: install
-	$(BIN)/thermal ui-check
+	$(BIN)/python -m tests.ui.check
 
 lint: install
 	$(BIN)/ruff check .

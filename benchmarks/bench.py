@@ -14,7 +14,6 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import shutil
 import subprocess
 import sys
 import tempfile
@@ -24,43 +23,11 @@ from pathlib import Path
 import yaml
 
 from benchmarks import selection_bench
+from tests.helpers.repository import copy_repository
 
 TARGET_TOTAL_S = 180.0  # the whole default pipeline with all models, 2 cores
 TARGET_TRACK_SHARE = 0.20
-TARGET_DISCREPANCY_S = 120.0  # issue 4: the full search over the six candidates, 2 cores
-
-
-def copy_repository(root: Path, destination: Path) -> Path:
-    """Copy the tracked and the untracked, not ignored files of ``root`` into a new git repo."""
-    listed = subprocess.run(
-        ["git", "ls-files", "--cached", "--others", "--exclude-standard", "-z"],
-        cwd=root,
-        check=True,
-        capture_output=True,
-        text=True,
-    ).stdout.split("\0")
-    for name in filter(None, listed):
-        source = root / name
-        if source.is_file():
-            target = destination / name
-            target.parent.mkdir(parents=True, exist_ok=True)
-            shutil.copy2(source, target)
-    for command in (
-        ["git", "init", "-q"],
-        ["git", "add", "-A"],
-        [
-            "git",
-            "-c",
-            "user.name=bench",
-            "-c",
-            "user.email=bench@localhost",
-            "commit",
-            "-qm",
-            "bench copy",
-        ],
-    ):
-        subprocess.run(command, cwd=destination, check=True)
-    return destination
+TARGET_DISCREPANCY_S = 120.0  # the full discrepancy search over the six candidates, 2 cores
 
 
 def timed(command: list[str], cwd: Path, env: dict[str, str]) -> float:

@@ -35,7 +35,9 @@ from pathlib import Path
 from typing import Any
 
 from benchmarks.discrepancy_trials import PROGRAMS, SteppedPlan, run_workflow
-from pipeline.config import DEFAULT_PARAMS, load_section
+from pipeline.config import DEFAULT_PARAMS
+from pipeline.settings.base import load_settings
+from pipeline.settings.discrepancy import DiscrepancySettings
 from pipeline.twin.campaigns import SpindlePlan, demo_plans, simulate_spindle_campaign
 from pipeline.twin.cli import DEFAULT_SEED
 from pipeline.twin.effects import DEMO_EFFECTS
@@ -155,7 +157,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--seed", type=int, default=DEFAULT_SEED)
     parser.add_argument("--params", type=Path, default=DEFAULT_PARAMS)
     args = parser.parse_args(argv)
-    section = load_section("discrepancy", args.params)
+    section = load_settings(DiscrepancySettings, "discrepancy", args.params)
     args.out.mkdir(parents=True, exist_ok=True)
     results = {}
     for variant in VARIANTS:

@@ -1,17 +1,16 @@
 """Hidden-effect trials: does the discrepancy workflow name what was hidden in the data.
 
-Issue 4, section 3. For each case (no effect, each of the six effects alone, pairs), the
-project's twin (:func:`pipeline.twin.campaigns.simulate_spindle_campaign`) with exactly those
-effects switched on, random plausible parameters and realistic sensor and probe noise writes
-"measured" campaigns with speed steps and cool-downs in the raw contract; the workflow
+For each case (no effect, each of the six effects alone, pairs), the project's twin
+(:func:`pipeline.twin.campaigns.simulate_spindle_campaign`) with exactly those effects switched
+on, random plausible parameters and realistic sensor and probe noise writes "measured"
+campaigns with speed steps and cool-downs in the raw contract; the workflow
 (:mod:`pipeline.stages.discrepancy`) runs on the folder like on any measurements. The truth is
-used only to score the result: a trial is *correct* (issue 4's criterion) when the named
-effects equal the hidden ones and, when something was hidden, the held-out displacement RMS
-after adding them is at most half the baseline's; the *gap halved* when the held-out
-displacement or temperature RMS at least halved (an effect such as ``motor_heat`` shows in the
-temperatures far more than in Z).
+used only to score the result: a trial is *correct* when the named effects equal the hidden
+ones and, when something was hidden, the held-out displacement RMS after adding them is at most
+half the baseline's; the *gap halved* when the held-out displacement or temperature RMS at
+least halved (an effect such as ``motor_heat`` shows in the temperatures far more than in Z).
 
-Issue 14: each trial also records the identifiability class of every hidden effect and which
+Each trial also records the identifiability class of every hidden effect and which
 candidates were classed not identifiable. For a hidden effect classed not identifiable with a
 visible proposed test (or, without one, a calibration step), the trial runs that test on the
 same machine (:func:`follow_plan`: the same drawn parameters, the effect still hidden, the
@@ -46,9 +45,13 @@ import pandas as pd
 from scipy.stats import norm
 from statsmodels.stats.proportion import proportion_confint
 
-from pipeline.config import DEFAULT_PARAMS, load_section
+from pipeline.config import DEFAULT_PARAMS
 from pipeline.discrepancy.identifiability import NOT_IDENTIFIABLE
 from pipeline.discrepancy.search import CANDIDATE_EFFECTS
+from pipeline.settings.base import load_settings
+from pipeline.settings.discrepancy import DiscrepancySettings
+from pipeline.settings.ingest import IngestSettings
+from pipeline.settings.validate import ValidateSettings
 from pipeline.thermal.loads import loads_from_contract
 from pipeline.thermal.program import Program, Segment
 from pipeline.twin.campaigns import SpindlePlan, simulate_spindle_campaign
@@ -316,7 +319,7 @@ def follow_plan(
     effects: Sequence[str],
     hidden: Sequence[str],
     seed: int,
-    section: dict,
+    section: DiscrepancySettings,
     workdir: Path,
 ) -> list[PlanFollowUp]:
     """Run the proposed test of each of ``effects`` classed not identifiable, then rerun.
@@ -333,7 +336,7 @@ def follow_plan(
     hidden : sequence of str
         Effects of the generating twin (on in the test's campaigns too).
     seed : int
-    section : dict
+    section : DiscrepancySettings
         The ``discrepancy`` params section.
     workdir : Path
         Folder for the copies and the reports.
@@ -373,7 +376,7 @@ def _test_to_run(entry: dict) -> dict | None:
 
     The visible proposed test of an effect classed not identifiable; without one, its
     calibration step (a heater pulse on a part the campaigns never heated,
-    :func:`pipeline.discrepancy.test_plan.propose_test`).
+    :func:`pipeline.discrepancy.plan_proposal.propose_test`).
     """
     proposed = entry.get("proposed_test") or {}
     if entry.get("class") != NOT_IDENTIFIABLE:
@@ -421,15 +424,18 @@ def _follow_up(
     )
 
 
-def run_workflow(raw: Path, out: Path, section: dict, params_file: Path = DEFAULT_PARAMS) -> dict:
+def run_workflow(
+    raw: Path, out: Path, section: DiscrepancySettings, params_file: Path = DEFAULT_PARAMS
+) -> dict:
     """Run the discrepancy workflow (no MLflow) on a raw folder; return ``discrepancy.json``.
 
     The ingest and validation limits come from ``params_file`` as in the stage.
     """
     from pipeline.discrepancy.workflow import read_raw, run
 
-    gap = float(load_section("ingest", params_file)["max_alignment_gap_s"])
-    campaigns, quarantined, synthetic = read_raw(raw, gap, load_section("validate", params_file))
+    gap = load_settings(IngestSettings, "ingest", params_file).max_alignment_gap_s
+    limits = load_settings(ValidateSettings, "validate", params_file).limits()
+    campaigns, quarantined, synthetic = read_raw(raw, gap, limits)
     _, doc, _ = run(campaigns, section, out, quarantined=quarantined, synthetic=synthetic)
     return doc
 
@@ -494,7 +500,7 @@ class TrialResult:
 
     @property
     def correct(self) -> bool:
-        """Issue 4's criterion: named correctly and, if something was hidden, Z halved."""
+        """Named correctly and, if something was hidden, the held-out Z RMS at least halved."""
         return self.named_correctly and self.z_halved
 
     @property
@@ -544,7 +550,7 @@ class TrialResult:
 def run_trial(
     hidden: Iterable[str],
     seed: int,
-    section: dict,
+    section: DiscrepancySettings,
     workdir: Path,
     n_campaigns: int = 8,
     heat_scatter_rel: float = HEAT_SCATTER_REL,
@@ -556,7 +562,7 @@ def run_trial(
     ----------
     hidden : iterable of str
     seed : int
-    section : dict
+    section : DiscrepancySettings
         The ``discrepancy`` params section.
     workdir : Path
         Empty folder for the raw campaigns and the report.
@@ -697,7 +703,7 @@ def rates_markdown(rates: pd.DataFrame, trials: pd.DataFrame, seeds: Sequence[in
         "",
         f"Seeds {', '.join(map(str, seeds))}: {int(trials['named_correctly'].sum())} of "
         f"{len(trials)} trials named exactly the hidden effects; {int(trials['correct'].sum())} "
-        "also at least halved the held-out displacement RMS (issue 4's criterion). *Gap "
+        "also at least halved the held-out displacement RMS (*correct*). *Gap "
         "halved*: the held-out displacement or temperature RMS at least halved. Rates with "
         "their 95 % Wilson interval (five trials: one trial moves a rate by 20 points); RMS "
         "columns: medians over the seeds (range), um.",
@@ -711,7 +717,7 @@ def rates_markdown(rates: pd.DataFrame, trials: pd.DataFrame, seeds: Sequence[in
         "nothing hidden: that named an absent effect, a false alarm); *Z after plan*: the rerun's "
         "held-out Z RMS (um) and temperature RMS (K), baseline -> augmented twin (medians).",
         "",
-        "| hidden | trials | named correctly | Z halved | gap halved | correct (issue 4) "
+        "| hidden | trials | named correctly | Z halved | gap halved | correct "
         "| held-out Z RMS before | after | class | plan run | named after plan | Z after plan "
         "| T after plan |",
         "|---|---|---|---|---|---|---|---|---|---|---|---|---|",
@@ -727,7 +733,7 @@ def rates_markdown(rates: pd.DataFrame, trials: pd.DataFrame, seeds: Sequence[in
         )
     wrong = trials[~trials["correct"]]
     if len(wrong):
-        lines += ["", "Trials not correct by issue 4's criterion:", ""]
+        lines += ["", "Trials not correct (not named exactly, or Z not halved):", ""]
         lines += [
             f"- hidden {r.hidden}, seed {r.seed}: named {r.named}; held-out Z RMS "
             f"{r.rmse_um_before:.2f} -> {r.rmse_um_after:.2f} um, T RMS "
@@ -759,9 +765,9 @@ def main(argv: list[str] | None = None) -> int:
     )
     args = parser.parse_args(argv)
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(name)s: %(message)s")
-    section = load_section("discrepancy", args.params)
+    section = load_settings(DiscrepancySettings, "discrepancy", args.params)
     if args.quick:
-        section = {**section, "n_folds": 2}
+        section = section.model_copy(update={"n_folds": 2})
         args.campaigns = QUICK_CAMPAIGNS
     args.out.mkdir(parents=True, exist_ok=True)
     rows = []

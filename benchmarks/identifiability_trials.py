@@ -29,7 +29,7 @@ from pathlib import Path
 import pandas as pd
 
 from benchmarks.discrepancy_trials import run_workflow, write_hidden_campaigns
-from pipeline.config import DEFAULT_PARAMS, load_section
+from pipeline.config import DEFAULT_PARAMS
 from pipeline.discrepancy.calibrate import calibrate
 from pipeline.discrepancy.identifiability import IdentifiabilitySettings, assess_effects
 from pipeline.discrepancy.model import build_model
@@ -42,6 +42,10 @@ from pipeline.discrepancy.search import (
 )
 from pipeline.discrepancy.visibility import baseline_point
 from pipeline.discrepancy.workflow import read_raw
+from pipeline.settings.base import load_settings
+from pipeline.settings.discrepancy import DiscrepancySettings
+from pipeline.settings.ingest import IngestSettings
+from pipeline.settings.validate import ValidateSettings
 
 logger = logging.getLogger(__name__)
 
@@ -52,19 +56,22 @@ FIGURES = ("signal_sigma", "signal_Z_um", "signal_T_K", "collinearity_index")
 """Figures of an identifiability entry recorded per trial."""
 
 
-def baseline_document(raw: Path, section: dict, params_file: Path = DEFAULT_PARAMS) -> dict:
+def baseline_document(
+    raw: Path, section: DiscrepancySettings, params_file: Path = DEFAULT_PARAMS
+) -> dict:
     """Return the ``identifiability`` of a raw folder at its calibrated baseline, no search.
 
     The baseline twin is calibrated on the campaigns the search would use, as its first fit;
     the document has ``named_effects`` None (not searched) and ``identifiability``.
     """
-    gap = float(load_section("ingest", params_file)["max_alignment_gap_s"])
-    campaigns, _, _ = read_raw(raw, gap, load_section("validate", params_file))
-    settings = SearchSettings.from_params(section)
+    gap = load_settings(IngestSettings, "ingest", params_file).max_alignment_gap_s
+    limits = load_settings(ValidateSettings, "validate", params_file).limits()
+    campaigns, _, _ = read_raw(raw, gap, limits)
+    settings = SearchSettings.from_settings(section)
     searched, _ = split_for_search(campaigns, settings)
     roles = campaign_roles(campaigns)
     fit = calibrate(build_model(roles), searched)
-    ident = IdentifiabilitySettings.from_params(section.get("identifiability"))
+    ident = IdentifiabilitySettings.from_settings(section.identifiability)
     values = {k: v for k, (v, _) in fit.params.items()}
     point = baseline_point(searched, values, roles, prior_log_sd=ident.prior_log_sd)
     untestable = untestable_effects(settings.candidates, roles)
@@ -176,7 +183,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--params", type=Path, default=DEFAULT_PARAMS)
     parser.add_argument("--quick", action="store_true", help="calibrate the baseline only")
     args = parser.parse_args(argv)
-    section = load_section("discrepancy", args.params)
+    section = load_settings(DiscrepancySettings, "discrepancy", args.params)
     args.out.mkdir(parents=True, exist_ok=True)
     rows: list[dict] = []
     for seed in args.seeds:

@@ -1,14 +1,14 @@
-"""Check that the proposed test plan makes a hidden, not-identifiable effect visible (issue 14).
+"""Check that the proposed test plan makes a hidden, not-identifiable effect visible.
 
 On the hidden-effect trial campaigns (:func:`benchmarks.discrepancy_trials
 .write_hidden_campaigns`) with one effect hidden, the workflow classes it not identifiable and
-proposes a test (:mod:`pipeline.discrepancy.test_plan`). This check runs the proposed test on
+proposes a test (:mod:`pipeline.discrepancy.plan_proposal`). This check runs the proposed test on
 the same machine (same seed: the same drawn parameters) with the effect still hidden
 (:func:`benchmarks.discrepancy_trials.follow_plan`), adds those campaigns to the raw folder,
 reruns the workflow and records whether the effect is named and how its identifiability figure
 and the held-out Z gap moved.
 
-``python -m benchmarks.test_plan_check --effect thermal_bending --seed 1``
+``python -m benchmarks.plan_check --effect thermal_bending --seed 1``
 """
 
 from __future__ import annotations
@@ -21,7 +21,8 @@ from pathlib import Path
 from typing import Any
 
 from benchmarks.discrepancy_trials import follow_plan, run_workflow, write_hidden_campaigns
-from pipeline.config import load_section
+from pipeline.settings.base import load_settings
+from pipeline.settings.discrepancy import DiscrepancySettings
 
 
 def check(effect: str, seed: int, workdir: Path, n: int = 4) -> dict[str, Any]:
@@ -35,7 +36,8 @@ def check(effect: str, seed: int, workdir: Path, n: int = 4) -> dict[str, Any]:
         (sigma), the rerun's held-out Z (um) and temperature (K) RMS before and after, its named
         effects and the test's campaigns quarantined.
     """
-    section = {**load_section("discrepancy"), "n_folds": 2, "mlflow": False}
+    section = load_settings(DiscrepancySettings, "discrepancy")
+    section = section.model_copy(update={"n_folds": 2, "mlflow": False})
     raw = workdir / "raw"
     write_hidden_campaigns(raw, frozenset({effect}), seed=seed, n=n)
     doc = run_workflow(raw, workdir / "out_before", section)

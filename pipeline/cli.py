@@ -44,7 +44,6 @@ COMMANDS = {
     ),
     "rollback": ("pipeline.retraining.rollback", "move an axis' @champion back to @previous"),
     "summary": ("pipeline.reporting.summary", "print where the results are and how to open MLflow"),
-    "ui-check": ("pipeline.tracking.ui_check", "check in Chromium what the MLflow UI shows"),
     "contract-doc": ("pipeline.io.contract_doc", "write the tables of docs/data-contract.md"),
 }
 

@@ -76,7 +76,10 @@ CAMPAIGN_KEYS: tuple[Key, ...] = (
         "machine",
         OPTIONAL,
         "free text",
-        "campaigns of one machine that follow each other without a break form a run",
+        "the machine measured; the campaigns of one folder must all be of one machine "
+        "(`validate` stops on a second one), and a campaign without `machine` is taken to be of "
+        "that machine; campaigns of one machine that follow each other without a break form a "
+        "run",
         "machine",
     ),
     Key(
@@ -179,7 +182,8 @@ CAMPAIGN_KEYS: tuple[Key, ...] = (
     Key("axis.name", AXIS_KIND, "`X`, `Y`, `Z`", "the axis the laser measured", "axis_name"),
     Key("axis.stroke_mm", OPTIONAL, "mm, positive", "the travel of the axis", "stroke_mm"),
 )
-"""Every key of ``campaign.yaml``; keys not listed here are read as comments (ignored)."""
+"""Every key of ``campaign.yaml``; keys not listed here are read as comments (ignored), but for
+a close misspelling of a key the file lacks (``misspelt_key``, :mod:`pipeline.io.campaign_file`)."""
 
 DERIVED_COLUMNS = {
     "season_derived": "whether `season` came from `start`",
@@ -221,7 +225,8 @@ FILES: tuple[ContractFile, ...] = (
             ("elapsed_s", "s since `start`, strictly increasing"),
             (
                 "<sensor>",
-                "degC, one column per entry of `sensors:`; an empty cell is a missing reading",
+                "degC, one column per entry of `sensors:`; an empty cell is a missing reading "
+                "(bridged or dropped, see Missing readings)",
             ),
         ),
     ),
@@ -237,7 +242,7 @@ FILES: tuple[ContractFile, ...] = (
             (
                 "<axis>",
                 "um, one column per entry of `displacement:`; positive = tool away from the "
-                "table / workpiece",
+                "table / workpiece; an empty cell is a missing reading",
             ),
         ),
     ),

@@ -99,6 +99,10 @@ class ValidationLimits:
     min_program_coverage : float
         Samples spanning less than this share of the finite part of the ``spindle_program``
         (minutes) mean ``elapsed_s`` is not in seconds (minutes).
+    max_bridged_gap_s : float, s
+        Longest time from the reading before a gap of missing readings of one sensor to the
+        reading after it that is bridged by linear interpolation in time; the samples of a
+        longer gap (or of one at the start or end of the file) are dropped.
     """
 
     temperature_range_degC: tuple[float, float]  # noqa: N815 (params.yaml key)
@@ -117,6 +121,7 @@ class ValidationLimits:
     displacement_min_span_um: float
     unit_check_min_rise_degC: float  # noqa: N815 (params.yaml key)
     min_program_coverage: float
+    max_bridged_gap_s: float = 600.0
 
     @property
     def ds18b20_codes(self) -> tuple[float, float]:

@@ -12,8 +12,9 @@ The server listens on 127.0.0.1 at a free port, with its backend in
 ``<tmp_path>/mlflow-server/mlflow.db`` and proxied artifacts in
 ``<tmp_path>/mlflow-server/artifacts``; its output goes to ``<tmp_path>/mlflow-server/mlflow.log``
 (quoted in the error when it does not become healthy). It runs in its own process group, which
-is terminated (then killed) on exit, workers included (:func:`running_mlflow`, the code
-``thermal ui-check`` starts ``mlflow ui`` with).
+is terminated (then killed) on exit, workers included
+(:func:`tests.helpers.processes.running_mlflow`, the code the UI check starts ``mlflow ui``
+with).
 """
 
 from __future__ import annotations
@@ -22,7 +23,7 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
-from pipeline.tracking.ui_browser import running_mlflow
+from tests.helpers.processes import running_mlflow
 
 
 @contextmanager
@@ -43,7 +44,7 @@ def running_mlflow_server(tmp_path: Path, timeout_s: float = 120.0) -> Iterator[
 
     Raises
     ------
-    pipeline.tracking.ui_browser.ServerError
+    tests.helpers.processes.ServerError
         If the server exits or is not healthy in time, with the end of its log.
     """
     folder = Path(tmp_path) / "mlflow-server"

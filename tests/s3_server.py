@@ -26,7 +26,7 @@ from pathlib import Path
 
 import boto3
 
-from pipeline.tracking.ui_browser import free_port, stop_group
+from tests.helpers.processes import free_port, stop_group
 
 S3_CREDENTIALS = {
     "AWS_ACCESS_KEY_ID": "testing",

@@ -21,8 +21,20 @@ import yaml
 from pipeline import cli
 
 ROOT = Path(__file__).resolve().parents[1]
-FOUNDATION = {"errors", "paths", "config", "plots", "schemas"}
-"""Modules every package may import: errors, paths, params, the figure toolkit, the schemas."""
+FOUNDATION = {
+    "errors",
+    "paths",
+    "config",
+    "plots",
+    "schemas",
+    "fit_statistics",
+    "warnings_capture",
+    "progress",
+    "settings",
+}
+"""Modules every package may import: errors, paths, params, the figure toolkit, the schemas,
+the shared statistics (RMS, information criteria), the warnings' counts, the progress display,
+the typed params.yaml sections."""
 
 ALLOWED = {
     "schemas": set(),
@@ -30,6 +42,10 @@ ALLOWED = {
     "paths": set(),
     "config": {"errors"},
     "plots": set(),
+    "fit_statistics": set(),
+    "warnings_capture": set(),
+    "progress": set(),
+    "settings": set(),
     "validation": set(),
     "io": {"validation", "thermal"},  # the heat-load parser (pipeline/thermal/loads.py)
     "importers": {"io", "cli"},  # `thermal import <source>` reuses the command dispatcher

@@ -4,6 +4,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
+import yaml
 from numpy.polynomial import Polynomial
 
 from pipeline import paths
@@ -22,6 +23,7 @@ from pipeline.models.axis_composite import (
 )
 from pipeline.reporting import axis_model
 from pipeline.separation.axis import separate_axis
+from pipeline.settings.model_axis import ModelAxisSettings
 from pipeline.stages import model_axis
 
 RAW = Path(__file__).resolve().parents[1] / "data" / "raw"
@@ -102,7 +104,8 @@ def planted():
 
 
 def _fit(tables, params=PARAMS):
-    return axis_fit.build(params, tables["slopes"], tables["geometric"], tables["thermal"])
+    settings = ModelAxisSettings(**params)
+    return axis_fit.build(settings, tables["slopes"], tables["geometric"], tables["thermal"])
 
 
 def test_planted_sensors_and_coefficients_recovered(planted):
@@ -178,7 +181,7 @@ def test_no_validation_campaign_scores_the_fit_only(planted, tmp_path):
 
 def test_no_axis_campaign_at_all(tmp_path):
     empty = pd.DataFrame()
-    report, metrics, points = axis_fit.build(PARAMS, empty, empty, empty)
+    report, metrics, points = axis_fit.build(ModelAxisSettings(**PARAMS), empty, empty, empty)
     axis_model.plot(points, report, tmp_path / "none.png")
     assert (tmp_path / "none.png").stat().st_size > 0
     assert report["status"] == "no_axis_campaign"
@@ -286,6 +289,6 @@ def test_stage_writes_report_metrics_and_figure(planted, tmp_path, monkeypatch):
 
 def test_stage_without_separation_tables_says_which_stage_to_run(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
-    (tmp_path / "params.yaml").write_text("model_axis:\n  temperature: rise\n")
+    (tmp_path / "params.yaml").write_text(yaml.safe_dump({"model_axis": PARAMS}))
     with pytest.raises(FileNotFoundError, match="separate_axis"):
         model_axis.main([])

@@ -27,7 +27,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from pipeline import paths
+from pipeline import cli, paths
 from pipeline.stages import ingest, validate
 from pipeline.validation.plausibility import CHECKS as PLAUSIBILITY_CHECKS
 from pipeline.validation.texts import FALLBACK_TEXT, PROBLEM_TEXTS
@@ -332,6 +332,14 @@ CASES = [
     Case("26_zip_as_csv", zip_file, "binary_file", T, None, None),
     Case("27_laser_direction_empty", empty_direction, "missing_value", L, 7, "direction"),
     Case(
+        "27_laser_deviation_empty",
+        cell(L, 3, "deviation_um", "", axis),
+        "missing_value",
+        L,
+        3,
+        "deviation_um",
+    ),
+    Case(
         "27_laser_pass_one_direction", one_direction_pass, "laser_bidirectional", L, 11, "direction"
     ),
     Case("28_laser_run_empty", cell(L, 3, "run", "", axis), "laser_run_number", L, 3, "run"),
@@ -356,6 +364,8 @@ CASES = [
         "spindle_program",
     ),
     Case("axis_as_text", axis_as_text, "wrong_type", Y, None, "axis"),
+    Case("misspelt_follows", set_key("follow", "A01"), "misspelt_key", Y, None, "follow"),
+    Case("synthetic_as_text", set_key("synthetic", "maybe"), "wrong_type", Y, None, "synthetic"),
     Case("mixed_key_types", mixed_axis_keys, "displacement_axis_known", Y, None, "displacement"),
     Case("reserved_rpm_column", reserved_rpm, "reserved_column", T, None, "rpm", subprocess=True),
     Case("row_with_extra_cell", extra_cell, "field_count", T, 10, None),
@@ -505,17 +515,105 @@ def test_29_excel_exports_with_bom_and_crlf_are_accepted(workdir: Path):
             pd.testing.assert_frame_equal(one.reset_index(drop=True), other.reset_index(drop=True))
 
 
-def test_empty_sensor_cells_are_missing_readings_not_problems(workdir: Path, monkeypatch):
+def _warnings(report: dict, column: str) -> list[dict]:
+    return [w for w in report["warnings"] if (w["campaign"], w["column"]) == (BAD, column)]
+
+
+def _validated(root: Path) -> pd.DataFrame:
+    samples = pd.read_parquet(root / paths.VALIDATED_SPINDLE / paths.SAMPLES_FILE)
+    return samples.loc[samples["campaign_id"] == BAD].set_index("source_row")
+
+
+def _between(path: Path, column: str, before: int, after: int, row: int) -> float:
+    """The linear interpolation in elapsed_s of ``column`` at ``row`` from two rows of a CSV."""
+    header, rows = read_table(path)
+    t, x = header.index("elapsed_s"), header.index(column)
+    times = [float(rows[r - 1][t]) for r in (before, after)]
+    values = [float(rows[r - 1][x]) for r in (before, after)]
+    return float(np.interp(float(rows[row - 1][t]), times, values))
+
+
+def test_an_empty_cell_is_a_located_warning_bridged_in_the_validated_data(workdir, monkeypatch):
     """The contract: an empty temperature or displacement cell is a missing reading."""
     folder = spindle(workdir / paths.RAW)
-    set_cell(folder / "temperature.csv", 5, "T2", "")
-    set_cell(folder / "temperature.csv", 6, "T2", "")
+    for row in (5, 6):  # two missing samples at 180 s: 540 s between the readings around them
+        set_cell(folder / "temperature.csv", row, "T2", "")
     set_cell(folder / "displacement.csv", 9, "Z", "")
+    before = raw_hashes(workdir)
     report = run_stages(workdir, monkeypatch, as_subprocess=False)
+
+    assert raw_hashes(workdir) == before
+    assert report["problems"] == [] and BAD in report["summary"]["valid"]
+    [t2] = _warnings(report, "T2")
+    assert (t2["file"], t2["row"], t2["line"], t2["rows"]) == ("temperature.csv", 5, 6, [5, 6])
+    assert t2["handling"] == "bridged" and t2["gap_s"] == 540.0
+    assert "B01/temperature.csv rows 5-6" in t2["message"]
+    assert "bridged by linear interpolation in time between rows 4 and 7" in t2["message"]
+    [z] = _warnings(report, "Z")
+    assert (z["file"], z["row"], z["handling"]) == ("displacement.csv", 9, "bridged")
+    bad = _validated(workdir)
+    assert bad[["T2", "disp_Z"]].notna().all().all()
+    for row in (5, 6):
+        expected = _between(folder / "temperature.csv", "T2", 4, 7, row)
+        assert bad.loc[row, "T2"] == pytest.approx(expected)
+    expected = _between(folder / "displacement.csv", "Z", 8, 10, 9)
+    assert bad.loc[9, "disp_Z"] == pytest.approx(expected)
+
+
+@pytest.mark.parametrize("limit_s", [600.0, 900.0])
+def test_a_gap_longer_than_the_limit_drops_its_samples(workdir, monkeypatch, limit_s):
+    """Four missing samples at 180 s span 900 s: dropped under 600 s, bridged under 900 s."""
+    params = workdir / "params.yaml"
+    replace_text(params, "max_bridged_gap_s: 600.0", f"max_bridged_gap_s: {limit_s}")
+    folder = spindle(workdir / paths.RAW)
+    for row in (10, 11, 12, 13):
+        set_cell(folder / "temperature.csv", row, "T1", "")
+    set_cell(folder / "temperature.csv", 1, "T3", "")  # nothing before it to interpolate from
+    report = run_stages(workdir, monkeypatch, as_subprocess=False)
+
     assert report["problems"] == []
-    samples = pd.read_parquet(workdir / paths.VALIDATED_SPINDLE / paths.SAMPLES_FILE)
-    bad = samples.loc[samples["campaign_id"] == BAD].set_index("source_row")
-    assert bad.loc[[5, 6], "T2"].isna().all() and bad["T2"].notna().sum() == len(bad) - 2
+    [gap] = _warnings(report, "T1")
+    assert gap["rows"] == [10, 11, 12, 13] and gap["gap_s"] == 900.0
+    [first] = _warnings(report, "T3")
+    assert (first["row"], first["handling"], first["samples"]) == (1, "dropped", [1])
+    assert "start of its record" in first["message"]
+    kept = set(_validated(workdir).index)
+    if limit_s < 900.0:
+        assert gap["handling"] == "dropped" and gap["samples"] == [10, 11, 12, 13]
+        assert f"longer than validate.max_bridged_gap_s = {limit_s:g} s" in gap["message"]
+        assert kept == set(range(2, 41)) - {10, 11, 12, 13}
+    else:
+        assert gap["handling"] == "bridged" and "between rows 9 and 14" in gap["message"]
+        assert kept == set(range(2, 41))
+
+
+def _machines_workdir(workdir: Path, machine: str | None) -> None:
+    """Add campaign B01 of ``machine`` (None: no machine: key) beside K01 and A01 of 'test'."""
+    raw = workdir / paths.RAW
+    if machine is None:
+        yaml_of(raw, lambda meta: meta.pop("machine"))
+    else:
+        yaml_of(raw, lambda meta: meta.__setitem__("machine", machine))
+
+
+def test_campaigns_of_two_machines_stop_validate_naming_both(workdir, monkeypatch, capsys):
+    _machines_workdir(workdir, "FL_THERMAL")
+    monkeypatch.chdir(workdir)
+    assert ingest.main([]) == 0
+    assert cli.main(["validate"]) == 1
+    message = capsys.readouterr().err
+    assert "Traceback" not in message
+    assert "machine 'FL_THERMAL': 1 campaign (B01)" in message
+    assert "machine 'test': 2 campaigns (A01, K01)" in message
+    assert "run the pipeline once per machine" in message
+    assert not (workdir / paths.VALIDATED).exists()
+    assert not (workdir / paths.VALIDATION_REPORT).exists()
+
+
+def test_a_campaign_without_machine_is_not_a_second_machine(workdir, monkeypatch):
+    _machines_workdir(workdir, None)
+    report = run_stages(workdir, monkeypatch, as_subprocess=False)
+    assert set(report["summary"]["valid"]) == {"A01", "B01", "K01"}
 
 
 def test_yaml_dates_and_non_text_values_are_read(workdir: Path, monkeypatch):

@@ -26,6 +26,7 @@ from pipeline.models.axis_composite import pass_features
 from pipeline.models.axis_fit import build
 from pipeline.separation.axis import separate_axis
 from pipeline.separation.features import InputSpec, SpeedResponses, speed_responses
+from pipeline.settings.model_axis import ModelAxisSettings
 
 SENSORS = ["T1", "T2", "T3"]
 SPEED_INPUTS = ["speed_lag_30min", "speed2_lag_90min"]
@@ -326,7 +327,7 @@ def axis_tables():
 
 @pytest.mark.parametrize("temperature", ["rise", "absolute"])
 def test_sinumerik_mapping_reproduces_the_thermal_part_of_the_axis_model(axis_tables, temperature):
-    params = {**AXIS_PARAMS, "temperature": temperature}
+    params = ModelAxisSettings(**{**AXIS_PARAMS, "temperature": temperature})
     report, _, points = build(
         params, axis_tables["slopes"], axis_tables["geometric"], axis_tables["thermal"]
     )
@@ -357,7 +358,10 @@ def test_sinumerik_mapping_reproduces_the_thermal_part_of_the_axis_model(axis_ta
 
 def test_sinumerik_mapping_is_none_without_a_linear_axis_model(axis_tables):
     report, _, _ = build(
-        AXIS_PARAMS, axis_tables["slopes"], axis_tables["geometric"], axis_tables["thermal"]
+        ModelAxisSettings(**AXIS_PARAMS),
+        axis_tables["slopes"],
+        axis_tables["geometric"],
+        axis_tables["thermal"],
     )
     assert sinumerik_mapping(report, "X") is None
     assert sinumerik_mapping({"status": "no_axis_campaign", "message": "none"}, "Y") is None

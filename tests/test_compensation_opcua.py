@@ -17,9 +17,9 @@ from asyncua.sync import Client
 
 from pipeline.compensation.axis import bound
 from pipeline.compensation.bundle import write_bundle
-from pipeline.compensation.settings import CompensationSettings
-from pipeline.tracking.ui_browser import free_port, stop_group
+from pipeline.settings.compensation import CompensationSettings
 from tests.compensation_bundle import SENSORS, campaign, fitted_bundle, offline_prediction
+from tests.helpers.processes import free_port, stop_group
 
 ROOT = Path(__file__).resolve().parents[1]
 HELD_OUT, LOST_AT, LOST = 9, 70, "T1"

@@ -18,8 +18,9 @@ from pipeline.compensation.guard import bad_inputs
 from pipeline.compensation.replay import replay_axis, replay_run
 from pipeline.compensation.report import summary_record
 from pipeline.compensation.runtime import CompensationRuntime, EventLog
-from pipeline.compensation.settings import AxisLimits, CompensationSettings
 from pipeline.errors import ParamsError
+from pipeline.settings.base import parse_section
+from pipeline.settings.compensation import AxisLimits, CompensationSettings
 from tests.compensation_bundle import SENSORS, campaign, fitted_bundle, offline_prediction
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -205,11 +206,19 @@ def test_a_growing_csv_is_read_row_by_row_and_a_half_written_line_waits(tmp_path
 
 
 def test_settings_name_the_wrong_key_path_and_the_keys_allowed():
-    with pytest.raises(ParamsError, match=r"compensation\.limits\.Z\.max_rate: Extra inputs"):
-        CompensationSettings.from_params({"limits": {"Z": {"max_rate": 1.0}}})
-    with pytest.raises(ParamsError, match=r"compensation\.hold_s: Input should be greater"):
-        CompensationSettings.from_params({"hold_s": -1})
-    settings = CompensationSettings.from_params({"limits": {"Z": {"max_offset_um": 50.0}}})
+    with pytest.raises(
+        ParamsError,
+        match=r"compensation\.limits\.Z\.max_rate: unknown key \(did you mean "
+        r"'max_rate_um_per_s'\?\); allowed here: max_offset_um, max_rate_um_per_s",
+    ):
+        parse_section(CompensationSettings, "compensation", {"limits": {"Z": {"max_rate": 1.0}}})
+    with pytest.raises(ParamsError, match=r"compensation\.hold_s = -1; input should be greater"):
+        parse_section(CompensationSettings, "compensation", {"hold_s": -1})
+    with pytest.raises(ParamsError, match=r"compensation\.offset_sign = 2; use -1 \(write the"):
+        parse_section(CompensationSettings, "compensation", {"offset_sign": 2})
+    settings = parse_section(
+        CompensationSettings, "compensation", {"limits": {"Z": {"max_offset_um": 50.0}}}
+    )
     assert settings.limits_of("Z").max_offset_um == 50.0
     assert settings.limits_of("X") == AxisLimits()
 

@@ -1,7 +1,7 @@
 """The calibrated twin takes a campaign's external heat loads (``heat_loads:``) as known input.
 
-Issue 14: a heater on one part of the machine is the test that separates what the spindle's
-heat ties together; the twin must put the load's power into the node of its role, exactly.
+A heater on one part of the machine is the test that separates what the spindle's heat ties
+together; the twin must put the load's power into the node of its role, exactly.
 """
 
 from __future__ import annotations

@@ -19,7 +19,6 @@ import numpy as np
 import pytest
 
 from benchmarks.discrepancy_trials import SteppedPlan
-from pipeline.config import load_section
 from pipeline.discrepancy import MeasuredCampaign, build_model, calibrate
 from pipeline.discrepancy.calibrate import weighted_residuals
 from pipeline.discrepancy.collinearity import (
@@ -44,13 +43,16 @@ from pipeline.discrepancy.model import EFFECT_SPECS, EFFECTS
 from pipeline.discrepancy.report_text import markdown
 from pipeline.discrepancy.search import FitResult, ModelEvidence, SearchResult
 from pipeline.discrepancy.visibility import PLAUSIBLE, RISE_SIZED, Visibility, baseline_point
+from pipeline.errors import ParamsError
+from pipeline.settings.base import load_settings
+from pipeline.settings.discrepancy import DiscrepancySettings, IdentifiabilityParams
 from pipeline.thermal.program import Program, Segment
 from pipeline.twin.campaigns import SpindlePlan, simulate_spindle_campaign
 from pipeline.twin.params import SpindleParams
 from tests.twin_measured import measured_from_twin
 
-SECTION = load_section("discrepancy")
-SETTINGS = IdentifiabilitySettings.from_params(SECTION.get("identifiability"))
+SECTION = load_settings(DiscrepancySettings, "discrepancy")
+SETTINGS = IdentifiabilitySettings.from_settings(SECTION.identifiability)
 # no campaign-to-campaign heat scatter: the data are the generator's baseline plus sensor noise
 NO_SCATTER = replace(SpindleParams(), heat_scatter_rel=0.0)
 
@@ -155,9 +157,15 @@ def test_settings_give_every_effect_parameter_a_size_within_its_bounds():
             assert value > 0.0, size
         else:
             assert names[size].lower <= value <= names[size].upper, size
-    with pytest.raises(KeyError, match="unknown size"):
-        IdentifiabilitySettings.from_params({"plausible": {"bearing_exponant": 1.7}})
-    tighter = IdentifiabilitySettings.from_params({"min_signal_sigma": 3, "plausible": {}})
+    with pytest.raises(
+        ParamsError,
+        match=r"discrepancy.identifiability.plausible.bearing_exponant: unknown size \(did you "
+        r"mean 'bearing_exponent'\?\)",
+    ):
+        IdentifiabilitySettings.from_settings(
+            IdentifiabilityParams(plausible={"bearing_exponant": 1.7})
+        )
+    tighter = IdentifiabilitySettings.from_settings(IdentifiabilityParams(min_signal_sigma=3))
     assert tighter.min_signal_sigma == 3.0 and tighter.plausible == PLAUSIBLE
 
 
@@ -395,17 +403,17 @@ def test_the_report_says_each_class_in_words():
 
 @pytest.mark.slow
 def test_a_hidden_sensor_lag_is_called_not_identifiable_and_its_test_names_it(tmp_path):
-    """Issue 14: with the lag hidden (seed 1, 4 campaigns) the search names nothing, as on
+    """With the lag hidden (seed 1, 4 campaigns) the search names nothing, as on
     clean data; the report says the lag is not identifiable with these campaigns instead of
     leaving it unnamed, and proposes a heater on the motor, which no campaign heated: a
     calibration step within the envelope first. Those tests, simulated for the same machine
     and added round after round, get the lag named and the held-out temperature RMS halved."""
-    from benchmarks.test_plan_check import check
+    from benchmarks.plan_check import check
 
     result = check("sensor_lag", 1, tmp_path)
     doc = json.loads((tmp_path / "out_before" / "discrepancy.json").read_text(encoding="utf-8"))
     assert doc["named_effects"] == []
-    assert list(doc["identifiability"]) == list(SECTION["candidates"])
+    assert list(doc["identifiability"]) == list(SECTION.candidates)
     lag = doc["identifiability"]["sensor_lag"]
     assert lag["class"] == "not_identifiable", lag
     assert lag["signal_sigma"] < lag["thresholds"]["min_signal_sigma"]

@@ -9,13 +9,11 @@ from __future__ import annotations
 
 from dataclasses import dataclass, replace
 from datetime import datetime
-from pathlib import Path
 
 import numpy as np
 import pandas as pd
 import pytest
 
-from pipeline.config import load_section
 from pipeline.discrepancy import (
     EFFECTS,
     MeasuredCampaign,
@@ -33,12 +31,11 @@ from pipeline.twin.campaigns import SpindlePlan, simulate_spindle_campaign
 from pipeline.twin.params import DS18B20, SpindleParams
 from pipeline.twin.writer import write_campaign
 from pipeline.validation.checks import validate_tables
-from pipeline.validation.limits import limits_from_params
 from pipeline.validation.tables import select_valid
 from schemas.vocabulary import SENSOR_ROLES
+from tests.helpers.repo_params import alignment_gap_s, validation_limits
 from tests.twin_measured import measured_from_twin
 
-REPO = Path(__file__).resolve().parents[1]
 ALL_ROLES = set(SENSOR_ROLES) - {"nut", "coolant"}
 # no campaign-to-campaign heat scatter: the data are exactly the twin's baseline plus noise
 NO_SCATTER = replace(SpindleParams(), heat_scatter_rel=0.0)
@@ -292,10 +289,8 @@ def replace_program(c: MeasuredCampaign, delay_s: float) -> MeasuredCampaign:
 def test_from_tables_reads_the_ingest_and_validate_outputs(tmp_path):
     twin = _twin_campaign(2)
     write_campaign(twin, tmp_path / "raw")
-    tables = ingest(
-        tmp_path / "raw", float(load_section("ingest", REPO / "params.yaml")["max_alignment_gap_s"])
-    )
-    limits = limits_from_params(load_section("validate", REPO / "params.yaml"))
+    tables = ingest(tmp_path / "raw", alignment_gap_s())
+    limits = validation_limits()
     result = validate_tables(
         tables["campaigns"], tables["samples"], tables["laser"], tables["problems"], limits
     )

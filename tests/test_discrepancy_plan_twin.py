@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from pipeline.discrepancy import test_plan as tp
+from pipeline.discrepancy import plan_proposal as tp
 from pipeline.discrepancy.calibrate import calibrate, prior_scales, weighted_residuals
 from pipeline.discrepancy.plan_twin import plan_twin
 from pipeline.discrepancy.visibility import baseline_point

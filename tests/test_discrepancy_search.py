@@ -42,6 +42,10 @@ from pipeline.discrepancy.search import (
     make_folds,
     split_for_search,
 )
+from pipeline.errors import ParamsError
+from pipeline.settings.base import load_settings
+from pipeline.settings.discrepancy import DiscrepancySettings
+from pipeline.settings.tracking import TrackingSettings
 
 # ------------------------------------------------------------------ phase split, noise floor
 
@@ -272,13 +276,19 @@ def test_validation_campaigns_are_held_back_from_the_search():
 
 
 def test_settings_reject_unknown_effects():
-    with pytest.raises(KeyError, match="unknown effect"):
-        SearchSettings.from_params({"candidates": ["spindle_wobble"]})
+    with pytest.raises(
+        ParamsError, match=r"discrepancy.candidates\[0\]: unknown effect; registered effects: "
+    ):
+        SearchSettings.from_settings(DiscrepancySettings(candidates=("spindle_wobble",)))
+    every = SearchSettings.from_settings(DiscrepancySettings())
+    assert every.candidates == CANDIDATE_EFFECTS and every.max_effects == len(CANDIDATE_EFFECTS)
 
 
 # ------------------------------------------------------------------ hidden effects (real twin)
 
-SECTION = {**load_section("discrepancy"), "n_jobs": 2, "n_folds": 4}
+SECTION = load_settings(DiscrepancySettings, "discrepancy").model_copy(
+    update={"n_jobs": 2, "n_folds": 4}
+)
 
 INVISIBLE = {
     "sensor_lag": "the baseline absorbs the sensors' lags into its node heat capacities: the "
@@ -293,11 +303,11 @@ INVISIBLE = {
 @pytest.mark.slow
 @pytest.mark.parametrize("hidden", [frozenset(c) for c in CASES], ids=case_name)
 def test_the_hidden_effects_are_named_and_the_gap_halves(tmp_path, hidden):
-    """Issue 4, section 3, seed 1: exactly the hidden effects are named and the held-out gap
-    (displacement, or temperatures for an effect that shows there, such as ``motor_heat``) at
-    least halves; ``make trials`` runs more seeds and reports issue 4's stricter Z-only rate.
+    """Seed 1: exactly the hidden effects are named and the held-out gap (displacement, or
+    temperatures for an effect that shows there, such as ``motor_heat``) at least halves;
+    ``make trials`` runs more seeds and reports the stricter rate that asks Z to halve.
 
-    Issue 14: an effect these campaigns cannot show (:data:`INVISIBLE`) is not named but
+    An effect these campaigns cannot show (:data:`INVISIBLE`) is not named but
     classed not identifiable; for bending, the tests it proposes (a calibration step on the
     never-heated column first), run on the same machine one round after the other, get it
     named with the held-out Z gap more than halved. With nothing hidden, the tests proposed
@@ -400,7 +410,7 @@ def test_untestable_effects_are_reported_when_roles_are_missing(tmp_path):
         (folder / "campaign.yaml").write_text("\n".join(kept) + "\n", encoding="utf-8")
         temps = pd.read_csv(folder / "temperature.csv").drop(columns=sorted(drop))
         temps.to_csv(folder / "temperature.csv", index=False)
-    doc = run_workflow(tmp_path / "raw", tmp_path / "out", {**SECTION, "n_jobs": 1})
+    doc = run_workflow(tmp_path / "raw", tmp_path / "out", SECTION.model_copy(update={"n_jobs": 1}))
     assert doc["untestable"]["motor_heat"] == ["spindle_motor"]
     assert set(doc["untestable"]["thermal_bending"]) == {"column_front", "column_rear"}
     tried = {c["effect"] for r in doc["candidates_by_step"] for c in r["candidates"]}
@@ -496,7 +506,7 @@ def test_mlflow_run_holds_the_metrics_and_figures(tmp_path, monkeypatch):
     }
     uri = f"sqlite:///{(tmp_path / 'mlflow.db').as_posix()}"
     monkeypatch.setenv("MLFLOW_TRACKING_URI", uri)
-    run_id = log_discrepancy_run(files, doc, {"experiment": "discrepancy-test"})
+    run_id = log_discrepancy_run(files, doc, TrackingSettings(), "discrepancy-test")
     client = MlflowClient(tracking_uri=uri)
     run = client.get_run(run_id)
     assert run.data.metrics["rmse_um_before"] == pytest.approx(doc["rmse_um_before"])

@@ -1,4 +1,4 @@
-"""Tests of the test plan proposed for a not-identifiable effect (discrepancy/test_plan.py).
+"""Tests of the test plan proposed for a not-identifiable effect (discrepancy/plan_proposal.py).
 
 The plan search on small synthetic campaigns of the project's generator at one constant speed
 (where the speed laws cannot be told from the baseline): it proposes speed steps, under which
@@ -14,7 +14,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from pipeline.discrepancy import test_plan as tp
+from pipeline.discrepancy import plan_proposal as tp
 from pipeline.discrepancy.identifiability import (
     NOT_IDENTIFIABLE,
     NOT_NEEDED,
@@ -423,7 +423,7 @@ def test_the_proposed_heater_tests_run_on_the_same_machine_name_the_bending(tmp_
     the doubt about the never-heated column holds the test back; those tests, simulated for the
     same machine and added to the campaigns one round after the other, get bending named and
     the held-out Z gap more than halved."""
-    from benchmarks.test_plan_check import check
+    from benchmarks.plan_check import check
 
     result = check("thermal_bending", 1, tmp_path)
     assert result["class_before"] == NOT_IDENTIFIABLE

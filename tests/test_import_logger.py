@@ -16,7 +16,6 @@ import pandas as pd
 import pytest
 import yaml
 
-from pipeline.config import load_section
 from pipeline.importers import logger_import
 from pipeline.importers.cutting import MIN_SAMPLES, CutRule, segments
 from pipeline.importers.logger_table import TableError, read_logger_table
@@ -25,7 +24,7 @@ from pipeline.io.reader import read_campaign
 from pipeline.io.tables import ingest
 from pipeline.separation.runs import RunSettings, build_runs, candidate_links, spans_from_tables
 from pipeline.validation.checks import validate_tables
-from pipeline.validation.limits import limits_from_params
+from tests.helpers.repo_params import alignment_gap_s, validation_limits
 
 REPO = Path(__file__).resolve().parents[1]
 INTERVAL_S = 20.0
@@ -165,9 +164,8 @@ def campaign_ids(out: Path) -> list[str]:
 
 
 def ingest_and_validate(out: Path):
-    gap = float(load_section("ingest", REPO / "params.yaml")["max_alignment_gap_s"])
-    tables = ingest(out, gap)
-    limits = limits_from_params(load_section("validate", REPO / "params.yaml"))
+    tables = ingest(out, alignment_gap_s())
+    limits = validation_limits()
     result = validate_tables(
         tables["campaigns"], tables["samples"], tables["laser"], tables["problems"], limits
     )
@@ -392,6 +390,10 @@ def test_a_long_enough_stop_starts_a_new_cold_run(tmp_path):
         ({"ignore_columns": ["ch3", "t5", "t1"]}, "ignore_columns", "remove t1"),
         ({"cut__min_stop_min": -1}, "cut.min_stop_min", "at least 0"),
         ({"campaign__season": "monsoon"}, "campaign.season", "winter"),
+        ({"cut__rul": "stops"}, "cut.rul", "use only rule, min_stop_min, window_h, stop_rpm"),
+        ({"cut__rul": "stops"}, "cut.rul", "did you mean 'rule'?"),
+        ({"table__header_row": 1.5}, "table.header_row", "not a whole number"),
+        ({"campaign__synthetic": "no"}, "campaign.synthetic", "write campaign.synthetic: false"),
     ],
 )
 def test_mapping_errors_name_the_file_and_key(tmp_path, changes, key, hint):

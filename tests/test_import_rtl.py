@@ -16,20 +16,18 @@ import pytest
 import yaml
 
 import schemas
-from pipeline.config import load_section
 from pipeline.importers import rtl_import
 from pipeline.importers.renishaw import RtlFormatError, read_rtl
 from pipeline.io.reader import read_campaign
 from pipeline.validation.laser_checks import validate_laser
-from pipeline.validation.limits import limits_from_params
 from schemas.contract import LASER_COLUMNS
+from tests.helpers.repo_params import validation_limits
 
 TARGETS = (0.0, 55.0, 110.0, 165.0, 220.0, 275.0)  # mm; six targets wrap onto two lines
 WARMUP = (0.0, 30.0, 75.0)  # min
 DATES = ("2015-01-12 08:30:00", "2015-01-12 09:00:00", "2015-01-12 09:45:00")
 DIRECTIONS = ("+", "-", "+", "-")
-ROOT = Path(__file__).resolve().parents[1]
-LIMITS = limits_from_params(load_section("validate", ROOT / "params.yaml"))
+LIMITS = validation_limits()
 
 
 def deviation(file_index: int, run: int, target: float, direction: str) -> float:

@@ -4,6 +4,7 @@ import pytest
 
 from pipeline.io.tables import ingest
 from tests.raw_builders import write_spindle_campaign
+from tests.raw_edits import set_cell
 
 
 def test_ingest_reads_samples_on_temperature_time_base(tmp_path):
@@ -29,6 +30,19 @@ def test_displacement_is_interpolated_to_temperature_instants(tmp_path):
     np.testing.assert_allclose(samples["disp_Z"], expected, equal_nan=True)
     assert np.isnan(samples["disp_Z"].iloc[0])  # before the first displacement sample
     assert samples["disp_Z_source_row"].iloc[1] == 2  # nearest to 180 s: row 2, at 240 s
+
+
+def test_an_empty_displacement_cell_is_not_interpolated_across(tmp_path):
+    """Validate bridges or drops the gap (validate.max_bridged_gap_s); ingest only marks it."""
+    folder = write_spindle_campaign(tmp_path, "K01", n=10, displacement_offset_s=60.0)
+    set_cell(folder / "displacement.csv", 4, "Z", "")  # the reading at 600 s
+    samples = ingest(tmp_path, max_alignment_gap_s=200.0)["samples"].set_index("source_row")
+    # the instants at 540 s and 720 s lie between row 4 and a neighbour: no value, row 4 named
+    assert samples.loc[[4, 5], "disp_Z"].isna().all()
+    assert list(samples.loc[[4, 5], "disp_Z_source_row"]) == [4, 4]
+    assert samples.loc[[2, 3, 6, 7, 8, 9, 10], "disp_Z"].notna().all()
+    # before the first displacement sample (60 s) there is no reading to name
+    assert np.isnan(samples.loc[1, "disp_Z"]) and pd.isna(samples.loc[1, "disp_Z_source_row"])
 
 
 def test_alignment_gap_leaves_displacement_missing(tmp_path):

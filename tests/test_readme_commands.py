@@ -23,8 +23,8 @@ import pandas as pd
 import pytest
 from mlflow.tracking import MlflowClient
 
-from benchmarks.bench import copy_repository
 from pipeline.cli import COMMANDS
+from tests.helpers.repository import copy_repository
 
 ROOT = Path(__file__).resolve().parents[1]
 README = (ROOT / "README.md").read_text(encoding="utf-8")

@@ -32,7 +32,7 @@ import pytest
 import yaml
 from mlflow.tracking import MlflowClient
 
-from benchmarks.bench import copy_repository
+from tests.helpers.repository import copy_repository
 from tests.mlflow_server import running_mlflow_server
 from tests.s3_server import S3_CREDENTIALS, running_s3_server
 

@@ -2,6 +2,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from pipeline.fit_statistics import information_criteria, root_mean_square
 from pipeline.protocol.scoring import (
     candidate_summary,
     compensation_ratio,
@@ -9,10 +10,24 @@ from pipeline.protocol.scoring import (
     group_scores,
     metrics_tree,
     residual_std,
-    root_mean_square,
     score_matrix,
     summarise,
 )
+
+
+def test_information_criteria_match_their_definitions_and_aicc_is_undefined_without_room():
+    aic, aicc, bic = information_criteria(np.array([2.0, 8.0]), 10, np.array([3, 8]))
+    assert aic[0] == pytest.approx(10 * np.log(0.2) + 6)
+    assert bic[0] == pytest.approx(10 * np.log(0.2) + 3 * np.log(10))
+    assert aicc[0] == pytest.approx(aic[0] + 2 * 3 * 4 / 6)
+    assert aicc[1] == pytest.approx(aic[1] + 2 * 8 * 9 / 1)
+    assert information_criteria(1.0, 10, 9)[1] == np.inf
+    assert information_criteria(0.0, 10, 2)[0] == -np.inf
+
+
+def test_rms_ignores_missing_values_and_is_nan_without_any():
+    assert root_mean_square([3.0, np.nan, -4.0, np.inf]) == pytest.approx(np.sqrt(12.5))
+    assert np.isnan(root_mean_square([np.nan]))
 
 
 def test_residual_std_is_blind_to_offset_rms_is_not():

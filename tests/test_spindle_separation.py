@@ -4,12 +4,15 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from pipeline.errors import ParamsError
 from pipeline.separation.features import SpeedResponses, reference_value, resample, speed_responses
-from pipeline.separation.runs import RunSettings
 from pipeline.separation.spindle import SeparationSettings, spindle_thermal_error
+from pipeline.settings.base import parse_section
+from pipeline.settings.separate import SeparateSettings
 from schemas import SpindleThermalErrorModel
 
 START = pd.Timestamp("2025-03-03T08:00:00")
+ORDER = {"geometric_order": 4}  # the one required key of separate:, read by separate_axis
 
 
 def _campaign(cid, start=START, axes=("Z",), follows=None, start_state=None):
@@ -207,10 +210,22 @@ def test_fast_sampling_is_averaged_into_windows():
 def test_unknown_reference_and_bad_run_keys_are_clear_errors():
     with pytest.raises(ValueError, match="separate.cold_reference"):
         reference_value(np.array([1.0]), "median", 3)
-    with pytest.raises(ValueError, match="separate.cold_reference"):
-        SeparationSettings.from_params({"cold_reference": "median"})
-    with pytest.raises(KeyError, match="separate.runs: unknown key"):
-        RunSettings.from_params({"max_gap": 10})
+    with pytest.raises(ParamsError, match=r"separate.cold_reference = 'median'; input should"):
+        parse_section(SeparateSettings, "separate", {"cold_reference": "median", **ORDER})
+    with pytest.raises(ParamsError, match=r"separate.runs.max_gap: unknown key \(did you mean"):
+        parse_section(SeparateSettings, "separate", {"runs": {"max_gap": 10}, **ORDER})
+
+
+def test_the_separate_section_becomes_the_separation_settings():
+    settings = SeparationSettings.from_settings(
+        parse_section(
+            SeparateSettings,
+            "separate",
+            {"displacement_axis": "Z", "resample_s": 0, "speed_responses": {}, **ORDER},
+        )
+    )
+    assert settings.axes == ("Z",) and settings.resample_s is None and settings.speed is None
+    assert SeparationSettings.from_settings(SeparateSettings(**ORDER)) == SeparationSettings()
 
 
 def test_inputs_a_run_cannot_reference_at_its_cold_start_are_left_out_or_said():

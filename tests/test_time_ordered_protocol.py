@@ -7,9 +7,11 @@ from sklearn.linear_model import LinearRegression
 
 from pipeline.errors import ParamsError
 from pipeline.protocol.cross_season import Candidate, fit_and_score
-from pipeline.protocol.ranking import check_rank_by, ranking_scheme
+from pipeline.protocol.ranking import ranking_scheme
 from pipeline.protocol.scoring import candidate_summary, group_scores
-from pipeline.protocol.units import UnitSettings, campaign_series, training_units
+from pipeline.protocol.units import campaign_series, training_units
+from pipeline.settings.base import parse_section
+from pipeline.settings.protocol import ProtocolSettings
 
 HOUR = 3600.0
 
@@ -61,7 +63,7 @@ def _series(campaigns, **kwargs):
 
 
 def _units(series, **settings):
-    return {u.name: u for u in training_units(series, UnitSettings(**settings))}
+    return {u.name: u for u in training_units(series, ProtocolSettings(**settings))}
 
 
 def test_rolling_origin_predicts_each_campaign_from_those_that_ended_before_it():
@@ -168,13 +170,20 @@ def test_ranking_by_params_and_its_fallback_say_why():
     assert ranking_scheme(single, training_units(single)).scheme is None
 
 
-def test_protocol_params_are_checked():
-    with pytest.raises(ParamsError, match="rank_by is 'newest'"):
-        check_rank_by("newest")
-    with pytest.raises(ParamsError, match="unknown key"):
-        UnitSettings.from_params({"buffer": 1})
-    with pytest.raises(ParamsError, match="buffer_campaigns is -1"):
-        UnitSettings.from_params({"buffer_campaigns": -1})
-    with pytest.raises(ParamsError, match="forward_min_share is 2"):
-        UnitSettings.from_params({"forward_min_share": 2})
-    assert UnitSettings.from_params({"rank_by": "auto"}) == UnitSettings()
+@pytest.mark.parametrize(
+    "section, message",
+    [
+        ({"rank_by": "newest"}, r"protocol.rank_by = 'newest'; input should be 'auto', 'loso'"),
+        ({"buffer": 1}, r"protocol.buffer: unknown key \(did you mean 'buffer_campaigns'\?\)"),
+        ({"buffer_campaigns": -1}, r"protocol.buffer_campaigns = -1; input should be greater"),
+        ({"forward_min_train": 1.5}, r"protocol.forward_min_train = 1.5; input should be a valid"),
+        ({"forward_min_share": 2}, r"protocol.forward_min_share = 2; input should be less"),
+    ],
+)
+def test_protocol_params_are_checked(section, message):
+    with pytest.raises(ParamsError, match=message):
+        parse_section(ProtocolSettings, "protocol", section)
+
+
+def test_protocol_defaults_are_those_of_an_empty_section():
+    assert parse_section(ProtocolSettings, "protocol", {"rank_by": "auto"}) == ProtocolSettings()

@@ -87,7 +87,7 @@ PARAMS = {
         "default_tracking_uri": "sqlite:///mlflow.db",
         "local_artifact_dir": "mlartifacts",
     },
-    "track": {"experiment": EXPERIMENT, "batch_size": 1000, "registered_model": REGISTERED},
+    "track": {"experiment": EXPERIMENT, "registered_model": REGISTERED},
 }
 
 
@@ -946,56 +946,21 @@ def test_metrics_are_logged_in_batches_not_one_by_one(workdir, client, monkeypat
     run_ids = [r.info.run_id for r in all_runs(client)]
     with_metrics = [run_id for run_id, n in calls["log_batch"] if n]
     assert calls["log_metric"] == 0
-    assert sorted(with_metrics) == sorted(run_ids)  # one call per run at the default batch size
+    assert sorted(with_metrics) == sorted(run_ids)  # one call per run
     assert sum(n for _, n in calls["log_batch"]) == record(workdir)["metrics"]
 
 
-def test_batches_respect_mlflow_limits():
+def test_a_run_beyond_mlflow_batch_limits_is_logged_whole(client):
     metrics = {f"m{i}": float(i) for i in range(2500)}
     params = {f"p{i}": str(i) for i in range(150)}
-    tags = {f"t{i}": str(i) for i in range(30)}
-    chunks = list(store.batches(metrics, params, tags, batch_size=1000))
-    for m, p, t in chunks:
-        assert len(m) <= 1000 and len(p) <= 100 and len(t) <= 100
-        assert len(m) + len(p) + len(t) <= 1000
-    assert sum(len(m) for m, _, _ in chunks) == 2500
-    assert dict(p for _, ps, _ in chunks for p in ps) == params
-    assert dict(t for _, _, ts in chunks for t in ts) == tags
-    small = list(store.batches(metrics, {}, {}, batch_size=300))
-    assert [len(m) for m, _, _ in small] == [300] * 8 + [100]
-    assert list(store.batches({}, {}, {}, batch_size=10)) == []
-    with pytest.raises(ValueError, match="track.batch_size = 0"):
-        list(store.batches(metrics, {}, {}, batch_size=0))
-
-
-def test_batch_size_above_mlflow_limit_is_rejected_before_logging(workdir, client):
-    params = yaml.safe_load((workdir / "params.yaml").read_text())
-    params["track"]["batch_size"] = 5000
-    (workdir / "params.yaml").write_text(yaml.safe_dump(params))
-    with pytest.raises(ValueError, match=r"params.yaml: track.batch_size = 5000; MLflow accepts"):
-        track.main([])
-    assert client.get_experiment_by_name(EXPERIMENT) is None
-
-
-def test_small_batch_size_splits_the_metrics(workdir, client, monkeypatch):
-    params = yaml.safe_load((workdir / "params.yaml").read_text())
-    params["track"]["batch_size"] = 7
-    (workdir / "params.yaml").write_text(yaml.safe_dump(params))
-    shutil.rmtree(workdir / "data" / "models" / "champion")  # only the runs' metrics counted
-    sizes = []
-    original = MlflowClient.log_batch
-
-    def spy(self, run_id, metrics=(), params=(), tags=(), **kwargs):
-        sizes.append(len(metrics))
-        return original(self, run_id, metrics=metrics, params=params, tags=tags, **kwargs)
-
-    monkeypatch.setattr(MlflowClient, "log_batch", spy)
-    track.main([])
-    assert max(sizes) == 7
-    assert sum(sizes) == record(workdir)["metrics"]
-    _, children = split_runs(all_runs(client))
-    for run in children:
-        assert run.data.metrics == expected_child_metrics(workdir, child_key(run))
+    tags = {f"t{i}": str(i) for i in range(130)}
+    run = records.RunRecord(name="big", metrics=metrics, params=params, tags=tags)
+    experiment_id = client.create_experiment("limits")
+    parent_id = store.log_pipeline(client, experiment_id, run, [], [])
+    logged = client.get_run(parent_id).data
+    assert logged.metrics == metrics
+    assert logged.params == params
+    assert {k: v for k, v in logged.tags.items() if k.startswith("t")} == tags
 
 
 def test_missing_evaluate_output_says_what_to_run(workdir):

@@ -21,8 +21,8 @@ import yaml
 from mlflow.entities import RunStatus
 from mlflow.tracking import MlflowClient
 
-from benchmarks.bench import copy_repository
 from pipeline.tracking import records, store
+from tests.helpers.repository import copy_repository
 from tests.mlflow_server import running_mlflow_server
 
 pytestmark = pytest.mark.slow

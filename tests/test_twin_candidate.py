@@ -35,12 +35,14 @@ from pipeline.protocol.twin_candidate import (
 from pipeline.protocol.units import series_by_axis, training_units
 from pipeline.reporting.comparison import AxisContext, AxisFigures, axis_section, twin_section
 from pipeline.separation.spindle import SeparationSettings, spindle_thermal_error
+from pipeline.settings.base import parse_section
+from pipeline.settings.evaluate import EvaluateSettings
+from pipeline.settings.validate import ValidateSettings
 from pipeline.thermal.program import Program, Segment
 from pipeline.twin.campaigns import SpindlePlan, simulate_spindle_campaign
 from pipeline.twin.params import SpindleParams
 from pipeline.twin.writer import write_campaign
 from pipeline.validation.checks import validate_tables
-from pipeline.validation.limits import limits_from_params
 from pipeline.validation.tables import select_valid
 
 HIDDEN = frozenset({"centrifugal_growth"})
@@ -96,7 +98,7 @@ def _setup_from_raw(folder) -> tuple[pd.DataFrame, pd.DataFrame, list]:
         tables["samples"],
         tables["laser"],
         tables["problems"],
-        limits_from_params(VALIDATE),
+        parse_section(ValidateSettings, "validate", VALIDATE).limits(),
     )
     assert not result.quarantined
     spindle = select_valid(tables["campaigns"], tables["samples"], tables["laser"], result.valid)
@@ -141,7 +143,8 @@ def baseline_scores(hidden):
     _, _, series = hidden
     units = training_units(series)
     selected = {"all": {u.name: {"inputs": sensor_columns_of(series)} for u in units}}
-    params = {"candidates": {"none": "none", "mlr": "all", TWIN_MODEL: TWIN_SELECTION}, "n_jobs": 1}
+    candidates = {"none": "none", "mlr": "all", TWIN_MODEL: TWIN_SELECTION}
+    params = EvaluateSettings(candidates=candidates, n_jobs=1)
     item = evaluate_axis("Z", series, selected, params, _twin_setup(hidden, frozenset()))
     return item.scores, item.results
 
@@ -291,4 +294,4 @@ def test_twin_entry_and_effects_are_read_with_clear_messages():
 def test_evaluate_without_a_twin_setup_says_how_to_build_one(hidden):
     _, _, series = hidden
     with pytest.raises(ValueError, match="read_twin_setup"):
-        evaluate_axis("Z", series, {}, {"candidates": {TWIN_MODEL: TWIN_SELECTION}})
+        evaluate_axis("Z", series, {}, EvaluateSettings(candidates={TWIN_MODEL: TWIN_SELECTION}))

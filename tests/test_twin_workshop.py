@@ -12,7 +12,6 @@ import pandas as pd
 import pytest
 import yaml
 
-from pipeline.config import load_section
 from pipeline.io.tables import ingest
 from pipeline.thermal.program import Program
 from pipeline.twin import SpindleParams, cli
@@ -28,9 +27,8 @@ from pipeline.twin.workshop import (
     workshop_plan,
 )
 from pipeline.validation.checks import validate_tables
-from pipeline.validation.limits import limits_from_params
+from tests.helpers.repo_params import alignment_gap_s, validation_limits
 
-REPO = Path(__file__).resolve().parents[1]
 IDS = [f"W0{k}" for k in range(1, 7)]
 FILES = ["campaign.yaml", "displacement.csv", "spindle.csv", "temperature.csv"]
 SENSORS = [f"T{k}" for k in range(1, 17)]
@@ -282,10 +280,10 @@ def test_effects_switch_the_workshop_terms():
 
 
 def test_workshop_folders_pass_ingest_and_validation(raw):
-    tables = ingest(raw, float(load_section("ingest", REPO / "params.yaml")["max_alignment_gap_s"]))
+    tables = ingest(raw, alignment_gap_s())
     assert tables["problems"].empty
     assert len(tables["samples"]) == sum(workshop_plan().sample_counts())
-    limits = limits_from_params(load_section("validate", REPO / "params.yaml"))
+    limits = validation_limits()
     result = validate_tables(
         tables["campaigns"], tables["samples"], tables["laser"], tables["problems"], limits
     )

@@ -20,9 +20,11 @@ from pandera.errors import SchemaErrors
 import schemas
 from pipeline import paths
 from pipeline.config import load_section
+from pipeline.errors import ParamsError
+from pipeline.settings.base import load_settings, parse_section
+from pipeline.settings.validate import ValidateSettings
 from pipeline.stages import validate as v
 from pipeline.validation.checks import validate_tables
-from pipeline.validation.limits import limits_from_params
 from pipeline.validation.problems import NoValidCampaignError
 from pipeline.validation.report import require_valid
 from pipeline.validation.tables import select_valid
@@ -611,12 +613,26 @@ def test_no_valid_campaign_raises_naming_the_report():
         require_valid(result, paths.VALIDATION_REPORT)
 
 
-def test_limits_from_params_reads_the_repo_section_and_names_bad_keys():
-    limits = limits_from_params(load_section("validate", REPO / "params.yaml"))
+def test_the_validate_section_reads_the_repo_limits_and_names_bad_keys():
+    limits = load_settings(ValidateSettings, "validate", REPO / "params.yaml").limits()
     assert limits.ds18b20_codes == (85.0, -127.0)
-    bad = {**load_section("validate", REPO / "params.yaml"), "spike_degC": 1.0}
-    with pytest.raises(ValueError, match=r"params.yaml validate: .*unknown keys \['spike_degC'\]"):
-        limits_from_params(bad)
+    section = load_section("validate", REPO / "params.yaml")
+    with pytest.raises(
+        ParamsError,
+        match=r"params.yaml: validate.spike_degC: unknown key \(did you mean "
+        r"'spike_threshold_degC'\?\); allowed here: temperature_range_degC, ",
+    ):
+        parse_section(ValidateSettings, "validate", {**section, "spike_degC": 1.0})
+    with pytest.raises(ParamsError, match=r"validate.min_samples: missing"):
+        parse_section(
+            ValidateSettings, "validate", {k: v for k, v in section.items() if k != "min_samples"}
+        )
+    with pytest.raises(
+        ParamsError, match=r"validate.temperature_range_degC = \[80, -20\]; low must"
+    ):
+        parse_section(
+            ValidateSettings, "validate", {**section, "temperature_range_degC": [80, -20]}
+        )
 
 
 def _write_ingested(root: Path, tables) -> None:

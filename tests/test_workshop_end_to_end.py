@@ -22,7 +22,7 @@ import pytest
 import yaml
 from mlflow.tracking import MlflowClient
 
-from benchmarks.bench import copy_repository
+from tests.helpers.repository import copy_repository
 from tests.mlflow_server import running_mlflow_server
 
 pytestmark = pytest.mark.slow

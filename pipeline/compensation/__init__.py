@@ -1,6 +1,7 @@
 """From the champion to the machine: the compensation runtime, controller exports, replay proof.
 
-- :mod:`~pipeline.compensation.settings`: the ``compensation:`` section of ``params.yaml``;
+- its settings, the ``compensation:`` section of ``params.yaml``, are
+  :mod:`pipeline.settings.compensation`;
 - :mod:`~pipeline.compensation.bundle`: what the runtime loads per axis (the champion, its
   fallbacks, the ranges seen in training);
 - :mod:`~pipeline.compensation.guard`: each cycle's input checks;

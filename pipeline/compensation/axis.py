@@ -32,8 +32,8 @@ import pandas as pd
 
 from pipeline.compensation.bundle import AxisBundle, ModelEntry
 from pipeline.compensation.guard import RPM
-from pipeline.compensation.settings import AxisLimits, CompensationSettings
 from pipeline.protocol.serving import predict_table
+from pipeline.settings.compensation import AxisLimits, CompensationSettings
 
 CHAMPION, FALLBACK, HOLD, DECAY, OFF = "champion", "fallback", "hold", "decay", "off"
 

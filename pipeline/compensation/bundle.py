@@ -27,6 +27,7 @@ import pandas as pd
 
 from pipeline.errors import MissingInputError
 from pipeline.separation.features import InputSpec, input_column
+from schemas import ValidationLimits
 
 BUNDLE_FILE = "bundle.json"
 ESTIMATOR_FILE = "estimator.joblib"
@@ -61,18 +62,14 @@ class InputChecks:
     range_margin_K: float = 5.0  # noqa: N815 (unit)
 
     @classmethod
-    def from_params(cls, validate: Mapping, range_margin_K: float) -> InputChecks:
-        """Build from the ``validate:`` section and ``compensation.range_margin_degC``."""
-        low, high = (float(v) for v in validate["temperature_range_degC"])
+    def from_limits(cls, limits: ValidationLimits, range_margin_K: float) -> InputChecks:
+        """Build from the ``validate:`` section's limits and ``compensation.range_margin_degC``."""
         return cls(
-            (
-                float(validate["ds18b20_power_on_degC"]),
-                float(validate["ds18b20_disconnected_degC"]),
-            ),
-            (low, high),
-            int(validate["stuck_min_samples"]),
-            float(validate["stuck_min_minutes"]) * 60.0,
-            float(validate["stuck_min_other_change_degC"]),
+            limits.ds18b20_codes,
+            limits.temperature_range_degC,
+            limits.stuck_min_samples,
+            limits.stuck_min_minutes * 60.0,
+            limits.stuck_min_other_change_degC,
             float(range_margin_K),
         )
 

@@ -13,7 +13,7 @@ repro``), ``--bundle DIR`` for bundles copied elsewhere, or ``--registry``: the 
 ``<registered model>-<axis>`` under the alias ``champion`` (its run's ``compensation/bundle``
 artifacts), from ``$MLFLOW_TRACKING_URI`` or ``params.yaml`` ``tracking``. Limits and fallback
 timing: ``params.yaml`` ``compensation`` (``--params``), else the defaults
-(:class:`pipeline.compensation.settings.CompensationSettings`). Every event goes to ``--log``
+(:class:`pipeline.settings.compensation.CompensationSettings`). Every event goes to ``--log``
 (JSON lines).
 """
 
@@ -31,9 +31,12 @@ from pipeline.compensation.bundle import AxisBundle, bundle_axes, read_bundle
 from pipeline.compensation.files import CsvTailSource, FileSink
 from pipeline.compensation.opcua import NodeMap, OpcUaSink, OpcUaSource
 from pipeline.compensation.runtime import CompensationRuntime, EventLog
-from pipeline.compensation.settings import CompensationSettings
 from pipeline.config import load_section
 from pipeline.errors import MissingInputError, ParamsError
+from pipeline.settings.base import load_settings, parse_section
+from pipeline.settings.compensation import CompensationSettings
+from pipeline.settings.track import TrackSettings
+from pipeline.settings.tracking import TrackingSettings
 from pipeline.tracking.champion_model import download_bundle, registered_axes
 from pipeline.tracking.location import resolve_tracking_uri
 
@@ -71,15 +74,21 @@ def _parse_args(argv: list[str] | None) -> argparse.Namespace:
     return parser.parse_args(argv)
 
 
-def load_settings(params: Path) -> CompensationSettings:
-    """Return the ``compensation`` section of ``params`` if the file has one, else the defaults."""
+def runtime_settings(params: Path) -> CompensationSettings:
+    """Return the ``compensation`` section of ``params`` if the file has one, else the defaults.
+
+    Raises
+    ------
+    ParamsError
+        If the section is there and anything in it is wrong.
+    """
     if not params.is_file():
         return CompensationSettings()
     try:
         section = load_section("compensation", params)
     except ParamsError:
         return CompensationSettings()
-    return CompensationSettings.from_params(section)
+    return parse_section(CompensationSettings, "compensation", section, params)
 
 
 def load_bundles(args: argparse.Namespace, workdir: Path) -> list[AxisBundle]:
@@ -87,9 +96,11 @@ def load_bundles(args: argparse.Namespace, workdir: Path) -> list[AxisBundle]:
     if args.bundle:
         bundles = [read_bundle(folder) for folder in args.bundle]
     elif args.registry:
-        tracking = load_section("tracking", args.params) if args.params.is_file() else {}
-        track = load_section("track", args.params) if args.params.is_file() else {}
-        prefix = str(track.get("registered_model", "thermal-error-spindle"))
+        tracking, track = TrackingSettings(), TrackSettings()
+        if args.params.is_file():
+            tracking = load_settings(TrackingSettings, "tracking", args.params)
+            track = load_settings(TrackSettings, "track", args.params)
+        prefix = track.registered_model
         uri = resolve_tracking_uri(tracking)
         axes = args.axis or registered_axes(uri, prefix)
         bundles = [
@@ -153,7 +164,7 @@ def node_map(args: argparse.Namespace, bundles: list[AxisBundle]) -> NodeMap:
 def main(argv: list[str] | None = None) -> int:
     """Run the runtime until the source ends, ``--max-cycles``, SIGTERM or Ctrl-C; return 0."""
     args = _parse_args(argv)
-    settings = load_settings(args.params)
+    settings = runtime_settings(args.params)
     stop = {"now": False}
 
     def request_stop(signum, frame) -> None:

@@ -34,10 +34,10 @@ import pandas as pd
 from pipeline.compensation.bundle import AxisBundle, ModelEntry, input_ranges
 from pipeline.compensation.files import MemorySink, TableSource
 from pipeline.compensation.runtime import CompensationRuntime, EventLog
-from pipeline.compensation.settings import CompensationSettings
+from pipeline.fit_statistics import root_mean_square
 from pipeline.plots import campaign_label, new_figure, save_figure, wrap_text
-from pipeline.protocol.scoring import root_mean_square
 from pipeline.separation.features import InputSpec
+from pipeline.settings.compensation import CompensationSettings
 
 PROOF_COLUMNS = [
     "axis",

@@ -33,7 +33,7 @@ import pandas as pd
 from pipeline.compensation.axis import AxisCompensator, AxisStep
 from pipeline.compensation.bundle import AxisBundle
 from pipeline.compensation.guard import RPM, bad_inputs
-from pipeline.compensation.settings import CompensationSettings
+from pipeline.settings.compensation import CompensationSettings
 
 LOGGER = logging.getLogger(__name__)
 

@@ -54,7 +54,7 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
-from joblib import Parallel, delayed
+from joblib import delayed
 from matplotlib.figure import Figure
 from sklearn.base import RegressorMixin
 from threadpoolctl import threadpool_limits
@@ -68,6 +68,7 @@ from pipeline.plots import (
     save_figure,
     wrap_text,
 )
+from pipeline.progress import run_jobs
 from pipeline.protocol.cross_season import Candidate, UnitResult, fit_and_score
 from pipeline.protocol.scoring import compensation_ratio, summarise
 from pipeline.protocol.units import POOLED, POOLED_UNIT, CampaignSeries, TrainingUnit, stack
@@ -246,8 +247,11 @@ def _run_fits(
     series: Sequence[CampaignSeries],
     plan: Sequence[tuple[object, TrainingUnit, list[str]]],
     n_jobs: int,
+    label: str = "refits",
 ) -> dict[tuple[object, str], UnitResult]:
     """Fit the champion's family on each (key, unit, inputs) of the plan, in parallel.
+
+    How far they are is shown under ``label`` (:func:`pipeline.progress.run_jobs`).
 
     Returns
     -------
@@ -265,7 +269,7 @@ def _run_fits(
     ]
     # One BLAS thread per process, as pipeline.protocol.candidates.run_all.
     with threadpool_limits(limits=1):
-        results = list(Parallel(n_jobs=n_jobs)(jobs))
+        results = run_jobs(jobs, n_jobs, label, logger=LOGGER)
     return {(key, unit.name): result for (key, unit, _), result in zip(plan, results, strict=True)}
 
 
@@ -384,7 +388,7 @@ def fallback_fits(
     by_unit = unit_selections(selected, axis, str(card["selection"]))
     held = heldout_units(units, protocol_scheme)
     plan, rule = _fallback_plan(card, held, pooled_unit(units, series), by_unit)
-    fits = _run_fits(card, model_params, series, plan, n_jobs)
+    fits = _run_fits(card, model_params, series, plan, n_jobs, f"axis {axis} fallback fits")
     names = {unit.name for unit in held}
     return [
         _fallback_of(lost, card, fits, names, rule) for lost in temperature_inputs(card["inputs"])
@@ -530,7 +534,7 @@ def _budget_choices(series, units, card, scheme, by_unit, max_k, n_jobs, max_exh
         for unit in (pooled, *held)
     ]
     with threadpool_limits(limits=1):
-        found = list(Parallel(n_jobs=n_jobs)(jobs))
+        found = run_jobs(jobs, n_jobs, "sensor budget subsets", "units", LOGGER)
     return held, speed, dict(zip([pooled.name, *(u.name for u in held)], found, strict=True))
 
 
@@ -584,7 +588,7 @@ def sensor_budget(
         for k, subset in choices[unit.name].items()
     ]
     plan += [(CHAMPION, unit, unit_inputs(card, unit, by_unit)[0]) for unit in held]
-    fits = _run_fits(card, model_params, series, plan, n_jobs)
+    fits = _run_fits(card, model_params, series, plan, n_jobs, f"axis {axis} sensor budget fits")
     return _budget_rows(axis, card, protocol_scheme, held, speed, choices, fits, by_unit)
 
 

@@ -34,6 +34,7 @@ from threadpoolctl import threadpool_limits
 
 from pipeline.discrepancy.data import MeasuredCampaign
 from pipeline.discrepancy.model import Simulation, TwinModel
+from pipeline.fit_statistics import information_criteria, root_mean_square
 
 logger = logging.getLogger(__name__)
 
@@ -472,19 +473,6 @@ def _multistart(
     return best
 
 
-def _information_criteria(sse: float, n_obs: int, k: int) -> tuple[float, float]:
-    """Return AICc and BIC of ``k`` parameters fitted to ``n_obs`` observations with ``sse``."""
-    aic = n_obs * np.log(max(sse, 1e-300) / n_obs) + 2 * k
-    aicc = aic + (2 * k * (k + 1) / (n_obs - k - 1) if n_obs - k - 1 > 0 else np.inf)
-    bic = n_obs * np.log(max(sse, 1e-300) / n_obs) + k * np.log(n_obs)
-    return float(aicc), float(bic)
-
-
-def _rms(values: np.ndarray) -> float:
-    """Root mean square of ``values``, in their unit; NaN if empty."""
-    return float(np.sqrt(np.mean(values**2))) if values.size else float("nan")
-
-
 def _residual_tables(targets: list[_Target], raw: list[tuple]) -> dict[str, dict]:
     """Return :attr:`Calibration.residuals`: each campaign's residuals, NaN where unmeasured."""
     return {
@@ -523,7 +511,7 @@ def _calibration(
     n_data = int(sum(t.mask_t.size + t.mask_z.size for t in targets))
     sse = float(np.sum(best.fun[:n_data] ** 2))  # without the prior rows
     k = len(theta) + len(targets)
-    aicc, bic = _information_criteria(sse, n_obs, k)
+    _, aicc, bic = (float(c) for c in information_criteria(max(sse, 1e-300), n_obs, k))
     z_all = np.concatenate([rz[t.mask_z] for t, (_, rz) in zip(targets, raw, strict=True)])
     t_all = np.concatenate([rT[t.mask_t] for t, (rT, _) in zip(targets, raw, strict=True)])
     return Calibration(
@@ -536,8 +524,8 @@ def _calibration(
         n_params=k,
         aicc=aicc,
         bic=bic,
-        rmse_z_um=_rms(z_all),
-        rmse_T_K=_rms(t_all),
+        rmse_z_um=root_mean_square(z_all),
+        rmse_T_K=root_mean_square(t_all),
         converged=bool(best.success),
         noise=noise,
         at_bounds=_at_bounds(model, space, best.x),

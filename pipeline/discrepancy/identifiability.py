@@ -50,6 +50,8 @@ from pipeline.discrepancy.visibility import (
     baseline_point,
     visibility,
 )
+from pipeline.settings.base import unknown_name_error
+from pipeline.settings.discrepancy import IdentifiabilityParams
 
 logger = logging.getLogger(__name__)
 
@@ -87,26 +89,28 @@ class IdentifiabilitySettings:
     plausible: dict[str, float] = field(default_factory=lambda: dict(PLAUSIBLE))
 
     @classmethod
-    def from_params(cls, section: Mapping[str, Any] | None) -> IdentifiabilitySettings:
-        """Build from the ``identifiability`` mapping; an unknown parameter raises KeyError."""
-        section = dict(section or {})
-        plausible = {
-            **PLAUSIBLE,
-            **{k: float(v) for k, v in (section.get("plausible") or {}).items()},
-        }
-        unknown = sorted(set(plausible) - set(PLAUSIBLE))
-        if unknown:
-            raise KeyError(
-                f"params.yaml discrepancy.identifiability.plausible: unknown size(s) "
-                f"{unknown}; the effects' sizes are {sorted(PLAUSIBLE)}"
-            )
+    def from_settings(cls, settings: IdentifiabilityParams) -> IdentifiabilitySettings:
+        """Build from ``discrepancy.identifiability`` (its sizes override :data:`PLAUSIBLE`).
+
+        Raises
+        ------
+        ParamsError
+            (a ``KeyError``) If a size is not one of :data:`PLAUSIBLE`.
+        """
+        for name in settings.plausible:
+            if name not in PLAUSIBLE:
+                raise unknown_name_error(
+                    ("discrepancy", "identifiability", "plausible", name),
+                    name,
+                    PLAUSIBLE,
+                    "size",
+                    "the effects' sizes",
+                )
         return cls(
-            min_signal_sigma=float(section.get("min_signal_sigma", cls.min_signal_sigma)),
-            max_collinearity_index=float(
-                section.get("max_collinearity_index", cls.max_collinearity_index)
-            ),
-            prior_log_sd=float(section.get("prior_log_sd", cls.prior_log_sd)),
-            plausible=plausible,
+            min_signal_sigma=settings.min_signal_sigma,
+            max_collinearity_index=settings.max_collinearity_index,
+            prior_log_sd=settings.prior_log_sd,
+            plausible={**PLAUSIBLE, **settings.plausible},
         )
 
     def thresholds(self) -> dict[str, float]:

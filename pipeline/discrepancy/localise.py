@@ -34,6 +34,9 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
+from pipeline.fit_statistics import root_mean_square
+from pipeline.settings.discrepancy import LocaliseSettings
+
 logger = logging.getLogger(__name__)
 
 PHASES = ("rest", "warm-up", "steady", "speed change", "cool-down")
@@ -41,31 +44,6 @@ PHASES = ("rest", "warm-up", "steady", "speed change", "cool-down")
 
 Z_SIGNAL = "Z"
 """Signal name of the displacement in the residual tables."""
-
-
-@dataclass(frozen=True)
-class LocaliseSettings:
-    """How the disagreement is split and when a finding is worth reporting.
-
-    Attributes
-    ----------
-    warmup_min : float
-        Minutes after a start from rest counted as warm-up.
-    transient_min : float
-        Minutes after a change between two non-zero speeds counted as speed change.
-    max_lag_min : float
-        Largest lag of the ambient trend tried, min.
-    min_correlation : float
-        |correlation| of the Z residual with the ambient trend above which it is reported.
-    min_floor_ratio : float
-        A phase or speed level is reported when its mean residual exceeds this many noise floors.
-    """
-
-    warmup_min: float = 60.0
-    transient_min: float = 30.0
-    max_lag_min: float = 120.0
-    min_correlation: float = 0.5
-    min_floor_ratio: float = 3.0
 
 
 def phase_labels(
@@ -204,12 +182,6 @@ def residual_frame(
     return pd.concat(parts, ignore_index=True)
 
 
-def _rms(x: pd.Series) -> float:
-    v = x.to_numpy(dtype=float)
-    v = v[np.isfinite(v)]
-    return float(np.sqrt(np.mean(v**2))) if v.size else float("nan")
-
-
 def summarise(residuals: pd.DataFrame, floors: Mapping[str, float]) -> pd.DataFrame:
     """Tidy summary: mean and RMS residual by signal and phase, and by signal and speed level.
 
@@ -235,7 +207,7 @@ def summarise(residuals: pd.DataFrame, floors: Mapping[str, float]) -> pd.DataFr
             if column == "speed_rpm":
                 level = f"{float(level):.0f} rpm"
             floor = float(floors.get(signal, np.nan))
-            rms = _rms(group["residual"])
+            rms = root_mean_square(group["residual"])
             rows.append(
                 {
                     "signal": signal,

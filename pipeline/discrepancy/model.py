@@ -30,11 +30,11 @@ and - column. The initial node temperatures are the sensors' first readings (the
 their node directly), so a campaign may start warm or out of balance with the air; an unsensed
 node starts at the mean of its neighbours.
 
-Deviation from issue 4's baseline: a sensor with role ``ball_screw`` brings in the Z ball screw
-(its growth moves the head towards the table on a semi-closed-loop Z axis). Without it, the
-screw's response to the air, which the data show, is left in every residual and masks the
-effects being looked for (held-out Z RMS after ``ambient_variation`` 1.0 um against a 0.6 um
-floor on trial data).
+The baseline goes beyond the spindle and its structure in one place: a sensor with role
+``ball_screw`` brings in the Z ball screw (its growth moves the head towards the table on a
+semi-closed-loop Z axis). Without it, the screw's response to the air, which the data show, is left
+in every residual and masks the effects being looked for (held-out Z RMS after
+``ambient_variation`` 1.0 um against a 0.6 um floor on trial data).
 
 Parameters are shared within node groups to stay identifiable on ~10 campaigns: one heat
 capacity for both bearings and one for both column halves; one convection conductance for the
@@ -418,9 +418,9 @@ EFFECT_SPECS = {
   lands in worse local minima);
 - ``sensor_lag``: ``sensor_lag_s`` in [60, 7200] s, one first-order time constant shared by
   every sensor; it starts at 120 s, close to the baseline's direct reading. One per role would
-  follow the issue's "each sensor" more closely, but seven free lags give the twin extra
-  dynamics that stand in for structure it lacks: on trial data without any lag they cut the
-  held-out Z RMS by 39 % and were named (seed 1, centrifugal growth hidden);
+  follow the physics (each sensor lags by its own mounting) more closely, but seven free lags
+  give the twin extra dynamics that stand in for structure it lacks: on trial data without any
+  lag they cut the held-out Z RMS by 39 % and were named (seed 1, centrifugal growth hidden);
 - ``thermal_bending``: ``bending_um_per_K`` in [-50, 50] um/K on the column front-rear rise
   difference;
 - ``motor_heat``: ``q_motor_W_per_krpm`` in [0, 200] W per 1000 rpm into the motor node.

@@ -5,7 +5,7 @@ A proposed test must not take a part beyond what the machine's own running took 
 two ways (:class:`PlanRise`):
 
 - **by the twin**: the peak rise of the plan's campaign over draws from the planning twin's
-  posterior (:func:`~pipeline.discrepancy.test_plan.plan_rises`);
+  posterior (:func:`~pipeline.discrepancy.plan_proposal.plan_rises`);
 - **by physics, for a first heating**: a heater on a part no campaign heated directly is an
   extrapolation the calibration cannot vouch for. On the demo campaigns the baseline ties the
   motor node to the headstock (conductance at its 500 W/K bound, capacity at its 1e3 J/K

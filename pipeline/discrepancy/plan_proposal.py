@@ -1,4 +1,4 @@
-"""A test plan that would make a not-identifiable effect visible (issue 14).
+"""A test plan that would make a not-identifiable effect visible.
 
 For each candidate effect the campaigns cannot show
 (:data:`~pipeline.discrepancy.identifiability.NOT_IDENTIFIABLE`), this module searches a small,

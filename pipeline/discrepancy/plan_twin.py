@@ -152,7 +152,7 @@ def peak_rises(model: TwinModel, thetas: np.ndarray, campaign: MeasuredCampaign)
         Built for the campaign's roles and loads.
     thetas : ndarray of shape (P, n_params)
     campaign : MeasuredCampaign
-        A plan's campaign (:func:`~pipeline.discrepancy.test_plan.simulate_plan`).
+        A plan's campaign (:func:`~pipeline.discrepancy.plan_proposal.simulate_plan`).
 
     Returns
     -------

@@ -24,6 +24,7 @@ from pipeline import plots
 from pipeline.discrepancy.localise import Localisation
 from pipeline.discrepancy.report_text import markdown, untestable_markdown
 from pipeline.discrepancy.search import SearchResult, SearchSettings
+from pipeline.fit_statistics import root_mean_square
 
 logger = logging.getLogger(__name__)
 
@@ -152,11 +153,6 @@ def _heldout_residuals(campaigns: Sequence, result: SearchResult) -> tuple[dict,
     return result.baseline.heldout.z_residual_um, result.final.heldout.z_residual_um, by_id
 
 
-def _rms(residual: np.ndarray) -> float:
-    """Return the RMS of a residual, ignoring NaN, in its unit."""
-    return float(np.sqrt(np.nanmean(residual**2)))
-
-
 def heldout_fit_figure(
     campaigns: Sequence, result: SearchResult, title: str, max_panels: int = 3
 ) -> Figure:
@@ -179,7 +175,7 @@ def heldout_fit_figure(
     Figure
     """
     base, final, by_id = _heldout_residuals(campaigns, result)
-    ranked = sorted(base, key=lambda c: -_rms(base[c]))[:max_panels]
+    ranked = sorted(base, key=lambda c: -root_mean_square(base[c]))[:max_panels]
     fig = plots.new_figure(1.6 + 3.6 * max(len(ranked), 1), 4.6)
     axes = fig.subplots(1, max(len(ranked), 1), squeeze=False)
     label = "twin + " + ", ".join(result.named_effects) if result.named_effects else "twin (same)"
@@ -257,8 +253,8 @@ def residuals_figure(campaigns: Sequence, result: SearchResult, title: str) -> F
     fig.legend(
         handles, labels, loc="outside right upper", fontsize=8, title=named, title_fontsize=8
     )
-    rms_b = [_rms(before[c]) for c in ids]
-    rms_a = [_rms(after[c]) if c in after else np.nan for c in ids]
+    rms_b = [root_mean_square(before[c]) for c in ids]
+    rms_a = [root_mean_square(after[c]) if c in after else np.nan for c in ids]
     x = np.arange(len(ids))
     bars = axes["rms"]
     bars.bar(x - 0.2, rms_b, 0.4, label="baseline twin")

@@ -38,13 +38,18 @@ from typing import Any
 
 import numpy as np
 import pandas as pd
+from joblib import delayed
 
+from pipeline.fit_statistics import root_mean_square
+from pipeline.progress import run_jobs
+from pipeline.settings.base import unknown_name_error
+from pipeline.settings.discrepancy import DiscrepancySettings
 from pipeline.thermal.effects import EFFECTS
 
 logger = logging.getLogger(__name__)
 
 CANDIDATE_EFFECTS = tuple(EFFECTS)
-"""The effect vocabulary of issue 4 (the kernel's registry), in the order they are reported."""
+"""The effects the search may name (the kernel's registry), in the order they are reported."""
 
 SENSOR_ONLY_EFFECTS = frozenset({"sensor_lag"})
 """Effects that change what the sensors read, not the structure or the displacement."""
@@ -88,24 +93,33 @@ class SearchSettings:
     hold_out_validation: bool = True
 
     @classmethod
-    def from_params(cls, section: Mapping[str, Any]) -> SearchSettings:
-        """Build from the ``discrepancy`` section; unknown effect names raise KeyError."""
-        candidates = tuple(section.get("candidates") or CANDIDATE_EFFECTS)
-        unknown = [c for c in candidates if c not in CANDIDATE_EFFECTS]
-        if unknown:
-            raise KeyError(
-                f"params.yaml discrepancy.candidates: unknown effect(s) {unknown}; "
-                f"use names from {list(CANDIDATE_EFFECTS)}"
-            )
+    def from_settings(cls, settings: DiscrepancySettings) -> SearchSettings:
+        """Build from the ``discrepancy`` section (empty ``candidates``: every effect).
+
+        Raises
+        ------
+        ParamsError
+            (a ``KeyError``) If a candidate is not in :data:`CANDIDATE_EFFECTS`.
+        """
+        candidates = settings.candidates or CANDIDATE_EFFECTS
+        for position, name in enumerate(candidates):
+            if name not in CANDIDATE_EFFECTS:
+                raise unknown_name_error(
+                    ("discrepancy", "candidates", position),
+                    name,
+                    CANDIDATE_EFFECTS,
+                    "effect",
+                    "registered effects",
+                )
         return cls(
             candidates=candidates,
-            min_heldout_reduction=float(section.get("min_heldout_reduction", 0.2)),
-            min_heldout_t_reduction=float(section.get("min_heldout_temperature_reduction", 0.2)),
-            max_delta_bic=float(section.get("max_delta_bic", -10.0)),
-            n_folds=int(section.get("n_folds", 4)),
-            n_jobs=int(section.get("n_jobs", 2)),
-            max_effects=int(section.get("max_effects", len(candidates))),
-            hold_out_validation=bool(section.get("hold_out_validation", True)),
+            min_heldout_reduction=settings.min_heldout_reduction,
+            min_heldout_t_reduction=settings.min_heldout_temperature_reduction,
+            max_delta_bic=settings.max_delta_bic,
+            n_folds=settings.n_folds,
+            n_jobs=settings.n_jobs,
+            max_effects=settings.max_effects or len(candidates),
+            hold_out_validation=settings.hold_out_validation,
         )
 
 
@@ -395,9 +409,7 @@ def _num(x: float) -> float | None:
 def pooled_rms(arrays) -> float:
     """RMS of the finite values of several arrays together (NaN if none)."""
     parts = [np.asarray(a, dtype=float).ravel() for a in arrays]
-    v = np.concatenate(parts) if parts else np.array([])
-    v = v[np.isfinite(v)]
-    return float(np.sqrt(np.mean(v**2))) if v.size else float("nan")
+    return root_mean_square(np.concatenate(parts) if parts else [])
 
 
 def make_folds(campaign_ids: Sequence[str], n_folds: int) -> list[list[str]]:
@@ -502,12 +514,8 @@ def evaluate_many(
         One per effect set, same order.
     """
     tasks = _fit_tasks(effect_sets, tuple(campaign_ids), folds, current)
-    if n_jobs == 1 or len(tasks) == 1:
-        results = [_run(evaluator, *t) for t in tasks]
-    else:
-        from joblib import Parallel, delayed
-
-        results = Parallel(n_jobs=n_jobs)(delayed(_run)(evaluator, *t) for t in tasks)
+    jobs = [delayed(_run)(evaluator, *t) for t in tasks]
+    results = run_jobs(jobs, 1 if len(tasks) == 1 else n_jobs, "calibrations", "fits", logger)
     per = 1 + len(folds)
     return [
         _model_evidence(effects, results[i * per : (i + 1) * per])

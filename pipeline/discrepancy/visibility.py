@@ -63,6 +63,7 @@ from pipeline.discrepancy.collinearity import (
 from pipeline.discrepancy.data import MeasuredCampaign
 from pipeline.discrepancy.model import TwinModel, build_model, loaded_roles
 from pipeline.discrepancy.search import SENSOR_ONLY_EFFECTS, campaign_roles
+from pipeline.fit_statistics import root_mean_square
 
 PLAUSIBLE = {
     "centrifugal_um_per_krpm2": -0.15,
@@ -304,28 +305,23 @@ def _sensitivities(residuals: np.ndarray, steps: np.ndarray) -> np.ndarray:
     return ((residuals[0] - residuals[1:]) / steps[:, None]).T
 
 
-def _rms(values: np.ndarray, mask: np.ndarray) -> float:
-    """RMS of ``values`` where ``mask``, in their unit; NaN if none."""
-    return float(np.sqrt(np.mean(values[mask] ** 2))) if mask.any() else float("nan")
-
-
 def _signals(
     effect: str, visible: np.ndarray, response: np.ndarray, rows: ResidualRows
 ) -> dict[str, float]:
     """Return the RMS figures of the visible part and of the whole response (sigma, um, K)."""
     z = rows.is_z & rows.observed
     t = ~rows.is_z & rows.observed
-    z_sigma, t_sigma = _rms(visible, z), _rms(visible, t)
+    z_sigma, t_sigma = root_mean_square(visible[z]), root_mean_square(visible[t])
     counted = [t_sigma] if effect in SENSOR_ONLY_EFFECTS else [z_sigma, t_sigma]
     finite = [v for v in counted if np.isfinite(v)]
     return {
         "signal_sigma": max(finite) if finite else float("nan"),
         "signal_z_sigma": z_sigma,
         "signal_t_sigma": t_sigma,
-        "signal_z_um": _rms(visible * rows.sigma, z),
-        "signal_t_k": _rms(visible * rows.sigma, t),
-        "response_z_um": _rms(response * rows.sigma, z),
-        "response_t_k": _rms(response * rows.sigma, t),
+        "signal_z_um": root_mean_square((visible * rows.sigma)[z]),
+        "signal_t_k": root_mean_square((visible * rows.sigma)[t]),
+        "response_z_um": root_mean_square((response * rows.sigma)[z]),
+        "response_t_k": root_mean_square((response * rows.sigma)[t]),
     }
 
 

@@ -4,7 +4,7 @@
 effects by forward selection with cross-validation across campaigns
 (:mod:`pipeline.discrepancy.search`), classes every candidate effect by whether the campaigns
 can show it (:mod:`pipeline.discrepancy.identifiability`), proposes for each effect they cannot
-show the cheapest test that would (:mod:`pipeline.discrepancy.test_plan`), localises the
+show the cheapest test that would (:mod:`pipeline.discrepancy.plan_proposal`), localises the
 residuals before and after by phase, speed level and ambient trend
 (:mod:`pipeline.discrepancy.localise`) and writes the report
 (:mod:`pipeline.discrepancy.report`); :func:`run_untestable` writes the report of campaigns the
@@ -26,9 +26,10 @@ from pipeline.discrepancy.identifiability import (
     identifiability,
     searched_point,
 )
-from pipeline.discrepancy.localise import LocaliseSettings, localise
+from pipeline.discrepancy.localise import localise
 from pipeline.discrepancy.model import ROLE_NODES
 from pipeline.discrepancy.plan_naming import held_out_floor
+from pipeline.discrepancy.plan_proposal import propose_tests
 from pipeline.discrepancy.report import (
     build_document,
     untestable_document,
@@ -36,18 +37,19 @@ from pipeline.discrepancy.report import (
     write_untestable,
 )
 from pipeline.discrepancy.search import SearchResult, SearchSettings, campaign_roles, search_twin
-from pipeline.discrepancy.test_plan import propose_tests
 from pipeline.io.tables import ingest
+from pipeline.settings.discrepancy import DiscrepancySettings
 from pipeline.validation.checks import validate_tables
-from pipeline.validation.limits import limits_from_params
+from pipeline.validation.gaps import apply_gaps
 from pipeline.validation.report import quarantine_summary
 from pipeline.validation.tables import select_valid
+from schemas import ValidationLimits
 
 logger = logging.getLogger(__name__)
 
 
 def read_raw(
-    raw_dir: Path, max_alignment_gap_s: float, validate_params: dict
+    raw_dir: Path, max_alignment_gap_s: float, limits: ValidationLimits
 ) -> tuple[list[MeasuredCampaign], list[str], bool]:
     """Ingest and validate a raw folder; return its valid spindle campaigns.
 
@@ -57,8 +59,9 @@ def read_raw(
         One sub-folder per campaign (docs/data-contract.md).
     max_alignment_gap_s : float
         As ``params.yaml`` ``ingest.max_alignment_gap_s``.
-    validate_params : dict
-        The ``validate`` section.
+    limits : ValidationLimits
+        The limits of the ``validate`` section
+        (:meth:`pipeline.settings.validate.ValidateSettings.limits`).
 
     Returns
     -------
@@ -70,7 +73,6 @@ def read_raw(
         True if any kept campaign is flagged ``synthetic`` in its campaign.yaml.
     """
     tables = ingest(Path(raw_dir), max_alignment_gap_s)
-    limits = limits_from_params(validate_params)
     result = validate_tables(
         tables["campaigns"], tables["samples"], tables["laser"], tables["problems"], limits
     )
@@ -82,9 +84,8 @@ def read_raw(
             quarantine_summary(result, campaign_id),
             raw_dir,
         )
-    spindle = select_valid(tables["campaigns"], tables["samples"], tables["laser"], result.valid)[
-        "spindle"
-    ]
+    samples = apply_gaps(tables["samples"], result.gaps)
+    spindle = select_valid(tables["campaigns"], samples, tables["laser"], result.valid)["spindle"]
     campaigns, synthetic = spindle_campaigns(spindle["campaigns"], spindle["samples"])
     return campaigns, list(result.quarantined), synthetic
 
@@ -152,7 +153,7 @@ def untestable_reason(campaigns: list[MeasuredCampaign]) -> str | None:
 
 def run(
     campaigns: list[MeasuredCampaign],
-    section: dict,
+    section: DiscrepancySettings,
     out_dir: Path,
     *,
     quarantined: list[str] | None = None,
@@ -168,9 +169,9 @@ def run(
     files : list of Path
         The files written to ``out_dir``.
     """
-    settings = SearchSettings.from_params(section)
-    loc_settings = LocaliseSettings(**dict(section.get("localise") or {}))
-    ident_settings = IdentifiabilitySettings.from_params(section.get("identifiability"))
+    settings = SearchSettings.from_settings(section)
+    loc_settings = section.localise
+    ident_settings = IdentifiabilitySettings.from_settings(section.identifiability)
     result = search_twin(campaigns, settings)
     point = searched_point(campaigns, result, ident_settings)
     classes = identifiability(campaigns, result, settings.candidates, ident_settings, point)

@@ -19,7 +19,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from pipeline.importers.mapping import TIME_UNITS, LoggerMapping
+from pipeline.importers.mapping import LoggerMapping
+from pipeline.importers.mapping_file import TIME_UNITS
 
 logger = logging.getLogger(__name__)
 

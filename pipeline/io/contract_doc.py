@@ -3,8 +3,9 @@
 ``thermal contract-doc`` rewrites the blocks between ``<!-- generated: <name> -->`` and
 ``<!-- end generated: <name> -->`` in the document: the keys of ``campaign.yaml``
 (:data:`schemas.contract.CAMPAIGN_KEYS`), the sensor roles (:mod:`schemas.vocabulary`), the
-files and their columns (:data:`schemas.contract.FILES`) and every check of the ingest and
-validate stages with its message and action (:data:`pipeline.validation.texts.PROBLEM_TEXTS`).
+files and their columns (:data:`schemas.contract.FILES`), every check of the ingest and
+validate stages with its message and action (:data:`pipeline.validation.texts.PROBLEM_TEXTS`)
+and the warnings of missing readings (:data:`pipeline.validation.texts.WARNING_TEXTS`).
 ``thermal contract-doc --check`` fails when the
 document differs from what the code would write; the test suite runs that check. The prose
 around the blocks is written by hand.
@@ -19,7 +20,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 from pipeline.errors import InputDataError, MissingInputError
-from pipeline.validation.texts import PROBLEM_TEXTS
+from pipeline.validation.texts import PROBLEM_TEXTS, WARNING_TEXTS
 from schemas.contract import ALWAYS, CAMPAIGN_KEYS, FILES, OPTIONAL, VERSION
 from schemas.vocabulary import AMBIENT_ROLE, SENSOR_ROLES
 
@@ -81,12 +82,22 @@ def checks_block() -> str:
     return _table(("check", "what is wrong", "what to do"), rows)
 
 
+def warnings_block() -> str:
+    """Return the table of every warning of a missing reading: case, what happened, what to do."""
+    rows = [
+        (f"`{case}`", _readable(text.message), _readable(text.action))
+        for case, text in WARNING_TEXTS.items()
+    ]
+    return _table(("warning", "what happened", "what to do"), rows)
+
+
 BLOCKS: dict[str, Callable[[], str]] = {
     "version": lambda: f"Version {VERSION}.\n",
     "keys": keys_block,
     "roles": roles_block,
     "files": files_block,
     "checks": checks_block,
+    "warnings": warnings_block,
 }
 
 

@@ -1,11 +1,12 @@
 """Read ``campaign.yaml`` of a campaign folder into one row of the campaigns table.
 
 Never raises on content: a missing or unreadable file, a missing required key
-(``missing_key``), a value of the wrong type (``wrong_type``: e.g. ``sensors:`` given as a list,
-``spindle_program:`` or ``heat_loads:`` as a number), an id that is not a plain name
-(``campaign_id_unsafe``) or differs from the folder, an unknown kind or a start that is not ISO
-8601 become problems through ``report`` (:data:`pipeline.io.files.Report`); the row is still
-built so that validation can report every problem of the campaign at once.
+(``missing_key``), a value of the wrong type or a misspelt key (``wrong_type``,
+``misspelt_key``: checked on the model of :mod:`pipeline.io.campaign_file`), an id that is not
+a plain name (``campaign_id_unsafe``) or differs from the folder, an unknown kind or a start
+that is not ISO 8601 become problems through ``report`` (:data:`pipeline.io.files.Report`); the
+row is still built, a value of the wrong type left empty, so that validation can report every
+problem of the campaign at once.
 """
 
 from __future__ import annotations
@@ -19,6 +20,7 @@ import numpy as np
 import pandas as pd
 import yaml
 
+from pipeline.io.campaign_file import file_problems
 from pipeline.io.files import Report, read_text
 from schemas.contract import CONTRACT_FILES
 from schemas.vocabulary import CAMPAIGN_ID_RE, SAMPLE_BASE_COLUMNS, SEASON_OF_MONTH
@@ -31,10 +33,6 @@ REQUIRED_KEYS = {
     "T1: {role: spindle_front_bearing}",
 }
 """Keys every campaign.yaml must have, with the hint the ``missing_key`` problem gives."""
-
-MAPPING = "a mapping of names to entries (name: {key: value, ...})"
-PROGRAM = "a list of entries {from_min: 0, to_min: 240, rpm: 4000}"
-LOADS = "a list of entries {role: column_rear, from_min: 0, to_min: 120, power_W: 300}"
 
 
 def read_metadata(path: Path, report: Report) -> dict[str, Any] | None:
@@ -96,6 +94,7 @@ def campaign_row(folder: Path, meta: dict[str, Any], report: Report) -> dict[str
     for key, hint in REQUIRED_KEYS.items():
         if meta.get(key) is None:
             report("campaign.yaml", None, key, "missing_key", hint=hint)
+    file_problems(meta, report)
     _check_campaign_id(campaign_id, meta.get("campaign_id"), report)
     kind = "" if meta.get("kind") is None else str(meta["kind"])
     if kind and kind not in CONTRACT_FILES:
@@ -108,26 +107,24 @@ def campaign_row(folder: Path, meta: dict[str, Any], report: Report) -> dict[str
     if season_derived:
         season = SEASON_OF_MONTH[start.month] if not pd.isna(start) else ""
     sensors = _sensors(meta, report)
-    axis = _typed(meta, "axis", dict, MAPPING, report) or {}
+    axis = _typed(meta, "axis", dict) or {}
     return {
         "campaign_id": campaign_id,
         "kind": kind,
-        "machine": str(meta.get("machine", "")),
+        "machine": _optional_text(meta.get("machine")) or "",  # optional: "" when not given
         "start": start,
         "season": str(season),
         "season_derived": bool(season_derived),
-        "synthetic": bool(_typed(meta, "synthetic", bool, "true or false", report)),
+        "synthetic": bool(_typed(meta, "synthetic", bool)),
         "split": str(meta.get("split", "train")),
         "start_state": _optional_text(meta.get("start_state")),
         "follows": _optional_text(meta.get("follows")),
         "axis_name": None if axis.get("name") is None else str(axis["name"]),
-        "stroke_mm": _stroke(axis, report),
+        "stroke_mm": _stroke(axis),
         "sensors_json": to_json(sensors),
-        "displacement_json": to_json(_displacement(meta, report)),
-        "spindle_program_json": to_json(
-            _typed(meta, "spindle_program", list, PROGRAM, report) or []
-        ),
-        "heat_loads_json": to_json(_typed(meta, "heat_loads", list, LOADS, report) or []),
+        "displacement_json": to_json(_entries(_typed(meta, "displacement", dict) or {})),
+        "spindle_program_json": to_json(_typed(meta, "spindle_program", list) or []),
+        "heat_loads_json": to_json(_typed(meta, "heat_loads", list) or []),
         "has_spindle_log": (folder / "spindle.csv").is_file(),
         "source_dir": str(folder),
     }
@@ -174,75 +171,35 @@ def _check_campaign_id(campaign_id: str, declared: Any, report: Report) -> None:
         report("campaign.yaml", None, "campaign_id", "campaign_id_mismatch", value=repr(declared))
 
 
-def _typed(meta: dict[str, Any], key: str, kind: type, expected: str, report: Report) -> Any:
-    """Return ``meta[key]`` if it is absent or of type ``kind``, else report it and return None."""
+def _typed(meta: dict[str, Any], key: str, kind: type) -> Any:
+    """Return ``meta[key]`` if it is of type ``kind``, else None (a wrong type is reported)."""
     value = meta.get(key)
-    if value is None or isinstance(value, kind):
-        return value
-    report("campaign.yaml", None, key, "wrong_type", expected=expected, found=_describe(value))
-    return None
-
-
-def _describe(value: Any) -> str:
-    """Return e.g. ``a list ([1, 2])`` for a message (long values cut)."""
-    names = {list: "a list", dict: "a mapping", str: "text", bool: "true/false"}
-    name = names.get(type(value), "a number" if isinstance(value, int | float) else "a value")
-    text = repr(value)
-    return f"{name} ({text[:60]}{'...' if len(text) > 60 else ''})"
+    return value if isinstance(value, kind) else None
 
 
 def _sensors(meta: dict[str, Any], report: Report) -> dict[str, Any]:
     """Return the sensor map ``{name: {role, location, type}}`` (names as text)."""
-    sensors = _typed(meta, "sensors", dict, MAPPING, report)
+    sensors = _typed(meta, "sensors", dict)
     if sensors is None:
         return {}
     if not sensors:
         report("campaign.yaml", None, "sensors", "no_sensors")
-    out = _entries(sensors, "sensors", "a mapping such as {role: bed, type: DS18B20}", report)
+    out = _entries(sensors)
     for name in [n for n in out if n in SAMPLE_BASE_COLUMNS or n.startswith("disp_")]:
         report("campaign.yaml", None, f"sensors.{name}", "reserved_column", name=name)
         del out[name]
     return out
 
 
-def _entries(mapping: dict, key: str, expected: str, report: Report) -> dict[str, dict]:
-    """Return ``{name: entry}`` with text names; an entry that is not a mapping is reported."""
-    out = {}
-    for name, entry in mapping.items():
-        if entry is not None and not isinstance(entry, dict):
-            report(
-                "campaign.yaml",
-                None,
-                f"{key}.{name}",
-                "wrong_type",
-                expected=expected,
-                found=_describe(entry),
-            )
-            entry = None
-        out[str(name)] = entry or {}
-    return out
+def _entries(mapping: dict) -> dict[str, dict]:
+    """Return ``{name: entry}`` with text names; an entry that is not a mapping is empty."""
+    return {str(name): entry if isinstance(entry, dict) else {} for name, entry in mapping.items()}
 
 
-def _displacement(meta: dict[str, Any], report: Report) -> dict[str, Any]:
-    """Return the displacement axes ``{axis: {probe, ...}}`` (names as text)."""
-    axes = _typed(meta, "displacement", dict, MAPPING, report) or {}
-    return _entries(axes, "displacement", "a mapping such as {probe: eddy_current}", report)
-
-
-def _stroke(axis: dict[str, Any], report: Report) -> float:
-    """Return ``axis: stroke_mm:`` in mm (NaN when absent or not a number)."""
+def _stroke(axis: dict[str, Any]) -> float:
+    """Return ``axis: stroke_mm:`` in mm (NaN when absent or not a finite number)."""
     value = axis.get("stroke_mm")
-    if value is None:
-        return float("nan")
     if isinstance(value, bool) or not isinstance(value, int | float) or not np.isfinite(value):
-        report(
-            "campaign.yaml",
-            None,
-            "axis.stroke_mm",
-            "wrong_type",
-            expected="a number of millimetres",
-            found=_describe(value),
-        )
         return float("nan")
     return float(value)
 

@@ -283,6 +283,10 @@ def _align_displacement(
 
     Rows without a time are reported (``missing_value``) and left out; without any timed row
     the samples get no displacement column (validation reports the declared axes as missing).
+    A missing reading (empty cell) is not interpolated across here: an instant next to it gets
+    no displacement and ``disp_<A>_source_row`` names the empty row, so that ``validate``
+    reports the gap and bridges or drops it (``validate.max_bridged_gap_s``). An instant outside
+    the displacement record, or further than ``max_gap_s`` from it, has no source row.
     """
     untimed = displacement["elapsed_s"].isna().to_numpy()
     for row in displacement.loc[untimed, "source_row"].head(MAX_REPORTED_ROWS):
@@ -298,25 +302,26 @@ def _align_displacement(
     times, rows = times[order], displacement["source_row"].to_numpy()[order]
     target = samples["elapsed_s"].to_numpy()
     nearest = _nearest_index(times, target)
-    too_far = ~(np.abs(times[nearest] - target) <= max_gap_s)
+    exact = times[nearest] == target
+    outside = ~(np.abs(times[nearest] - target) <= max_gap_s)
+    outside |= (target < times[0]) | (target > times[-1])
+    # the other end of the interval [times[j], times[j + 1]] holding each target
+    other = np.where(times[nearest] > target, nearest - 1, nearest + 1).clip(0, len(times) - 1)
     aligned = samples.copy()
     for axis in [c for c in displacement.columns if c not in ("elapsed_s", "source_row")]:
         if not is_displacement_name(axis):
             report("displacement.csv", None, axis, "unknown_axis")
             continue
         values = displacement[axis].to_numpy()[order]
-        valid = ~np.isnan(values)
-        column = np.full(len(target), np.nan)
-        if valid.sum() >= 2:
-            column = np.interp(target, times[valid], values[valid], left=np.nan, right=np.nan)
-        elif valid.sum() == 1:
-            column = np.where(target == times[valid][0], values[valid][0], np.nan)
-        column[too_far] = np.nan
+        # np.interp gives NaN wherever an end of the interval is a missing reading
+        column = np.interp(target, times, values, left=np.nan, right=np.nan)
+        column[exact] = values[nearest][exact]
+        column[outside] = np.nan
+        empty_end = np.where(np.isnan(values[nearest]) | exact, nearest, other)
+        source = np.where(np.isnan(column), rows[empty_end], rows[nearest])
         aligned[f"disp_{axis}"] = column
-        aligned[f"disp_{axis}_source_row"] = pd.array(
-            np.where(too_far, 0, rows[nearest]), dtype="Int64"
-        )
-        aligned.loc[too_far, f"disp_{axis}_source_row"] = pd.NA
+        aligned[f"disp_{axis}_source_row"] = pd.array(source, dtype="Int64")
+        aligned.loc[outside, f"disp_{axis}_source_row"] = pd.NA
     return aligned
 
 

@@ -1,11 +1,12 @@
 """High-order AR model reduced to the order at the knee of its AIC curve (the AR paper).
 
-Source: the transmission-chain error paper (``seeds/004``, section 4): an AR(64) model serves
-diagnosis, but on-line prediction needs a short model. The paper plots AIC against the order,
-takes the order where AIC turns from a fast to a slow decrease ("the turning point in the
-low-order region"), refits, and checks that the reduced model still shows the main frequencies
-of the full one (AR(64) -> AR(9), keeping three of the four error frequencies above 10 % of
-the error energy; an AR(p) can show at most p / 2 frequencies).
+Source: the transmission-chain error paper (a Chinese study of AR models of a machine tool's
+transmission-chain error, of which sections 4-5 are known, without authors, year or venue;
+section 4): an AR(64) model serves diagnosis, but on-line prediction needs a short model. The
+paper plots AIC against the order, takes the order where AIC turns from a fast to a slow decrease
+("the turning point in the low-order region"), refits, and checks that the reduced model still
+shows the main frequencies of the full one (AR(64) -> AR(9), keeping three of the four error
+frequencies above 10 % of the error energy; an AR(p) can show at most p / 2 frequencies).
 
 Model, per campaign with pre-sample error 0 um (the cold state)::
 
@@ -41,6 +42,7 @@ import numpy as np
 import pandas as pd
 from scipy.signal import find_peaks
 
+from pipeline.fit_statistics import information_criteria
 from pipeline.models.base import FeedbackModel
 from pipeline.models.feedback import linear_feedback_predict
 from pipeline.models.series import history, segments
@@ -223,7 +225,8 @@ def aic_curve(fits: Sequence[tuple[float, np.ndarray, float]], n: int) -> pd.Ser
     """AIC(p) = N ln(RSS_p / N) + 2 (p + 1) of :func:`ar_least_squares` fits, indexed by p."""
     rss = np.array([max(fit[2], np.finfo(float).tiny) for fit in fits])
     orders = np.arange(1, len(fits) + 1)
-    return pd.Series(n * np.log(rss / n) + 2.0 * (orders + 1), index=pd.Index(orders, name="order"))
+    aic, _, _ = information_criteria(rss, n, orders + 1)
+    return pd.Series(aic, index=pd.Index(orders, name="order"))
 
 
 def knee_order(aic: pd.Series) -> int:

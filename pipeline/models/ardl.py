@@ -1,11 +1,13 @@
 """Autoregressive distributed-lag (ARDL) model of the thermal error on the selected temperatures.
 
-Source: the PCDL paper (``seeds/000``, introduction) cites Miao et al. [5, 6], who modelled the
-thermal error of CNC machine tools with distributed-lag and autoregressive distributed-lag
-(ADL) models ([6]: "Application of the autoregressive distributed lag model in CNC machine
-tool thermal error modelling", Acta Metrologica Sinica 34(3), 2013). The reference's equations
-are not among the sources; the standard ARDL form and estimator are those of statsmodels
-``statsmodels.tsa.ardl.ARDL`` (constant trend, every sensor at lags 0..q)::
+Source: the PCDL paper (Miao et al. 2016, "Improvement of forecasting robustness of time series
+model for thermal error on CNC machine tool", Optics and Precision Engineering 24(10), 2480-2489;
+introduction) cites Miao et al. [5, 6], who modelled the thermal error of CNC machine tools with
+distributed-lag and autoregressive distributed-lag (ADL) models ([6]: "Application of the
+autoregressive distributed lag model in CNC machine tool thermal error modelling", Acta Metrologica
+Sinica 34(3), 2013). The reference's equations are not among the sources; the standard ARDL form and
+estimator are those of statsmodels ``statsmodels.tsa.ardl.ARDL`` (constant trend, every sensor at
+lags 0..q)::
 
     y_t = c + sum_{i=1..p} a_i y_{t-i} + sum_j sum_{k=0..q} b_{j,k} T_{j,t-k} + e_t
 

@@ -1,10 +1,11 @@
 """ARMA model of the thermal error's own history, identified as in the TS-BP paper.
 
-Source: Li, Gu, Li and Yang, "Spindle thermal error modelling based on time series and neural
-network", 2015 (``seeds/001``, section 1.1): zero-mean the error series, test its stationarity
-by the reverse-arrangement test, identify AR / MA / ARMA from the cut-off or tailing of the
-ACF and PACF, fix the order by an information criterion and estimate the parameters by least
-squares on the long-autoregression residuals (LSA / LAR); the paper arrives at ARMA(4,3).
+Source: Li Xingda, Gu Qunying, Li Zihan and Yang Jianguo, "Modeling for thermal error based on time
+series-neural network", Modular Machine Tool & Automatic Manufacturing Technique 2015(9), 13-16
+(section 1.1): zero-mean the error series, test its stationarity by the reverse-arrangement test,
+identify AR / MA / ARMA from the cut-off or tailing of the ACF and PACF, fix the order by an
+information criterion and estimate the parameters by least squares on the long-autoregression
+residuals (LSA / LAR); the paper arrives at ARMA(4,3).
 
 Model, with z_t = w_t - mu the zero-mean (differenced) error w_t = (1 - B)^d y_t, um::
 

@@ -1,14 +1,15 @@
 """Composite positioning-error model of a linear axis: geometric polynomial + thermal slope k(T).
 
-The patent (sensitive-point selection for linear-axis thermal error, ``seeds/002``, steps 2-5,
-eqs. 1-4): laser runs of the axis at several warm-up times; the cold run's error is fitted by a
-4th-order polynomial P_geo(x) (eq. 1); a first-order fit of each run gives its slope k_i; the
-temperature sensitive points are the best subset of the sensors for the regression of k_i on the
-temperatures at each run, chosen by adjusted R^2 (max) and AICc (min) (the patent keeps the AICc
-subset T1, T2, T5 out of 7); the slope model is the OLS fit k = c0 + sum_j c_j T_j (eq. 2) and the
-composite model is ``E(x, T) = P_geo(x) + (k(T) - k0) x`` (eq. 3), k0 the slope at the cold run.
-The patent validates it on a second campaign (runs at 40 and 220 min): residuals within
-+-3.5 um.
+The linear-axis patent (Chinese invention patent "Optimal selection method for the thermal
+temperature-sensitive points of a machine tool's linear axis based on independent-variable selection
+criteria", published 2022; steps 2-5, eqs. 1-4): laser runs of the axis at several warm-up times;
+the cold run's error is fitted by a 4th-order polynomial P_geo(x) (eq. 1); a first-order fit of each
+run gives its slope k_i; the temperature sensitive points are the best subset of the sensors for the
+regression of k_i on the temperatures at each run, chosen by adjusted R^2 (max) and AICc (min) (the
+patent keeps the AICc subset T1, T2, T5 out of 7); the slope model is the OLS fit
+k = c0 + sum_j c_j T_j (eq. 2) and the composite model is ``E(x, T) = P_geo(x) + (k(T) - k0) x``
+(eq. 3), k0 the slope at the cold run. The patent validates it on a second campaign (runs at 40
+and 220 min): residuals within +-3.5 um.
 
 Inputs are the tables of :mod:`pipeline.separation.axis` (``axis_slopes``: slope of the thermal
 part and the temperature of every sensor, degC, per pass; ``axis_geometric``: polynomial
@@ -46,6 +47,7 @@ from numpy.polynomial import Polynomial
 from statsmodels.regression.linear_model import OLS
 
 from pipeline.errors import InputDataError, ParamsError
+from pipeline.fit_statistics import root_mean_square
 from pipeline.selection.best_subset import CRITERIA as SELECTION_RULES
 from pipeline.selection.best_subset import best_subset
 from pipeline.selection.result import Selection
@@ -408,7 +410,7 @@ def residual_band(residual_um: np.ndarray) -> dict[str, float | int]:
         "residual_min_um": float(r.min()),
         "residual_max_um": float(r.max()),
         "residual_max_abs_um": float(np.abs(r).max()),
-        "rmse_um": float(np.sqrt(np.mean(r**2))),
+        "rmse_um": root_mean_square(r),
     }
 
 

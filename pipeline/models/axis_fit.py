@@ -28,21 +28,22 @@ from pipeline.models.axis_composite import (
     select_sensors,
 )
 from pipeline.selection.result import Selection
+from pipeline.settings.model_axis import ModelAxisSettings
 
 LOGGER = logging.getLogger(__name__)
 
 
-SOURCE = "the patent (seeds/002_391aae131e4de351.txt): sensitive points by best subset, eqs. 1-4"
+SOURCE = "the linear-axis patent (2022): sensitive points by best subset, eqs. 1-4"
 
 
 def build(
-    params: dict, slopes: pd.DataFrame, geometric: pd.DataFrame, thermal: pd.DataFrame
+    params: ModelAxisSettings, slopes: pd.DataFrame, geometric: pd.DataFrame, thermal: pd.DataFrame
 ) -> tuple[dict, dict, pd.DataFrame]:
     """Fit and score the composite model.
 
     Parameters
     ----------
-    params : dict
+    params : ModelAxisSettings
         The ``model_axis`` section of params.yaml.
     slopes, geometric, thermal : DataFrame
         ``axis_slopes``, ``axis_geometric`` and ``axis_thermal_error`` (possibly empty).
@@ -57,7 +58,7 @@ def build(
         Scored points (:func:`pipeline.models.axis_composite.score_campaigns`) plus ``role``
         ("fit" | "validation"); empty when nothing was modelled.
     """
-    band = float(params["patent_band_um"])
+    band = params.patent_band_um
     base = {"source": SOURCE, "patent_band_um": band}
     if slopes.empty:
         message = "no axis_positioning campaign passed validation: no axis model"
@@ -72,13 +73,13 @@ def build(
         )
         LOGGER.warning(message)
         return {**base, "status": "no_training_campaign", "message": message}, {}, pd.DataFrame()
-    temperature = str(params["temperature"])
-    candidates = candidate_sensors(train, params.get("exclude_sensors") or [])
+    temperature = params.temperature
+    candidates = candidate_sensors(train, list(params.exclude_sensors))
     selection = select_sensors(
         pass_features(train, candidates, temperature),
         pass_slopes(train),
-        str(params["selection_rule"]),
-        int(params["max_exhaustive"]),
+        params.selection_rule,
+        params.max_exhaustive,
     )
     model = CompositeModel(
         geometric=mean_geometric(geometric, _ids(train)),
@@ -136,12 +137,14 @@ def _message(scored: dict[str, pd.DataFrame], train: pd.DataFrame) -> str:
     )
 
 
-def _selection_report(params: dict, candidates: list[str], selection: Selection) -> dict:
+def _selection_report(
+    params: ModelAxisSettings, candidates: list[str], selection: Selection
+) -> dict:
     return {
         "method": "best_subset",
-        "rule": str(params["selection_rule"]),
+        "rule": params.selection_rule,
         "candidates": candidates,
-        "excluded": list(params.get("exclude_sensors") or []),
+        "excluded": list(params.exclude_sensors),
         "selected": list(selection.sensors),
         "winners": criterion_winners(selection),
         "details": dict(selection.details),

@@ -1,9 +1,9 @@
 """Distributed-lag (DL) regression of the thermal error on current and lagged temperatures.
 
-Source: Miao et al., "Improving the forecasting robustness of time-series models of CNC
-machine-tool thermal error", Optics and Precision Engineering 24(10), 2016 ("the PCDL paper",
-``seeds/000``), section 2.1. Its equation (1) is missing from the web capture; the standard DL
-form its text describes is used::
+Source: Miao Enming, Liu Yi, Dong Yunfei and Chen Weikang, "Improvement of forecasting robustness of
+time series model for thermal error on CNC machine tool", Optics and Precision Engineering 24(10),
+2480-2489, 2016 ("the PCDL paper"), section 2.1. Its equation (1) is missing from the web capture;
+the standard DL form its text describes is used::
 
     y_t = a0 + sum_{j=1..u} sum_{i=0..n} b_{j,i} x_{j,t-i}
 

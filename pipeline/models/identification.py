@@ -1,9 +1,11 @@
 """Box-Jenkins identification from the autocorrelation (ACF) and partial autocorrelation (PACF).
 
-The TS-BP paper (``seeds/001``, section 1.1, equations 5-6) chooses the model family from the
-sample ACF and PACF of the zero-mean error series: PACF cuts off and ACF tails -> AR; ACF cuts
-off and PACF tails -> MA; both tail -> ARMA. The SVR paper (``seeds/003``) takes the embedding
-dimension from the lag at which the PACF cuts off (7 there).
+The TS-BP paper (Li et al. 2015, "Modeling for thermal error based on time series-neural network",
+Modular Machine Tool & Automatic Manufacturing Technique 2015(9), 13-16; section 1.1, equations 5-6)
+chooses the model family from the sample ACF and PACF of the zero-mean error series: PACF cuts off
+and ACF tails -> AR; ACF cuts off and PACF tails -> MA; both tail -> ARMA. The SVR paper (Chen Ziran
+et al. 2012, "Time-series prediction for a time-grating CNC rotary table based on support vector
+machines") takes the embedding dimension from the lag at which the PACF cuts off (7 there).
 
 The capture lost the paper's equations; the standard estimators are used: the sample
 autocovariance c_k = (1/N) sum_t z_t z_{t-k} (z zero-mean), r_k = c_k / c_0, and the PACF from

@@ -1,12 +1,13 @@
 """Back-propagation (BP) neural network from temperatures to thermal error.
 
-Source: Li et al., "Spindle thermal error modelling based on time series and neural network",
-2015 ("the TS-BP paper", ``seeds/001``), section 1.2 and the experiment: a three-layer BP network
-whose inputs are the key-point temperatures and whose output is the error, Sigmoid hidden
-neurons, topology 2-6-1 (two bearing temperatures, 6 hidden, 1 output), training rate
-eta = 0.01, at most 6000 training epochs, mean-squared-error goal 0.01. The weight update is
-plain gradient descent on the mean squared error, W(m + 1) = W(m) - eta dE/dW (the paper's
-"correction factor" update; its equations are missing from the capture).
+Source: Li Xingda, Gu Qunying, Li Zihan and Yang Jianguo, "Modeling for thermal error based on time
+series-neural network", Modular Machine Tool & Automatic Manufacturing Technique 2015(9), 13-16
+("the TS-BP paper"), section 1.2 and the experiment: a three-layer BP network whose inputs are the
+key-point temperatures and whose output is the error, Sigmoid hidden neurons, topology 2-6-1 (two
+bearing temperatures, 6 hidden, 1 output), training rate eta = 0.01, at most 6000 training epochs,
+mean-squared-error goal 0.01. The weight update is plain gradient descent on the mean squared error,
+W(m + 1) = W(m) - eta dE/dW (the paper's "correction factor" update; its equations are missing from
+the capture).
 
 Implemented as a compact numpy network trained by full-batch gradient descent (deterministic,
 ~0.2 s for 110 x 4 samples). Details the paper does not state, chosen as the common MATLAB

@@ -1,8 +1,10 @@
 """Principal-component distributed lag (PCDL): the DL design regressed on leading PCs.
 
-Source: the PCDL paper (Miao et al., Optics and Precision Engineering 24(10), 2016,
-``seeds/000``), sections 2.2-2.3 and 4.2. Its equations (2)-(5) are missing from the web capture;
-the steps its text names are implemented in the standard principal-component-regression form:
+Source: the PCDL paper (Miao Enming, Liu Yi, Dong Yunfei and Chen Weikang, 2016, "Improvement of
+forecasting robustness of time series model for thermal error on CNC machine tool", Optics and
+Precision Engineering 24(10), 2480-2489), sections 2.2-2.3 and 4.2. Its equations (2)-(5) are
+missing from the web capture; the steps its text names are implemented in the standard
+principal-component-regression form:
 
 1. build the DL design (current and lagged temperatures, equation (1));
 2. standardise it (z-scores) and take the eigenvectors u_1..u_p of the correlation matrix of the

@@ -1,10 +1,11 @@
 """Ridge and partial-least-squares distributed-lag models, tuned by campaign-wise CV.
 
-Source: the PCDL paper (Miao et al., Optics and Precision Engineering 24(10), 2016,
-``seeds/000``), section 2.2, names ridge regression (its ref. 14) next to principal-component
-regression as algorithms that suppress the collinearity the temperature lags bring into the
-distributed-lag design, and its ref. 13 applies partial least squares (PLS) for the same
-purpose. The paper gives no details for either; the standard estimators are used on the DL
+Source: the PCDL paper (Miao Enming, Liu Yi, Dong Yunfei and Chen Weikang, 2016, "Improvement of
+forecasting robustness of time series model for thermal error on CNC machine tool", Optics and
+Precision Engineering 24(10), 2480-2489), section 2.2, names ridge regression (its ref. 14) next to
+principal-component regression as algorithms that suppress the collinearity the temperature lags
+bring into the distributed-lag design, and its ref. 13 applies partial least squares (PLS) for the
+same purpose. The paper gives no details for either; the standard estimators are used on the DL
 design of :mod:`pipeline.models.distributed_lag` at a fixed lag order (default 2, the order the
 paper found for PCDL):
 

@@ -1,6 +1,8 @@
 """Reverse-arrangement (inverse-order) test of stationarity.
 
-The TS-BP paper (``seeds/001``, section 1.1, equations 2-4) tests the zero-mean error series for
+The TS-BP paper (Li Xingda, Gu Qunying, Li Zihan and Yang Jianguo, 2015, "Modeling for thermal
+error based on time series-neural network", Modular Machine Tool & Automatic Manufacturing
+Technique 2015(9), 13-16; section 1.1, equations 2-4) tests the zero-mean error series for
 stationarity before identifying an ARMA model: split the N samples into k consecutive
 sub-series of length L (N = kL), take the mean of each, and count the reverse arrangements of
 those k means. The capture lost the equations; this module uses the standard form of the test

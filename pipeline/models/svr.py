@@ -1,11 +1,11 @@
 """Support vector regression on an embedding of the differenced thermal error (the SVR paper).
 
-Source: Chen et al., SVR time-series prediction for a time-grating CNC rotary table, 2012
-(``seeds/003``, sections 3-4): remove the trend by differencing, standardise, take the
-embedding dimension from the lag at which the PACF cuts off (7 there), regress the next value
-on the embedded past with an RBF-kernel SVR, K(x, x') = exp(-g |x - x'|^2), choose g and the
-penalty C by cross-validation on a coarse 2^k grid and then a finer grid around the best, and
-sum the predicted differences back to the level.
+Source: Chen Ziran et al., "Time-series prediction for a time-grating CNC rotary table based on
+support vector machines" (in Chinese), 2012, no. 8, pp. 1794 ff. (sections 3-4): remove the
+trend by differencing, standardise, take the embedding dimension from the lag at which the PACF
+cuts off (7 there), regress the next value on the embedded past with an RBF-kernel SVR,
+K(x, x') = exp(-g |x - x'|^2), choose g and the penalty C by cross-validation on a coarse 2^k
+grid and then a finer grid around the best, and sum the predicted differences back to the level.
 
 Model, with d_t = y_t - y_{t-1} (per campaign, pre-sample error 0 um) and s = (d - mean) / sd::
 

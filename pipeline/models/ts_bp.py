@@ -1,7 +1,8 @@
 """TS-BP hybrid: fixed-weight combination of an ARMA error model and a BP network.
 
-Source: Li, Gu, Li and Yang, "Spindle thermal error modelling based on time series and neural
-network", 2015 (``seeds/001``, section 1.3, equations 10-13)::
+Source: Li Xingda, Gu Qunying, Li Zihan and Yang Jianguo, "Modeling for thermal error based on
+time series-neural network", Modular Machine Tool & Automatic Manufacturing Technique 2015(9),
+13-16 (section 1.3, equations 10-13)::
 
     y_hat_t = k_TS * y_TS,t + k_BP * y_BP,t,   k_TS + k_BP = 1, 0 <= k <= 1
 

@@ -1,10 +1,12 @@
 """Time-varying-parameter AR model tracked by recursive least squares with forgetting.
 
-Source: the transmission-chain error paper (``seeds/004``, end of section 4): a fixed-parameter
-AR(9) compensated poorly because the system is time-varying (cutting conditions change the
-model's parameters, even its order), and "a time-varying system should be described by a
-time-varying parameter model". The paper names no estimator; this module uses the standard one,
-recursive least squares with exponential forgetting (Ljung, *System Identification*, 11.2)::
+Source: the transmission-chain error paper ("the AR paper": a Chinese study of AR models of a
+machine tool's transmission-chain error, of which sections 4-5 are known, without authors, year or
+venue; end of section 4): a fixed-parameter AR(9) compensated poorly because the system is
+time-varying (cutting conditions change the model's parameters, even its order), and "a time-varying
+system should be described by a time-varying parameter model". The paper names no estimator; this
+module uses the standard one, recursive least squares with exponential forgetting (Ljung, *System
+Identification*, 11.2)::
 
     y_t = z_t' theta_t + e_t,   z_t = [1, y_{t-1}, ..., y_{t-p}]
     k_t = P_{t-1} z_t / (lambda + z_t' P_{t-1} z_t)

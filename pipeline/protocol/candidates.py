@@ -14,12 +14,14 @@ from __future__ import annotations
 import logging
 from collections.abc import Mapping
 
-from joblib import Parallel, delayed
+from joblib import delayed
 from threadpoolctl import threadpool_limits
 
 from pipeline.models import MODELS, make_model
+from pipeline.progress import run_jobs
 from pipeline.protocol.cross_season import Candidate, UnitResult, fit_and_score
 from pipeline.protocol.units import CampaignSeries, TrainingUnit
+from pipeline.settings.base import unknown_name_error
 
 LOGGER = logging.getLogger(__name__)
 
@@ -52,9 +54,8 @@ def candidate_list(
     }
     for model, chosen in wanted.items():
         if model not in MODELS:
-            raise KeyError(
-                f"params.yaml evaluate.candidates: unknown model '{model}'; registered: "
-                f"{sorted(MODELS)}"
+            raise unknown_name_error(
+                ("evaluate", "candidates", model), model, sorted(MODELS), "model", "registered"
             )
         unknown = [s for s in chosen if s not in selections]
         if MODELS[model].uses_temperatures and unknown:
@@ -90,11 +91,13 @@ def run_all(
     selected: Mapping[str, Mapping[str, Mapping]],
     model_params: Mapping[str, Mapping],
     n_jobs: int,
+    label: str = "candidates",
 ) -> list[UnitResult]:
     """Fit every candidate on every training unit and score it on every campaign.
 
     The (candidate, unit) fits run in parallel in ``n_jobs`` joblib worker processes; each
-    sees only the campaigns of its unit for fitting.
+    sees only the campaigns of its unit for fitting. How far they are is shown under ``label``
+    (:mod:`pipeline.progress`); each result counts its fit's warnings.
     """
     jobs = [
         delayed(fit_and_score)(
@@ -116,4 +119,4 @@ def run_all(
     # many times slower with multi-threaded BLAS on a busy machine (joblib workers already
     # limit theirs; this covers n_jobs=1 in the main process).
     with threadpool_limits(limits=1):
-        return list(Parallel(n_jobs=n_jobs)(jobs))
+        return run_jobs(jobs, n_jobs, label, logger=LOGGER)

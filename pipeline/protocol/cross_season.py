@@ -21,8 +21,10 @@ import numpy as np
 import pandas as pd
 from sklearn.base import RegressorMixin, clone
 
-from pipeline.protocol.scoring import compensation_ratio, residual_std, root_mean_square
+from pipeline.fit_statistics import root_mean_square
+from pipeline.protocol.scoring import compensation_ratio, residual_std
 from pipeline.protocol.units import CampaignSeries, TrainingUnit, stack
+from pipeline.warnings_capture import WarningCounts, captured
 
 STATIC, ONE_STEP, FREE_RUN = "static", "one_step", "free_run"
 
@@ -54,6 +56,8 @@ class UnitResult:
     estimator : RegressorMixin
         The fitted estimator (for the physical twin ``twin``, a
         :class:`pipeline.protocol.twin_candidate.CalibratedTwin`).
+    warnings : WarningCounts
+        The warnings its fit and predictions emitted (captured, not printed).
     """
 
     candidate: Candidate
@@ -63,6 +67,7 @@ class UnitResult:
     scores: pd.DataFrame
     predictions: dict = field(repr=False)
     estimator: RegressorMixin = field(repr=False)
+    warnings: WarningCounts = field(default_factory=WarningCounts)
 
 
 def modes_of(estimator: RegressorMixin) -> tuple[str, ...]:
@@ -164,18 +169,20 @@ def fit_and_score(
     UnitResult
         ``scores`` has the columns of ``schemas.CrossSeasonScoresModel``; campaigns the unit is
         not scored on (:meth:`TrainingUnit.scores`) and campaigns without a finite residual
-        get no row.
+        get no row; ``warnings`` counts what the fit and its predictions warned.
     """
     training = [c for c in campaigns if c.campaign_id in unit.campaigns]
     X, y = stack(training, sensors)
-    model = clone(estimator).fit(X, y)
     rows, predictions = [], {}
-    for mode in modes_of(model):
-        for test in (c for c in campaigns if unit.scores(c.campaign_id)):
-            predicted = predict_campaign(model, test, sensors, mode)
-            predictions[(mode, test.campaign_id)] = predicted
-            row = score_row(candidate, unit, mode, test, predicted)
-            if row is not None:
-                rows.append(row)
+    with captured(fit=True) as counts:
+        model = clone(estimator).fit(X, y)
+        for mode in modes_of(model):
+            for test in (c for c in campaigns if unit.scores(c.campaign_id)):
+                predicted = predict_campaign(model, test, sensors, mode)
+                predictions[(mode, test.campaign_id)] = predicted
+                row = score_row(candidate, unit, mode, test, predicted)
+                if row is not None:
+                    rows.append(row)
     chosen = dict(getattr(model, "chosen_params_", {}) or {})
-    return UnitResult(candidate, unit, sensors, chosen, pd.DataFrame(rows), predictions, model)
+    frame = pd.DataFrame(rows)
+    return UnitResult(candidate, unit, sensors, chosen, frame, predictions, model, counts)

@@ -17,6 +17,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 import pandas as pd
 
+from pipeline.models import MODELS
 from pipeline.protocol.candidates import candidate_list, run_all
 from pipeline.protocol.champion import (
     Decision,
@@ -26,7 +27,7 @@ from pipeline.protocol.champion import (
     standing,
 )
 from pipeline.protocol.cross_season import UnitResult
-from pipeline.protocol.ranking import AUTO, RankingChoice, check_rank_by, ranking_scheme
+from pipeline.protocol.ranking import RankingChoice, ranking_scheme
 from pipeline.protocol.scoring import SCHEME_PREFIX, metrics_tree
 from pipeline.protocol.twin_candidate import (
     TWIN_MODEL,
@@ -39,10 +40,13 @@ from pipeline.protocol.units import (
     POOLED_UNIT,
     CampaignSeries,
     TrainingUnit,
-    UnitSettings,
     training_units,
 )
 from pipeline.separation.features import InputSpec, SpeedResponses
+from pipeline.settings.base import unknown_name_error
+from pipeline.settings.evaluate import ChampionSettings, EvaluateSettings
+from pipeline.settings.protocol import ProtocolSettings
+from pipeline.warnings_capture import WarningCounts
 from schemas import CrossSeasonScoresModel
 
 LOGGER = logging.getLogger(__name__)
@@ -53,12 +57,6 @@ CANDIDATE = ["model", "selection", "mode"]
 
 PLAIN_BASELINES = (("mlr", "all"), ("ridge", "all"))
 """Every temperature, no lag, no speed: the references a model must clearly beat."""
-
-
-DEFAULT_MARGIN = 0.1
-
-
-DEFAULT_COVERAGE = 0.95
 
 
 EXAMPLE_ROWS = 10
@@ -104,15 +102,56 @@ class AxisEvaluation:
         """The ranking scheme: ``loso``, ``loco``, ``forward`` or None."""
         return self.ranking.scheme
 
+    @property
+    def warnings(self) -> dict[tuple[str, str], WarningCounts]:
+        """(model, selection) -> the warnings of its fits on every training unit, summed."""
+        found: dict[tuple[str, str], WarningCounts] = {}
+        for result in self.results:
+            key = (result.candidate.model, result.candidate.selection)
+            found.setdefault(key, WarningCounts()).add(result.warnings)
+        return found
+
+
+def check_models(settings: EvaluateSettings) -> None:
+    """Check the model names of ``evaluate`` and their hyper-parameters, before any fit.
+
+    Raises
+    ------
+    ParamsError
+        For a model of ``candidates`` or ``model_params`` that is not registered (nor the
+        twin), or a hyper-parameter its estimator does not have, naming the key path, the
+        names allowed there and the closest one.
+    """
+    registered = [*sorted(MODELS), TWIN_MODEL]
+    for model in [*settings.candidates, *settings.model_params]:
+        if model not in registered:
+            section = "candidates" if model in settings.candidates else "model_params"
+            raise unknown_name_error(
+                ("evaluate", section, model), model, registered, "model", "registered"
+            )
+    for model, params in settings.model_params.items():
+        if model == TWIN_MODEL:
+            continue  # the twin's calibration settings (pipeline.protocol.twin_candidate)
+        accepted = sorted(MODELS[model].estimator().get_params())
+        for name in params:
+            if name not in accepted:
+                raise unknown_name_error(
+                    ("evaluate", "model_params", model, name),
+                    name,
+                    accepted,
+                    "hyper-parameter",
+                    f"{model} accepts",
+                )
+
 
 def evaluate_axis(
     axis: str,
     series: list[CampaignSeries],
     selected: dict,
-    params: dict,
+    params: EvaluateSettings,
     twin: TwinSetup | None = None,
     twin_skipped: str | None = None,
-    protocol: dict | None = None,
+    protocol: ProtocolSettings | None = None,
 ) -> AxisEvaluation:
     """Score every candidate of one axis on every training unit.
 
@@ -123,15 +162,15 @@ def evaluate_axis(
         The axis' valid spindle campaigns.
     selected : dict
         ``selected.json`` ``axes[axis]``: ``{method: {unit: {"inputs": [...], ...}}}``.
-    params : dict
+    params : EvaluateSettings
         The ``evaluate`` section: ``candidates``, ``full_grid``, ``model_params``, ``n_jobs``.
     twin : TwinSetup, optional
         Needed when ``candidates`` has ``twin: roles`` and ``twin_skipped`` is None.
     twin_skipped : str, optional
         Why the twin is not scored on this axis.
-    protocol : dict, optional
-        The ``protocol`` section: the held-out units' buffer and rolling origin
-        (:class:`pipeline.protocol.units.UnitSettings`) and ``rank_by``.
+    protocol : ProtocolSettings, optional
+        The ``protocol`` section: the held-out units' buffer and rolling origin and ``rank_by``
+        (default: its defaults).
 
     Returns
     -------
@@ -142,14 +181,15 @@ def evaluate_axis(
     ValueError
         If the twin is a candidate, not skipped, and ``twin`` is not given.
     """
-    protocol = dict(protocol or {})
-    units = training_units(series, UnitSettings.from_params(protocol))
-    ranking = ranking_scheme(series, units, check_rank_by(protocol.get("rank_by", AUTO)))
-    pairs, with_twin = split_twin(params["candidates"])
-    candidates = candidate_list(pairs, selected, bool(params.get("full_grid")))
-    model_params = params.get("model_params") or {}
-    n_jobs = int(params.get("n_jobs", 1))
-    results = run_all(candidates, units, series, selected, model_params, n_jobs)
+    protocol = protocol or ProtocolSettings()
+    units = training_units(series, protocol)
+    ranking = ranking_scheme(series, units, protocol.rank_by)
+    pairs, with_twin = split_twin(params.candidates)
+    candidates = candidate_list(pairs, selected, params.full_grid)
+    model_params, n_jobs = params.model_params, params.n_jobs
+    results = run_all(
+        candidates, units, series, selected, model_params, n_jobs, f"axis {axis} candidates"
+    )
     skipped = {}
     if with_twin and twin_skipped is not None:
         skipped[f"{TWIN_MODEL}/{TWIN_SELECTION}"] = twin_skipped
@@ -169,12 +209,13 @@ def evaluate_axis(
 
 
 def decide(
-    evaluations: list[AxisEvaluation], summary: pd.DataFrame, settings: dict | None = None
+    evaluations: list[AxisEvaluation],
+    summary: pd.DataFrame,
+    settings: ChampionSettings | None = None,
 ) -> None:
     """Choose every axis' champion (sets ``decision``); ``settings``: ``evaluate.champion``."""
-    settings = settings or {}
-    margin = float(settings.get("min_improvement", DEFAULT_MARGIN))
-    min_coverage = float(settings.get("min_coverage", DEFAULT_COVERAGE))
+    settings = settings or ChampionSettings()
+    margin, min_coverage = settings.min_improvement, settings.min_coverage
     for item in evaluations:
         item.decision = choose_champion(summary, item.axis, item.protocol, margin, min_coverage)
         LOGGER.info("axis %s: ranked by %s: %s", item.axis, item.protocol, item.ranking.reason)
@@ -184,7 +225,11 @@ def decide(
 
 
 def fitted_record(evaluations: list[AxisEvaluation]) -> dict:
-    """JSON-ready record of every fit: inputs and what it decided, per axis, candidate, unit."""
+    """JSON-ready record of every fit: inputs, what it decided and what it warned.
+
+    Keyed ``<axis>/<model>/<selection>/<unit>``; ``warnings`` is
+    :meth:`pipeline.warnings_capture.WarningCounts.to_dict` (count and first message by category).
+    """
     return {
         f"{e.axis}/{r.candidate.model}/{r.candidate.selection}/{r.unit.name}": {
             "axis": e.axis,
@@ -194,6 +239,7 @@ def fitted_record(evaluations: list[AxisEvaluation]) -> dict:
             "scheme": r.unit.scheme,
             "inputs": r.sensors,
             "chosen_params": json_ready_params(r.chosen_params),
+            "warnings": r.warnings.to_dict(),
         }
         for e in evaluations
         for r in e.results

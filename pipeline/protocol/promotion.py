@@ -32,7 +32,7 @@ from dataclasses import asdict, dataclass, field
 import numpy as np
 import pandas as pd
 
-from pipeline.protocol.scoring import root_mean_square
+from pipeline.fit_statistics import root_mean_square
 
 PROMOTE, KEEP, ERROR = "promote", "keep", "error"
 

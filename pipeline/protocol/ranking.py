@@ -36,10 +36,8 @@ from __future__ import annotations
 from collections import Counter
 from dataclasses import dataclass
 
-from pipeline.errors import ParamsError
 from pipeline.protocol.units import (
     FORWARD,
-    HELD_OUT_SCHEMES,
     LOCO,
     LOSO,
     PROTOCOL_NAMES,
@@ -49,7 +47,6 @@ from pipeline.protocol.units import (
 )
 
 AUTO = "auto"
-RANK_BY_CHOICES = (AUTO, *HELD_OUT_SCHEMES)
 MIN_FORECASTS = 1
 """Forecast campaigns the rolling origin needs before ``auto`` ranks by it."""
 
@@ -71,22 +68,6 @@ class RankingChoice:
     scheme: str | None
     reason: str
     others: tuple[str, ...] = ()
-
-
-def check_rank_by(value: object) -> str:
-    """Return ``protocol.rank_by`` checked.
-
-    Raises
-    ------
-    ParamsError
-        If it is not ``auto`` or a held-out scheme.
-    """
-    text = AUTO if value is None else str(value)
-    if text not in RANK_BY_CHOICES:
-        raise ParamsError(
-            f"params.yaml protocol.rank_by is {value!r}; use one of {list(RANK_BY_CHOICES)}"
-        )
-    return text
 
 
 def ranking_scheme(

@@ -52,18 +52,6 @@ def residual_std(residual: np.ndarray) -> float:
     return float(np.std(finite, ddof=1)) if finite.size >= 2 else float("nan")
 
 
-def root_mean_square(residual: np.ndarray) -> float:
-    """Root mean square of the residual, um; NaN when no residual is finite.
-
-    Parameters
-    ----------
-    residual : ndarray of shape (n,)
-        Measured minus predicted, um; NaN entries are ignored.
-    """
-    finite = residual[np.isfinite(residual)]
-    return float(np.sqrt(np.mean(finite**2))) if finite.size else float("nan")
-
-
 def compensation_ratio(rms_residual_um: float, rms_uncompensated_um: float) -> float:
     """Return eta = 1 - RMS(residual) / RMS(uncompensated error); NaN if the latter is not > 0."""
     if not np.isfinite(rms_uncompensated_um) or rms_uncompensated_um <= 0:

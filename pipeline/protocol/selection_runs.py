@@ -13,17 +13,22 @@ from collections.abc import Mapping
 
 import pandas as pd
 
+from pipeline.errors import ParamsError
 from pipeline.protocol.units import (
     CampaignSeries,
     TrainingUnit,
     stack,
 )
 from pipeline.selection import Selection, make_selector
+from pipeline.selection.registry import SELECTORS, parameters
 from pipeline.separation.features import is_speed_feature
+from pipeline.settings.base import unknown_name_error
 
 LOGGER = logging.getLogger(__name__)
 
 INPUT_SETS = ("temperatures", "temperatures_and_speed")
+ENTRY_KEYS = ("method", "inputs")
+"""Keys of a ``select.methods`` entry besides the method's parameters."""
 
 
 STABILITY_COLUMNS = ["method", "sensor", "times_chosen", "n_campaigns", "frequency"]
@@ -34,19 +39,31 @@ def method_entries(methods: Mapping[str, Mapping | None]) -> dict[str, tuple[str
 
     Raises
     ------
-    ValueError
-        If an entry's ``inputs`` is not one of :data:`INPUT_SETS`.
+    ParamsError
+        If an entry names a method the registry does not have, a parameter that method does
+        not take or an ``inputs`` not in :data:`INPUT_SETS`; the message names the key path
+        (``select.methods.gra_top_k.kk``) and what is allowed there.
     """
     entries = {}
     for name, settings in methods.items():
         settings = dict(settings or {})
+        path = ("select", "methods", str(name))
         method = str(settings.pop("method", name))
         inputs = str(settings.pop("inputs", "temperatures_and_speed"))
-        if inputs not in INPUT_SETS:
-            raise ValueError(
-                f"params.yaml select.methods.{name}.inputs is '{inputs}'; use one of "
-                f"{list(INPUT_SETS)}"
+        if method not in SELECTORS:
+            where = path if method == name else (*path, "method")
+            raise unknown_name_error(
+                where, method, sorted(SELECTORS), "selection method", "registered"
             )
+        if inputs not in INPUT_SETS:
+            raise ParamsError(
+                f"params.yaml: select.methods.{name}.inputs = '{inputs}'; use one of "
+                f"{', '.join(INPUT_SETS)}"
+            )
+        accepted = [*parameters(method), *ENTRY_KEYS]
+        for key in settings:
+            if key not in accepted:
+                raise unknown_name_error((*path, key), key, accepted, "key", "allowed here")
         entries[str(name)] = (method, inputs, settings)
     return entries
 

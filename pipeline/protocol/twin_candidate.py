@@ -43,7 +43,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import pandas as pd
-from joblib import Parallel, delayed
+from joblib import delayed
 from threadpoolctl import threadpool_limits
 
 from pipeline.discrepancy.calibrate import Calibration, calibrate, predict
@@ -51,9 +51,11 @@ from pipeline.discrepancy.data import DISPLACEMENT_COLUMN, MeasuredCampaign
 from pipeline.discrepancy.model import ROLE_NODES, TwinModel, build_model, loaded_roles
 from pipeline.discrepancy.report import STATUS_UNTESTABLE
 from pipeline.errors import InputDataError, ParamsError
+from pipeline.progress import run_jobs
 from pipeline.protocol.cross_season import STATIC, Candidate, UnitResult, score_row
 from pipeline.protocol.units import CampaignSeries, TrainingUnit
 from pipeline.separation.features import reference_value
+from pipeline.warnings_capture import captured
 
 LOGGER = logging.getLogger(__name__)
 
@@ -296,12 +298,12 @@ def fit_and_score_twin(
         Candidate ``twin/roles``, mode ``static``; ``chosen_params`` holds the effects, the
         calibrated parameters (each name ends with its unit, e.g. ``C_bearing_J_per_K``), the
         training Z RMS (um) and whether the least squares converged; ``estimator`` a
-        :class:`CalibratedTwin`.
+        :class:`CalibratedTwin`; ``warnings`` what the calibration and predictions warned.
     """
     candidate = Candidate(TWIN_MODEL, TWIN_SELECTION)
     training = [setup.campaigns[c] for c in unit.campaigns]
     model = build_model(setup.roles, setup.effects, setup.load_roles)
-    with threadpool_limits(limits=1):
+    with threadpool_limits(limits=1), captured(fit=True) as counts:
         calibration = calibrate(model, training, **setup.calibration)
         fitted = CalibratedTwin(setup.roles, setup.effects, calibration, setup.load_roles)
         rows, predictions = [], {}
@@ -319,7 +321,8 @@ def fit_and_score_twin(
         "converged": calibration.converged,
     }
     sensors = sorted({s for c in training for s in twin_sensors(c)})
-    return UnitResult(candidate, unit, sensors, chosen, pd.DataFrame(rows), predictions, fitted)
+    frame = pd.DataFrame(rows)
+    return UnitResult(candidate, unit, sensors, chosen, frame, predictions, fitted, counts)
 
 
 def run_twin(
@@ -340,7 +343,8 @@ def run_twin(
     start = time.perf_counter()
     order = sorted(range(len(units)), key=lambda i: -len(units[i].campaigns))
     jobs = [delayed(fit_and_score_twin)(units[i], list(series), setup) for i in order]
-    done = dict(zip(order, Parallel(n_jobs=n_jobs)(jobs), strict=True))
+    found = run_jobs(jobs, n_jobs, "twin calibrations", "calibrations", LOGGER)
+    done = dict(zip(order, found, strict=True))
     results = [done[i] for i in range(len(units))]
     LOGGER.info(
         "twin candidate (%s): %d calibrations in %.1f s",

@@ -45,8 +45,9 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from pipeline.errors import InputDataError, ParamsError
+from pipeline.errors import InputDataError
 from pipeline.separation.features import input_column, input_names
+from pipeline.settings.protocol import ProtocolSettings
 
 LOGGER = logging.getLogger(__name__)
 
@@ -143,60 +144,6 @@ class TrainingUnit:
         return not self.tests or campaign_id in self.tests
 
 
-@dataclass(frozen=True)
-class UnitSettings:
-    """How the held-out training units are built (``params.yaml`` ``protocol``).
-
-    Attributes
-    ----------
-    buffer_campaigns : int
-        hv-block buffer: campaigns of the same run on either side of a held-out campaign that
-        are left out of training too (0: plain leave-one-out).
-    forward_min_train : int
-        Rolling origin: training campaigns that must have ended before the first forecast one
-        started.
-    forward_min_share : float
-        Rolling origin: share of all training campaigns (0 to 1, rounded up) that must have
-        ended before a forecast one started.
-    """
-
-    buffer_campaigns: int = 1
-    forward_min_train: int = 1
-    forward_min_share: float = 0.5
-
-    @classmethod
-    def from_params(cls, section: dict | None) -> UnitSettings:
-        """Build from the ``protocol`` mapping (missing keys keep their defaults).
-
-        Raises
-        ------
-        ParamsError
-            On an unknown key or a value that is not a whole number >= 0 (>= 1 for
-            ``forward_min_train``).
-        """
-        section = dict(section or {})
-        known = {"buffer_campaigns", "forward_min_train", "forward_min_share", "rank_by"}
-        unknown = sorted(set(section) - known)
-        if unknown:
-            raise ParamsError(
-                f"params.yaml protocol: unknown key(s) {unknown}; known: {sorted(known)}"
-            )
-        values = {}
-        for name, least in (("buffer_campaigns", 0), ("forward_min_train", 1)):
-            value = section.get(name, getattr(cls, name))
-            if isinstance(value, bool) or not isinstance(value, int) or value < least:
-                raise ParamsError(
-                    f"params.yaml protocol.{name} is {value!r}; use a whole number >= {least}"
-                )
-            values[name] = value
-        share = section.get("forward_min_share", cls.forward_min_share)
-        if isinstance(share, bool) or not isinstance(share, int | float) or not 0 <= share <= 1:
-            raise ParamsError(
-                f"params.yaml protocol.forward_min_share is {share!r}; use a fraction in [0, 1]"
-            )
-        return cls(**values, forward_min_share=float(share))
-
-
 def campaign_series(table: pd.DataFrame, inputs: list[str], features: str) -> list[CampaignSeries]:
     """Split one axis' rows of the separated spindle table into per-campaign series.
 
@@ -249,14 +196,14 @@ def series_by_axis(table: pd.DataFrame, features: str) -> dict[str, list[Campaig
 
 
 def training_units(
-    series: list[CampaignSeries], settings: UnitSettings | None = None
+    series: list[CampaignSeries], settings: ProtocolSettings | None = None
 ) -> list[TrainingUnit]:
     """Every training unit of the protocol: each campaign, the held-out schemes, all.
 
     Leave-one-season-out units exist when the training campaigns span two seasons or more;
     otherwise leave-one-campaign-out units, when there are two training campaigns or more;
-    both leave out the hv-block buffer of :class:`UnitSettings`. Forward units exist for every
-    training campaign with enough training campaigns ended before it started
+    both leave out the hv-block buffer (``protocol.buffer_campaigns``). Forward units exist for
+    every training campaign with enough training campaigns ended before it started
     (:func:`forward_units`; start times known).
 
     Raises
@@ -264,7 +211,7 @@ def training_units(
     InputDataError
         If no campaign has split ``train``.
     """
-    settings = settings or UnitSettings()
+    settings = settings or ProtocolSettings()
     training = [s for s in series if s.split == "train"]
     if not training:
         raise InputDataError(

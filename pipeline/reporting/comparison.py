@@ -49,20 +49,28 @@ def _columns(
     return {k: v for k, v in columns.items() if k in summary}
 
 
-def score_table(summary: pd.DataFrame, decision: Decision, others: Sequence[str] = ()) -> str:
+def score_table(
+    summary: pd.DataFrame,
+    decision: Decision,
+    others: Sequence[str] = (),
+    warnings: Mapping[tuple[str, str], str] | None = None,
+) -> str:
     """Markdown table of one axis' candidates; the champion in bold.
 
     Candidates the machine can run from its own inputs come first, ranked by the protocol score
     (as the champion is chosen), then the others (``one_step``, ``twin``), which are never chosen.
     ``others``: the held-out schemes scored beside the ranking one (their RMS columns follow).
+    ``warnings``: (model, selection) -> what its fits warned, e.g. ``3 (ConvergenceWarning
+    3)``; given, it is the last column (``0`` for a candidate not in it).
     """
     columns = _columns(summary, decision.protocol, others)
     header = (
         "| model | selection | mode | "
         + " | ".join(f"{label} `{name}`" for name, label in columns.items())
+        + (" | warnings" if warnings is not None else "")
         + " |"
     )
-    lines = [header, "|" + "---|" * (3 + len(columns))]
+    lines = [header, "|" + "---|" * (3 + len(columns) + (warnings is not None))]
     sort_by = decision.column if decision.column in summary else "Mn_rms_um"
     chosen = eligible(summary).index
     order = summary.assign(other=~summary.index.isin(chosen)).sort_values(
@@ -72,6 +80,8 @@ def score_table(summary: pd.DataFrame, decision: Decision, others: Sequence[str]
         is_champion = all(row[k] == decision.champion[k] for k in ("model", "selection", "mode"))
         name = f"**{row['model']}**" if is_champion else row["model"]
         cells = [name, row["selection"], row["mode"], *(_number(row[c]) for c in columns)]
+        if warnings is not None:
+            cells.append(warnings.get((row["model"], row["selection"]), "0"))
         lines.append("| " + " | ".join(str(c) for c in cells) + " |")
     return "\n".join(lines)
 
@@ -246,6 +256,9 @@ class AxisContext:
         Candidate -> why it was not scored.
     plain : Series or None
         The best plain all-temperature regression's summary row.
+    warnings : mapping or None
+        (model, selection) -> what the candidate's fits warned (the score table's last
+        column); None leaves the column out.
     """
 
     axis: str
@@ -258,6 +271,7 @@ class AxisContext:
     plain: pd.Series | None = None
     groups: pd.DataFrame | None = None
     """The axis' rows of :func:`pipeline.protocol.scoring.group_scores` (per held-out season)."""
+    warnings: Mapping[tuple[str, str], str] | None = None
 
 
 def group_table(summary: pd.DataFrame, decision: Decision, groups: pd.DataFrame | None) -> str:
@@ -288,6 +302,16 @@ def group_table(summary: pd.DataFrame, decision: Decision, groups: pd.DataFrame 
         cells = [_number(values.get(name)) for name in names]
         lines.append(f"| {rank} | {'/'.join(key)} | " + " | ".join(cells) + " |")
     return "\n".join(lines) + "\n"
+
+
+def _warnings_text(warnings: Mapping[tuple[str, str], str] | None) -> str:
+    """Return the note on the score table's ``warnings`` column (blank lines around it)."""
+    if warnings is None:
+        return ""
+    return (
+        "\n`warnings`: what the candidate's fits and predictions warned, over all its training "
+        "units (captured, not printed; per fit in `reports/fitted_models.json`).\n"
+    )
 
 
 @dataclass(frozen=True)
@@ -323,8 +347,8 @@ def axis_section(
 
 {_baseline_text(c.decision, c.plain)}
 
-{score_table(c.summary, c.decision, c.card.get("other_protocols") or ())}
-
+{score_table(c.summary, c.decision, c.card.get("other_protocols") or (), c.warnings)}
+{_warnings_text(c.warnings)}
 {group_table(c.summary, c.decision, c.groups)}
 {skipped_lines}
 {twin}

@@ -157,6 +157,7 @@ def report_axis(
         item.skipped,
         second,
         groups,
+        {key: counts.text() for key, counts in item.warnings.items()},
     )
     figures = comparison_report.AxisFigures(
         figure.relative_to(paths.REPORTS).as_posix(),

@@ -11,8 +11,11 @@ import argparse
 import logging
 import sys
 
-from pipeline.config import DEFAULT_PARAMS, load_section
+from pipeline.config import DEFAULT_PARAMS
 from pipeline.errors import UserError
+from pipeline.settings.base import load_settings
+from pipeline.settings.track import TrackSettings
+from pipeline.settings.tracking import TrackingSettings
 
 LOGGER = logging.getLogger(__name__)
 
@@ -23,12 +26,13 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--axis", required=True, help="displacement axis, e.g. Z")
     parser.add_argument("--params", default=str(DEFAULT_PARAMS), help="params file (params.yaml)")
     args = parser.parse_args(argv)
+    prefix = load_settings(TrackSettings, "track", args.params).registered_model
+    tracking = load_settings(TrackingSettings, "tracking", args.params)
     from pipeline.tracking.location import absolute_store_uri, resolve_tracking_uri
     from pipeline.tracking.promotion import rollback
     from pipeline.tracking.store import make_client
 
-    prefix = str(load_section("track", args.params).get("registered_model"))
-    uri = resolve_tracking_uri(load_section("tracking", args.params))
+    uri = resolve_tracking_uri(tracking)
     name = f"{prefix}-{args.axis}"
     try:
         before, now = rollback(make_client(absolute_store_uri(uri)), name)

@@ -1,7 +1,8 @@
 """Best-subset selection of sensitive points by adjusted R^2 and AICc (the patent).
 
-The patent (CN, "thermal temperature sensitive point optimisation for machine-tool linear axes
-based on independent-variable selection criteria", steps 2 and [0046]-[0048]): with m candidate
+The linear-axis patent (Chinese invention patent "Optimal selection method for the thermal
+temperature-sensitive points of a machine tool's linear axis based on independent-variable
+selection criteria", published 2022; step 2 and paragraphs [0046]-[0048]): with m candidate
 temperature variables there are 2^m - 1 regression subsets (the constant-only model excluded);
 each is scored by the adjusted R^2 criterion (maximum) and the corrected AIC, AICc (minimum),
 and the best subset is chosen "by comparing both together". Every model has an intercept.
@@ -70,6 +71,7 @@ from math import comb
 import numpy as np
 import pandas as pd
 
+from pipeline.fit_statistics import information_criteria
 from pipeline.selection.result import CleanInputs, Selection, clean_inputs
 
 logger = logging.getLogger(__name__)
@@ -125,11 +127,8 @@ def criteria(rss: np.ndarray, k: np.ndarray, n: int, tss: float) -> tuple[np.nda
     """
     rss = np.asarray(rss, dtype=float)
     k = np.asarray(k)
-    n_params = k + 2
     adj_r2 = 1.0 - (rss / (n - k - 1)) / (tss / (n - 1))
-    with np.errstate(divide="ignore"):
-        log_term = n * np.log(rss / n)
-    aicc = log_term + 2 * n_params + 2 * n_params * (n_params + 1) / (n - n_params - 1)
+    _, aicc, _ = information_criteria(rss, n, k + 2)
     return adj_r2, aicc
 
 

@@ -100,16 +100,20 @@ def make_selector(name: str, **params: object) -> Selector:
         raise KeyError(
             f"unknown selection method {name!r}; registered methods: {sorted(SELECTORS)}"
         )
-    function = SELECTORS[name]
-    accepted = [
-        p.name
-        for p in inspect.signature(function).parameters.values()
-        if p.kind is inspect.Parameter.KEYWORD_ONLY
-    ]
+    accepted = parameters(name)
     unknown = sorted(set(params) - set(accepted))
     if unknown:
         raise TypeError(
             f"selection method {name!r} got unknown parameter(s) {unknown}; "
             f"it accepts {accepted or 'no parameters'}"
         )
-    return partial(function, **params)
+    return partial(SELECTORS[name], **params)
+
+
+def parameters(name: str) -> list[str]:
+    """Return the parameters the registered selection method ``name`` accepts, in order."""
+    return [
+        p.name
+        for p in inspect.signature(SELECTORS[name]).parameters.values()
+        if p.kind is inspect.Parameter.KEYWORD_ONLY
+    ]

@@ -1,15 +1,17 @@
 """Linear-axis positioning error: geometric part by a polynomial, thermal part by its slope.
 
-The patent (sensitive-point selection for linear-axis thermal error, ``seeds/002``, steps 1, 3
-and claims 2-3): the laser-interferometer positioning error of the cold machine (pass at 0 min)
-is the geometric error; it is fitted by an n-th order polynomial over position (the patent uses
-4th order, its eq. 1). The positioning error of each warm-up pass minus the geometric error is
-the thermal error, and a first-order fit over position gives that pass's slope k_i (um/mm),
-which the patent then regresses on temperatures (its eq. 2). Deviation from the patent: it fits
-the slope of the whole measured curve and subtracts the cold slope k0 afterwards
-(delta_t = (k_i - k0) x); fitting the thermal part directly, as the issue asks, gives the same
-k_i - k0 up to the polynomial's nonlinear terms. The bidirectional mean (average of the + and -
-runs of a pass at each target) removes the reversal error before fitting.
+The linear-axis patent (Chinese invention patent "Optimal selection method for the thermal
+temperature-sensitive points of a machine tool's linear axis based on independent-variable
+selection criteria", published 2022; steps 1, 3 and claims 2-3): the laser-interferometer
+positioning error of the cold machine (pass at 0 min) is the geometric error; it is fitted by an
+n-th order polynomial over position (the patent uses 4th order, its eq. 1). The positioning
+error of each warm-up pass minus the geometric error is the thermal error, and a first-order fit
+over position gives that pass's slope k_i (um/mm), which the patent then regresses on
+temperatures (its eq. 2). Deviation from the patent: it fits the slope of the whole measured
+curve and subtracts the cold slope k0 afterwards (delta_t = (k_i - k0) x); fitting the thermal
+part directly gives the same k_i - k0 up to the polynomial's nonlinear terms. The bidirectional
+mean (average of the + and - runs of a pass at each target) removes the reversal error before
+fitting.
 """
 
 from __future__ import annotations

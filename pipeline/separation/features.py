@@ -105,15 +105,6 @@ class SpeedResponses:
             tuple(float(a) for a in section["exponents"]),
         )
 
-    @classmethod
-    def from_params(cls, section: Mapping | None) -> SpeedResponses | None:
-        """Build from ``{time_constants_min: [...], exponents: [...]}``; None or empty: off."""
-        if not section:
-            return None
-        taus = tuple(float(t) for t in section.get("time_constants_min") or ())
-        powers = tuple(float(a) for a in section.get("exponents") or (1.0,))
-        return cls(taus, powers) if taus else None
-
     def names(self) -> list[str]:
         """Input names, exponent-major: ``speed_lag_10min``, ..., ``speed2_lag_10min``..."""
         return [

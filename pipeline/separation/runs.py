@@ -29,13 +29,13 @@ shifted so that they continue A's. Every other jump is kept as measured; all are
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
 import pandas as pd
 
-from pipeline.errors import ParamsError
+from pipeline.settings.separate import RunSettings
 
 DECLARED, DETECTED = "declared", "detected"
 CONTIGUOUS_INTERVALS = 2.5
@@ -46,40 +46,6 @@ ZERO_NOISE_FACTOR = 3.0
 ZERO_UM = 0.5
 """A reading within max(ZERO_UM, 3 x step noise) of 0 um is taken as a re-zeroed probe."""
 SLOPE_SAMPLES = 10
-
-
-@dataclass(frozen=True)
-class RunSettings:
-    """How runs are found (``params.yaml`` ``separate.runs``).
-
-    Attributes
-    ----------
-    detect : bool
-        Detect links from the start times; False: only declared ``follows`` links.
-    max_gap_s : float, s
-        Longest gap between A's last and B's first sample for a detected link.
-    max_temperature_jump_degC : float, degC
-        A detected link is dropped when the temperatures jump more than this across the cut.
-    min_stitch_um : float, um
-        Smallest displacement jump ever stitched.
-    """
-
-    detect: bool = True
-    max_gap_s: float = 900.0
-    max_temperature_jump_degC: float = 1.0  # noqa: N815 (params.yaml key)
-    min_stitch_um: float = 1.0
-
-    @classmethod
-    def from_params(cls, section: Mapping | None) -> RunSettings:
-        """Build from the ``separate.runs`` mapping (missing keys keep their defaults)."""
-        section = dict(section or {})
-        unknown = sorted(set(section) - set(cls.__dataclass_fields__))
-        if unknown:
-            raise ParamsError(
-                f"params.yaml separate.runs: unknown key(s) {unknown}; known: "
-                f"{sorted(cls.__dataclass_fields__)}"
-            )
-        return cls(**section)
 
 
 @dataclass(frozen=True)

@@ -30,9 +30,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
-from pipeline.errors import ParamsError
 from pipeline.separation.features import (
-    COLD_REFERENCES,
     SpeedResponses,
     reference_value,
     resample,
@@ -41,18 +39,16 @@ from pipeline.separation.features import (
 from pipeline.separation.runs import (
     DECLARED,
     Run,
-    RunSettings,
     build_runs,
     candidate_links,
     spans_from_tables,
     stitch,
     temperature_jump,
 )
+from pipeline.settings.separate import RunSettings, SeparateSettings
 from schemas.vocabulary import DISPLACEMENT_AXES, displacement_column
 
 LOGGER = logging.getLogger(__name__)
-
-ALL_AXES = "all"
 
 
 @dataclass(frozen=True)
@@ -81,27 +77,20 @@ class SeparationSettings:
     speed: SpeedResponses | None = None
 
     @classmethod
-    def from_params(cls, section: Mapping) -> SeparationSettings:
-        """Build from the ``separate`` section of params.yaml."""
-        reference = str(section.get("cold_reference", "first_sample"))
-        if reference not in COLD_REFERENCES:
-            raise ParamsError(
-                f"params.yaml separate.cold_reference is '{reference}'; use one of "
-                f"{list(COLD_REFERENCES)}"
-            )
-        axes = section.get("displacement_axis", ALL_AXES)
-        if axes is None or axes == ALL_AXES:
-            axes = None
-        else:
-            axes = tuple(str(a) for a in ([axes] if isinstance(axes, str) else axes))
-        resample = section.get("resample_s")
+    def from_settings(cls, settings: SeparateSettings) -> SeparationSettings:
+        """Build from the ``separate`` section of params.yaml, checked."""
+        speed = settings.speed_responses
         return cls(
-            axes=axes,
-            reference=reference,
-            n=int(section.get("cold_n", 1)),
-            resample_s=None if resample in (None, 0) else float(resample),
-            runs=RunSettings.from_params(section.get("runs")),
-            speed=SpeedResponses.from_params(section.get("speed_responses")),
+            axes=settings.displacement_axis,
+            reference=settings.cold_reference,
+            n=settings.cold_n,
+            resample_s=settings.resample_s or None,
+            runs=settings.runs,
+            speed=(
+                SpeedResponses(speed.time_constants_min, speed.exponents)
+                if speed is not None and speed.time_constants_min
+                else None
+            ),
         )
 
 

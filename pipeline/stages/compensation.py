@@ -50,11 +50,17 @@ from pipeline.compensation.exports import (
 from pipeline.compensation.replay import AxisProof, proof_figure, replay_axis
 from pipeline.compensation.report import render_report, summary_record
 from pipeline.compensation.sensor_budget import budget_figure, fallback_fits, sensor_budget
-from pipeline.compensation.settings import CompensationSettings
-from pipeline.config import DEFAULT_PARAMS, load_section
+from pipeline.config import DEFAULT_PARAMS
 from pipeline.errors import MissingInputError
-from pipeline.protocol.units import UnitSettings, series_by_axis, training_units
+from pipeline.protocol.units import series_by_axis, training_units
 from pipeline.separation.features import InputSpec
+from pipeline.settings.base import load_settings
+from pipeline.settings.compensation import CompensationSettings
+from pipeline.settings.evaluate import EvaluateSettings
+from pipeline.settings.protocol import ProtocolSettings
+from pipeline.settings.select import SelectSettings
+from pipeline.settings.validate import ValidateSettings
+from pipeline.warnings_capture import summarise_warnings
 
 LOGGER = logging.getLogger(__name__)
 
@@ -213,15 +219,16 @@ def compensate_axis(
     return record, proof.table, budget
 
 
+@summarise_warnings()
 def main(argv: list[str] | None = None) -> int:
     """Run the stage; return 0."""
     args = _parse_args(argv)
-    settings = CompensationSettings.from_params(load_section("compensation", args.params))
-    checks = InputChecks.from_params(
-        load_section("validate", args.params), settings.range_margin_degC
-    )
-    evaluate = load_section("evaluate", args.params)
-    protocol = load_section("protocol", args.params)
+    settings = load_settings(CompensationSettings, "compensation", args.params)
+    limits = load_settings(ValidateSettings, "validate", args.params).limits()
+    checks = InputChecks.from_limits(limits, settings.range_margin_degC)
+    evaluate = load_settings(EvaluateSettings, "evaluate", args.params)
+    protocol = load_settings(ProtocolSettings, "protocol", args.params)
+    features = load_settings(SelectSettings, "select", args.params).features
     if not paths.SPINDLE_THERMAL_ERROR.is_file():
         raise MissingInputError(
             f"{paths.SPINDLE_THERMAL_ERROR} not found; run `dvc repro separate_spindle` first"
@@ -233,17 +240,15 @@ def main(argv: list[str] | None = None) -> int:
         if paths.AXIS_MODEL_REPORT.is_file()
         else None
     )
-    features = load_section("select", args.params).get("features", "temperature_rise")
     series = series_by_axis(table, features)
-    model_params = evaluate.get("model_params") or {}
-    n_jobs = int(evaluate.get("n_jobs", 1))
+    model_params, n_jobs = evaluate.model_params, evaluate.n_jobs
     records, budgets, tables = {}, [], {}
     for stale in (paths.COMPENSATION_REPORTS, paths.COMPENSATION_BUNDLES):
         if stale.is_dir():
             shutil.rmtree(stale)
     paths.COMPENSATION_REPORTS.mkdir(parents=True)
     for axis in champion_axes():
-        units = training_units(series[axis], UnitSettings.from_params(protocol))
+        units = training_units(series[axis], protocol)
         work = AxisWork(axis, series[axis], units, table[table["axis"] == axis], selected)
         records[axis], tables[axis], budget = compensate_axis(
             work, checks, settings, axis_model, model_params, n_jobs

@@ -38,7 +38,7 @@ from pathlib import Path
 import pandas as pd
 
 from pipeline import paths
-from pipeline.config import DEFAULT_PARAMS, load_section
+from pipeline.config import DEFAULT_PARAMS
 from pipeline.discrepancy.data import MeasuredCampaign
 from pipeline.discrepancy.workflow import (
     read_raw,
@@ -48,7 +48,13 @@ from pipeline.discrepancy.workflow import (
     untestable_reason,
 )
 from pipeline.errors import MissingInputError
+from pipeline.settings.base import load_settings
+from pipeline.settings.discrepancy import DiscrepancySettings
+from pipeline.settings.ingest import IngestSettings
+from pipeline.settings.tracking import TrackingSettings
+from pipeline.settings.validate import ValidateSettings
 from pipeline.tracking.discrepancy_run import log_discrepancy_run
+from pipeline.warnings_capture import summarise_warnings
 
 logger = logging.getLogger(__name__)
 
@@ -80,6 +86,7 @@ def read_validated() -> tuple[list[MeasuredCampaign], list[str], bool]:
     return campaigns, list(report["summary"]["quarantined"]), synthetic
 
 
+@summarise_warnings()
 def main(argv: list[str] | None = None) -> int:
     """Run the stage; return 0 (also when untestable), 1 when the raw folder cannot be read."""
     parser = argparse.ArgumentParser(
@@ -105,15 +112,16 @@ def main(argv: list[str] | None = None) -> int:
         "is the default, else none)",
     )
     args = parser.parse_args(argv)
-    section = load_section("discrepancy", args.params)
+    section = load_settings(DiscrepancySettings, "discrepancy", args.params)
+    logged = not args.no_mlflow and section.mlflow
+    tracking = load_settings(TrackingSettings, "tracking", args.params) if logged else None
     if args.raw is None:
         campaigns, quarantined, synthetic = read_validated()
     else:
-        gap = float(load_section("ingest", args.params)["max_alignment_gap_s"])
+        gap = load_settings(IngestSettings, "ingest", args.params).max_alignment_gap_s
+        limits = load_settings(ValidateSettings, "validate", args.params).limits()
         try:
-            campaigns, quarantined, synthetic = read_raw(
-                args.raw, gap, load_section("validate", args.params)
-            )
+            campaigns, quarantined, synthetic = read_raw(args.raw, gap, limits)
         except (ValueError, FileNotFoundError) as err:
             logger.error("%s", err)
             return 1
@@ -123,10 +131,9 @@ def main(argv: list[str] | None = None) -> int:
         doc, files = run_untestable(campaigns, reason, args.out, **common)
     else:
         doc, files = run(campaigns, section, args.out, **common)[1:]
-    if not args.no_mlflow and section.get("mlflow", True):
-        settings = {**load_section("tracking", args.params), "experiment": section["experiment"]}
+    if tracking is not None:
         try:
-            doc["mlflow_run_id"] = log_discrepancy_run(files, doc, settings)
+            doc["mlflow_run_id"] = log_discrepancy_run(files, doc, tracking, section.experiment)
         except Exception as err:  # the report stands without the tracking record
             logger.warning("MLflow logging failed (%s); the report files are written", err)
     record = args.run_record or (paths.DISCREPANCY_RECORD if args.out == DEFAULT_OUT else None)

@@ -25,13 +25,13 @@ import joblib
 import pandas as pd
 
 from pipeline import paths
-from pipeline.config import load_section
 from pipeline.errors import MissingInputError
 from pipeline.protocol.evaluation import (
     AxisEvaluation,
     Champion,
     all_scores,
     champion_of,
+    check_models,
     decide,
     evaluate_axis,
     evaluation_metrics,
@@ -53,6 +53,11 @@ from pipeline.protocol.units import (
 from pipeline.reporting import comparison as comparison_report
 from pipeline.reporting.evaluation import report_axis, write_matrices
 from pipeline.separation.features import check_feature_kind
+from pipeline.settings.base import load_settings
+from pipeline.settings.evaluate import EvaluateSettings
+from pipeline.settings.protocol import ProtocolSettings
+from pipeline.settings.separate import SeparateSettings
+from pipeline.warnings_capture import summarise_warnings
 
 LOGGER = logging.getLogger(__name__)
 
@@ -154,24 +159,25 @@ def write_outputs(
     predictions.round(4).to_csv(paths.PLOT_PREDICTIONS, index=False)
 
 
-def read_twin_setup(table: pd.DataFrame, series: list[CampaignSeries]) -> TwinSetup:
+def read_twin_setup(
+    table: pd.DataFrame, series: list[CampaignSeries], separate: SeparateSettings
+) -> TwinSetup:
     """Everything the ``twin`` candidate reads besides the separated table (axis Z rows).
 
     The sensor roles and spindle programs from ``data/validated/spindle/campaigns.parquet``; the
     effects from ``reports/discrepancy/discrepancy.json`` (absent: the baseline twin, with a
-    warning); the cold reference from ``params.yaml`` ``separate`` (``cold_reference``,
+    warning); the cold reference from ``separate`` (``params.yaml``: ``cold_reference``,
     ``cold_n``), so that the twin's drift is referenced as the separation stage references the
     measured one.
     """
     meta = pd.read_parquet(paths.VALIDATED_SPINDLE / paths.CAMPAIGNS_FILE)
     effects, source = named_effects(read_discrepancy())
-    separate = load_section("separate")
     return TwinSetup(
         campaigns=twin_campaigns(table, meta, series),
         effects=effects,
         effects_source=source,
-        cold_reference=str(separate["cold_reference"]),
-        cold_n=int(separate["cold_n"]),
+        cold_reference=separate.cold_reference,
+        cold_n=separate.cold_n,
     )
 
 
@@ -195,12 +201,15 @@ def sensor_roles() -> frozenset[str]:
     )
 
 
+@summarise_warnings(details=str(paths.MODEL_COMPARISON))
 def main(argv: list[str] | None = None) -> int:
-    """Run the stage with the ``evaluate`` and ``protocol`` sections of ``params.yaml``."""
+    """Run the stage with the ``evaluate``, ``protocol`` and ``separate`` params sections."""
     parser = argparse.ArgumentParser(prog="thermal evaluate", description=__doc__.splitlines()[0])
     parser.parse_args(argv)
-    params = load_section("evaluate")
-    protocol = load_section("protocol")
+    params = load_settings(EvaluateSettings, "evaluate")
+    check_models(params)
+    protocol = load_settings(ProtocolSettings, "protocol")
+    separate = load_settings(SeparateSettings, "separate")
     table = pd.read_parquet(paths.SPINDLE_THERMAL_ERROR)
     if not paths.SELECTED.is_file():
         raise MissingInputError(
@@ -209,7 +218,7 @@ def main(argv: list[str] | None = None) -> int:
     document = json.loads(paths.SELECTED.read_text())
     features, selected = check_feature_kind(str(document["features"])), document["axes"]
     separation = json.loads(paths.SPINDLE_RUNS.read_text())
-    with_twin = split_twin(params["candidates"])[1]
+    with_twin = split_twin(params.candidates)[1]
     discrepancy = read_discrepancy() if with_twin else None
     held_back = discrepancy is None or discrepancy.get("validation") is not None
     roles = sensor_roles() if with_twin else frozenset()
@@ -222,13 +231,13 @@ def main(argv: list[str] | None = None) -> int:
         if with_twin:
             skipped = skip_reason(axis, discrepancy, series, roles)
             if skipped is None:
-                twin = read_twin_setup(table[table["axis"] == axis], series)
+                twin = read_twin_setup(table[table["axis"] == axis], series, separate)
                 twin_source = twin.effects_source
         evaluations.append(
             evaluate_axis(axis, series, selected[axis], params, twin, skipped, protocol)
         )
     summary = candidate_summary(all_scores(evaluations))
-    decide(evaluations, summary, params.get("champion"))
+    decide(evaluations, summary, params.champion)
     champions = {e.axis: champion_of(e, table, features, separation) for e in evaluations}
     twin_text = (
         "" if twin_source is None else comparison_report.twin_section(twin_source, held_back)

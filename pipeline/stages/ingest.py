@@ -12,20 +12,23 @@ import logging
 from pathlib import Path
 
 from pipeline import paths
-from pipeline.config import load_section
 from pipeline.io.tables import ingest
+from pipeline.settings.base import load_settings
+from pipeline.settings.ingest import IngestSettings
+from pipeline.warnings_capture import summarise_warnings
 
 LOGGER = logging.getLogger(__name__)
 
 
+@summarise_warnings()
 def main(argv: list[str] | None = None) -> int:
     """Run the stage: read ``data/raw``, write ``data/ingested/*.parquet``."""
     parser = argparse.ArgumentParser(prog="thermal ingest", description=__doc__.splitlines()[0])
     parser.add_argument("--raw", type=Path, default=paths.RAW, help="raw campaign folder")
     parser.add_argument("--out", type=Path, default=paths.INGESTED, help="output folder")
     args = parser.parse_args(argv)
-    params = load_section("ingest")
-    tables = ingest(args.raw, float(params["max_alignment_gap_s"]))
+    settings = load_settings(IngestSettings, "ingest")
+    tables = ingest(args.raw, settings.max_alignment_gap_s)
     args.out.mkdir(parents=True, exist_ok=True)
     for name, table in tables.items():
         table.to_parquet(args.out / f"{name}.parquet", engine="pyarrow", index=False)

@@ -20,10 +20,12 @@ from pathlib import Path
 import pandas as pd
 
 from pipeline import paths
-from pipeline.config import load_section
 from pipeline.errors import MissingInputError
 from pipeline.models.axis_fit import build
 from pipeline.reporting.axis_model import plot
+from pipeline.settings.base import load_settings
+from pipeline.settings.model_axis import ModelAxisSettings
+from pipeline.warnings_capture import summarise_warnings
 
 LOGGER = logging.getLogger(__name__)
 
@@ -42,11 +44,12 @@ def write(report: dict, metrics: dict, points: pd.DataFrame) -> None:
     plot(points, report, paths.AXIS_MODEL_PLOT)
 
 
+@summarise_warnings()
 def main(argv: Sequence[str] | None = None) -> int:
     """Run ``thermal model-axis`` with the ``model_axis`` section of params.yaml."""
     parser = argparse.ArgumentParser(prog="thermal model-axis", description=__doc__.splitlines()[0])
     parser.parse_args(argv)
-    params = load_section("model_axis")
+    params = load_settings(ModelAxisSettings, "model_axis")
     report, metrics, points = build(
         params,
         _read(paths.AXIS_SLOPES),

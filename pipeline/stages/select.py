@@ -27,7 +27,6 @@ import logging
 import pandas as pd
 
 from pipeline import paths, plots
-from pipeline.config import load_section
 from pipeline.protocol.selection_runs import (
     STABILITY_COLUMNS,
     method_entries,
@@ -37,12 +36,14 @@ from pipeline.protocol.selection_runs import (
 )
 from pipeline.protocol.units import (
     TrainingUnit,
-    UnitSettings,
     series_by_axis,
     training_units,
 )
 from pipeline.selection import Selection
-from pipeline.separation.features import check_feature_kind
+from pipeline.settings.base import load_settings
+from pipeline.settings.protocol import ProtocolSettings
+from pipeline.settings.select import SelectSettings
+from pipeline.warnings_capture import summarise_warnings
 
 LOGGER = logging.getLogger(__name__)
 
@@ -88,14 +89,15 @@ def write_outputs(
     stability.to_csv(paths.SELECTION_STABILITY, index=False, float_format="%.4f")
 
 
+@summarise_warnings()
 def main(argv: list[str] | None = None) -> int:
     """Run the stage with the ``select`` section of ``params.yaml``."""
     parser = argparse.ArgumentParser(prog="thermal select", description=__doc__.splitlines()[0])
     parser.parse_args(argv)
-    params = load_section("select")
-    features = check_feature_kind(str(params.get("features", "temperature_rise")))
-    entries = method_entries(params["methods"])
-    unit_settings = UnitSettings.from_params(load_section("protocol"))
+    settings = load_settings(SelectSettings, "select")
+    features = settings.features
+    entries = method_entries(settings.methods)
+    protocol = load_settings(ProtocolSettings, "protocol")
     table = pd.read_parquet(paths.SPINDLE_THERMAL_ERROR)
     selections, units, inputs, skipped = {}, {}, {}, {}
     for axis, series in series_by_axis(table, features).items():
@@ -106,7 +108,7 @@ def main(argv: list[str] | None = None) -> int:
             )
             LOGGER.warning("axis %s: %s; nothing selected", axis, skipped[axis])
             continue
-        units[axis] = training_units(series, unit_settings)
+        units[axis] = training_units(series, protocol)
         inputs[axis] = list(series[0].features.columns)
         selections[axis] = select_axis(series, units[axis], entries)
         for method, by_unit in selections[axis].items():

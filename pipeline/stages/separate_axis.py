@@ -15,19 +15,22 @@ import logging
 import pandas as pd
 
 from pipeline import paths, plots
-from pipeline.config import load_section
 from pipeline.separation.axis import geometric_curve, separate_axis
+from pipeline.settings.base import load_settings
+from pipeline.settings.separate import SeparateSettings
+from pipeline.warnings_capture import summarise_warnings
 from schemas import AxisSlopesModel
 
 LOGGER = logging.getLogger(__name__)
 
 
+@summarise_warnings()
 def main(argv: list[str] | None = None) -> int:
     """Run the stage with the ``separate`` section of params.yaml; return 0."""
     argparse.ArgumentParser(
         prog="thermal separate-axis", description=__doc__.splitlines()[0]
     ).parse_args(argv)
-    params = load_section("separate")
+    settings = load_settings(SeparateSettings, "separate")
     folder = paths.VALIDATED_AXIS
     campaigns = pd.read_parquet(folder / paths.CAMPAIGNS_FILE)
     paths.SEPARATED.mkdir(parents=True, exist_ok=True)
@@ -41,7 +44,7 @@ def main(argv: list[str] | None = None) -> int:
         campaigns,
         pd.read_parquet(folder / paths.SAMPLES_FILE),
         pd.read_parquet(folder / paths.LASER_FILE),
-        order=int(params["geometric_order"]),
+        order=settings.geometric_order,
     )
     AxisSlopesModel.validate(tables["slopes"], lazy=True)
     tables["geometric"].to_parquet(paths.AXIS_GEOMETRIC, index=False)

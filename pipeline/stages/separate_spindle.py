@@ -17,23 +17,27 @@ import logging
 import pandas as pd
 
 from pipeline import paths
-from pipeline.config import load_section
 from pipeline.separation.spindle import SeparationSettings, spindle_thermal_error
+from pipeline.settings.base import load_settings
+from pipeline.settings.separate import SeparateSettings
+from pipeline.warnings_capture import summarise_warnings
 from schemas import SpindleThermalErrorModel
 
 LOGGER = logging.getLogger(__name__)
 
 
+@summarise_warnings()
 def main(argv: list[str] | None = None) -> int:
     """Run the stage with the ``separate`` section of params.yaml; return 0."""
     argparse.ArgumentParser(
         prog="thermal separate-spindle", description=__doc__.splitlines()[0]
     ).parse_args(argv)
+    settings = SeparationSettings.from_settings(load_settings(SeparateSettings, "separate"))
     folder = paths.VALIDATED_SPINDLE
     table, record = spindle_thermal_error(
         pd.read_parquet(folder / paths.CAMPAIGNS_FILE),
         pd.read_parquet(folder / paths.SAMPLES_FILE),
-        SeparationSettings.from_params(load_section("separate")),
+        settings,
     )
     SpindleThermalErrorModel.validate(table, lazy=True)
     paths.SEPARATED.mkdir(parents=True, exist_ok=True)

@@ -36,8 +36,7 @@ import logging
 import time
 from pathlib import Path
 
-from pipeline.config import DEFAULT_PARAMS, load_section
-from pipeline.errors import ParamsError
+from pipeline.config import DEFAULT_PARAMS
 from pipeline.paths import (
     PROMOTION,
     PROMOTION_DECISION,
@@ -45,9 +44,11 @@ from pipeline.paths import (
     TRACKING_RECORD,
 )
 from pipeline.protocol.promotion import GateDecision, render_report
+from pipeline.settings.base import load_settings
+from pipeline.settings.track import TrackSettings
+from pipeline.settings.tracking import DEFAULT_TRACKING_URI, TrackingSettings
 from pipeline.tracking import records, store
 from pipeline.tracking.location import (
-    DEFAULT_TRACKING_URI,
     ENV_TRACKING_URI,
     resolve_tracking_uri,
     unreachable_message,
@@ -57,10 +58,9 @@ from pipeline.tracking.pipeline_run import (
     log_pipeline_run,
     prepare,
 )
+from pipeline.warnings_capture import summarise_warnings
 
 logger = logging.getLogger(__name__)
-
-DEFAULT_PROMOTION_MARGIN = 0.05
 
 
 def _parse_args(argv: list[str]) -> argparse.Namespace:
@@ -76,33 +76,25 @@ def _parse_args(argv: list[str]) -> argparse.Namespace:
     return parser.parse_args(argv)
 
 
+@summarise_warnings()
 def main(argv: list[str] | None = None) -> int:
     """Run the track stage; return the exit code (0 on success)."""
     args = _parse_args(list(argv or []))
     started = time.perf_counter()
-    settings = load_section("track", args.params)
-    experiment = str(settings.get("experiment") or "thermal-error")
-    batch_size = int(settings.get("batch_size", 1000))
-    if not 1 <= batch_size <= 1000:
-        raise ParamsError(
-            f"{args.params}: track.batch_size = {batch_size}; MLflow accepts 1 to 1000 metrics "
-            "per log_batch call, set a value in that range"
-        )
-    margin = promotion_margin(settings)
+    settings = load_settings(TrackSettings, "track", args.params)
+    store_settings = load_settings(TrackingSettings, "tracking", args.params)
     prepared = prepare(Path(args.params))
     n_metrics = records.count_metrics([prepared.parent, *prepared.children])
     ready = time.perf_counter()
-    store_settings = load_section("tracking", args.params)
     uri = resolve_tracking_uri(store_settings)
     try:
         record = log_pipeline_run(
             prepared,
-            {**store_settings, **settings},
+            store_settings,
+            settings,
             uri,
-            experiment,
-            batch_size,
             n_metrics,
-            gate_inputs(list(prepared.champions), margin),
+            gate_inputs(list(prepared.champions), settings.promotion.min_improvement),
         )
     except store.UNREACHABLE as error:
         raise SystemExit(unreachable_message(uri, error)) from error
@@ -118,29 +110,6 @@ def main(argv: list[str] | None = None) -> int:
     TRACKING_RECORD.write_text(json.dumps(record, indent=2) + "\n", encoding="utf-8")
     write_promotion(record)
     return 0
-
-
-def promotion_margin(settings: dict) -> float:
-    """``track.promotion.min_improvement`` (default 0.05), checked.
-
-    Raises
-    ------
-    ParamsError
-        If it is not a fraction in [0, 1) or the section has an unknown key.
-    """
-    section = dict(settings.get("promotion") or {})
-    unknown = sorted(set(section) - {"min_improvement"})
-    if unknown:
-        raise ParamsError(
-            f"params.yaml track.promotion: unknown key(s) {unknown}; known: ['min_improvement']"
-        )
-    value = section.get("min_improvement", DEFAULT_PROMOTION_MARGIN)
-    if isinstance(value, bool) or not isinstance(value, int | float) or not 0 <= value < 1:
-        raise ParamsError(
-            f"params.yaml track.promotion.min_improvement is {value!r}; use a fraction in "
-            "[0, 1), e.g. 0.05: a new model must leave 5 % less RMS than the champion"
-        )
-    return float(value)
 
 
 def write_promotion(record: dict) -> None:

@@ -3,18 +3,24 @@
 ``thermal validate`` reads ``data/ingested/*.parquet``, validates each campaign lazily against
 the models of :mod:`schemas` (its sensor map and displacement axes added per campaign), turns
 every failure case and every ingest problem into a problem naming campaign, file, row (1-based
-data row), line, column and check, and writes
+data row), line, column and check, finds the gaps of missing readings (empty cells) of the other
+campaigns, and writes
 
 - ``data/validated/spindle/{campaigns,samples}.parquet`` and
   ``data/validated/axis/{campaigns,samples,laser}.parquet``: the ingested tables restricted to
-  the valid campaigns (samples columns without data for them dropped);
+  the valid campaigns (samples columns without data for them dropped), each gap of missing
+  readings bridged by linear interpolation in time or its samples dropped
+  (``validate.max_bridged_gap_s``);
 - ``reports/validation.json``: ``{"summary": {"campaigns", "valid", "quarantined"},
   "problems": [{"campaign", "file", "row", "line", "column", "check", "value", "message",
-  "action"}]}``.
+  "action"}], "warnings": [{"campaign", "file", "row", "line", "column", "check", "rows",
+  "handling", "gap_s", "samples", "message", "action"}]}``.
 
-A campaign with any problem is left out and logged as a warning; the stage fails only when no
-campaign is valid. Raw files are never touched. The checks, texts and report live in
-:mod:`pipeline.validation`; this module combines them (:func:`validate_tables`) and does the I/O.
+A campaign with any problem is left out and logged as a warning; a gap of missing readings is
+a warning only. The stage fails when no campaign is valid, and before writing anything when the
+campaigns name more than one ``machine``. Raw files are never touched. The checks, texts and
+report live in :mod:`pipeline.validation`; this module combines them (:func:`validate_tables`)
+and does the I/O.
 """
 
 from __future__ import annotations
@@ -27,15 +33,22 @@ from pathlib import Path
 import pandas as pd
 
 from pipeline import paths
-from pipeline.config import load_section
 from pipeline.errors import MissingInputError
+from pipeline.settings.base import load_settings
+from pipeline.settings.validate import ValidateSettings
 from pipeline.validation.checks import validate_tables
-from pipeline.validation.limits import limits_from_params
+from pipeline.validation.gaps import apply_gaps
 from pipeline.validation.problems import (
     NoValidCampaignError,
 )
-from pipeline.validation.report import build_report, quarantine_summary, require_valid
+from pipeline.validation.report import (
+    build_report,
+    gap_summaries,
+    quarantine_summary,
+    require_valid,
+)
 from pipeline.validation.tables import select_valid
+from pipeline.warnings_capture import summarise_warnings
 
 logger = logging.getLogger(__name__)
 
@@ -53,6 +66,7 @@ def _read(path: Path) -> pd.DataFrame:
     return pd.read_parquet(path)
 
 
+@summarise_warnings()
 def main(argv: list[str] | None = None) -> int:
     """Run the validate stage; return 0, or 1 when no campaign is valid.
 
@@ -65,7 +79,7 @@ def main(argv: list[str] | None = None) -> int:
         f"a problem; write data/validated/ and {paths.VALIDATION_REPORT}.",
     )
     parser.parse_args(argv)
-    limits = limits_from_params(load_section("validate"))
+    limits = load_settings(ValidateSettings, "validate").limits()
     campaigns = _read(paths.INGESTED_CAMPAIGNS)
     samples = _read(paths.INGESTED_SAMPLES)
     laser = _read(paths.INGESTED_LASER)
@@ -79,6 +93,8 @@ def main(argv: list[str] | None = None) -> int:
             quarantine_summary(result, campaign_id),
             paths.VALIDATION_REPORT,
         )
+    for campaign_id, summary in gap_summaries(result).items():
+        logger.warning("campaign %s: %s; see %s", campaign_id, summary, paths.VALIDATION_REPORT)
     paths.VALIDATION_REPORT.parent.mkdir(parents=True, exist_ok=True)
     paths.VALIDATION_REPORT.write_text(
         json.dumps(build_report(result), indent=2, ensure_ascii=False) + "\n", encoding="utf-8"
@@ -89,7 +105,7 @@ def main(argv: list[str] | None = None) -> int:
         logger.error("%s", err)
         return 1
 
-    outputs = select_valid(campaigns, samples, laser, result.valid)
+    outputs = select_valid(campaigns, apply_gaps(samples, result.gaps), laser, result.valid)
     for name, directory in (("spindle", paths.VALIDATED_SPINDLE), ("axis", paths.VALIDATED_AXIS)):
         directory.mkdir(parents=True, exist_ok=True)
         for table, frame in outputs[name].items():

@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 
 from pipeline.discrepancy.report import STATUS_TESTED, STATUS_UNTESTABLE
+from pipeline.settings.tracking import TrackingSettings
 from pipeline.tracking.location import (
     absolute_store_uri,
     local_artifact_location,
@@ -104,7 +105,7 @@ def _log_identifiability(client: Any, run_id: str, entries: Mapping[str, Any]) -
 
 
 def log_discrepancy_run(
-    files: Sequence[Path], doc: Mapping[str, Any], settings: Mapping[str, Any]
+    files: Sequence[Path], doc: Mapping[str, Any], settings: TrackingSettings, experiment: str
 ) -> str:
     """Log one MLflow run with the metrics, the named effects and the report files.
 
@@ -114,9 +115,11 @@ def log_discrepancy_run(
         Report files, logged as artifacts under ``discrepancy/``.
     doc : mapping
         The ``discrepancy.json`` content.
-    settings : mapping
-        ``default_tracking_uri`` and ``local_artifact_dir`` (``params.yaml`` ``tracking``;
-        ``$MLFLOW_TRACKING_URI`` wins over the default store) and ``experiment``.
+    settings : TrackingSettings
+        The store and the local artifact folder (``params.yaml`` ``tracking``;
+        ``$MLFLOW_TRACKING_URI`` wins over the default store).
+    experiment : str
+        The experiment (``params.yaml`` ``discrepancy.experiment``).
 
     Returns
     -------
@@ -124,11 +127,8 @@ def log_discrepancy_run(
         The run id.
     """
     uri = absolute_store_uri(resolve_tracking_uri(settings))
-    experiment = str(settings.get("experiment") or "thermal-discrepancy")
     client = make_client(uri)
-    location = local_artifact_location(
-        uri, str(settings.get("local_artifact_dir") or "mlartifacts"), experiment
-    )
+    location = local_artifact_location(uri, settings.local_artifact_dir, experiment)
     experiment_id = ensure_experiment(client, experiment, location)
     run = client.create_run(experiment_id, tags=_run_tags(doc), run_name="discrepancy")
     run_id = run.info.run_id

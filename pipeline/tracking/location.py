@@ -8,26 +8,17 @@ the message of a store that cannot be reached, saying that nothing is lost and h
 from __future__ import annotations
 
 import os
-from collections.abc import Mapping
 from pathlib import Path
-from typing import Any
 
+from pipeline.settings.tracking import TrackingSettings
 from pipeline.tracking import records, store
 
 ENV_TRACKING_URI = "MLFLOW_TRACKING_URI"
 
 
-DEFAULT_TRACKING_URI = "sqlite:///mlflow.db"
-
-
-DEFAULT_ARTIFACT_DIR = "mlartifacts"
-
-
-def resolve_tracking_uri(settings: Mapping[str, Any]) -> str:
+def resolve_tracking_uri(settings: TrackingSettings) -> str:
     """Return ``$MLFLOW_TRACKING_URI`` if set and not empty, else the configured default."""
-    return os.environ.get(ENV_TRACKING_URI) or str(
-        settings.get("default_tracking_uri") or DEFAULT_TRACKING_URI
-    )
+    return os.environ.get(ENV_TRACKING_URI) or settings.default_tracking_uri
 
 
 def absolute_store_uri(uri: str) -> str:

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import importlib.util
 import logging
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -32,13 +32,11 @@ from pipeline.paths import (
     SPINDLE_THERMAL_ERROR,
     TRACKING_RECORD,
 )
+from pipeline.settings.track import TrackSettings
+from pipeline.settings.tracking import TrackingSettings
 from pipeline.tracking import guide, records, store, views
 from pipeline.tracking import identity as ident
-from pipeline.tracking.location import (
-    DEFAULT_ARTIFACT_DIR,
-    absolute_store_uri,
-    local_artifact_location,
-)
+from pipeline.tracking.location import absolute_store_uri, local_artifact_location
 from pipeline.tracking.stage_outputs import (
     SCORE_FILES,
     artifact_files,
@@ -52,9 +50,6 @@ logger = logging.getLogger(__name__)
 
 
 DVC_LOCK = Path("dvc.lock")
-
-
-DEFAULT_REGISTERED_MODEL = "thermal-error-spindle"
 
 
 def _package_dir(name: str) -> Path:
@@ -142,10 +137,9 @@ def champion_hook(tracking_uri: str, prefix: str, cards: dict[str, dict]):
 
 def log_pipeline_run(
     prepared: Prepared,
-    settings: Mapping[str, Any],
+    store_settings: TrackingSettings,
+    settings: TrackSettings,
     uri: str,
-    experiment: str,
-    batch_size: int,
     n_metrics: int,
     gate: GateInputs | None = None,
 ) -> dict[str, Any]:
@@ -155,14 +149,12 @@ def log_pipeline_run(
     ----------
     prepared : Prepared
         The records of :func:`prepare`.
-    settings : Mapping
-        The ``tracking`` and ``track`` sections of ``params.yaml``, merged.
+    store_settings : TrackingSettings
+        The ``tracking`` section of ``params.yaml`` (the local artifact folder).
+    settings : TrackSettings
+        The ``track`` section: experiment, registered model, promotion gate.
     uri : str
         Tracking URI (:func:`pipeline.tracking.location.resolve_tracking_uri`).
-    experiment : str
-        Experiment name.
-    batch_size : int
-        Metrics per ``log_batch`` call (1 to 1000).
     n_metrics : int
         Metrics in the records, for the log line.
     gate : GateInputs, optional
@@ -176,13 +168,14 @@ def log_pipeline_run(
         and ``promotion``: the gate's decision per axis.
     """
     client = store.make_client(absolute_store_uri(uri))
-    artifact_dir = str(settings.get("local_artifact_dir") or DEFAULT_ARTIFACT_DIR)
+    experiment = settings.experiment
+    artifact_dir = store_settings.local_artifact_dir
     experiment_id = store.ensure_experiment(
         client, experiment, local_artifact_location(uri, artifact_dir, experiment)
     )
-    prefix = str(settings.get("registered_model") or DEFAULT_REGISTERED_MODEL)
+    prefix = settings.registered_model
     target = _Target(client, experiment_id, experiment, uri, prefix)
-    parent_id, reused = _log_parent(target, prepared, batch_size, n_metrics)
+    parent_id, reused = _log_parent(target, prepared, n_metrics)
     decisions = [] if gate is None else _gate(target, parent_id, prepared, gate)
     store.describe_experiment(client, experiment_id, guide.experiment_description(experiment))
     ranked_by = {
@@ -280,9 +273,7 @@ class _Target:
     prefix: str
 
 
-def _log_parent(
-    target: _Target, prepared: Prepared, batch_size: int, n_metrics: int
-) -> tuple[str, bool]:
+def _log_parent(target: _Target, prepared: Prepared, n_metrics: int) -> tuple[str, bool]:
     """Log the parent and child runs, or reuse a finished parent of the same identity.
 
     Returns
@@ -314,7 +305,6 @@ def _log_parent(
         prepared.parent,
         prepared.children,
         artifact_files(),
-        batch_size,
         hook,
     )
     logger.info(

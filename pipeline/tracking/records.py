@@ -14,7 +14,9 @@ A child carries
   ``loso_winter_eta``);
 - tags: ``axis``, ``model``, ``selection``, ``mode``, ``eligible`` (``ineligible_reason`` when
   not), ``rank`` (on the axis' selection score, eligible candidates only), ``champion``,
-  ``ranked_by``, and a run description (``mlflow.note.content``);
+  ``ranked_by``, ``warnings`` (what its fits warned, e.g. ``3 (ConvergenceWarning 3)``, with
+  each category's first message in ``warnings.first``), and a run description
+  (``mlflow.note.content``);
 - tables (JSON table artifacts under ````): every (training unit, test campaign) score,
   every training unit's summary, the held-out groups, what each fit chose; and its heat-map.
 
@@ -34,6 +36,7 @@ from dataclasses import dataclass, field, replace
 from typing import Any
 
 from pipeline.tracking import guide
+from pipeline.warnings_capture import WarningCounts
 
 logger = logging.getLogger(__name__)
 
@@ -44,6 +47,8 @@ CHAMPION_TAG = "champion"
 ELIGIBLE_TAG = "eligible"
 RANK_TAG = "rank"
 RANKED_BY_TAG = "ranked_by"
+WARNINGS_TAG = "warnings"
+FIRST_WARNINGS_TAG = "warnings.first"
 NOTE_TAG = "mlflow.note.content"
 MAX_CHILD_METRICS = 100
 """Most metrics on a child run: the headline scores; the rest go to its table artifacts."""
@@ -320,15 +325,42 @@ def fits_by_candidate(fitted: Mapping[str, Any]) -> dict[tuple[str, ...], list[M
 
 
 def fit_rows(entries: Sequence[Mapping[str, Any]]) -> list[dict[str, str]]:
-    """Return what each fit of a candidate used and chose: one row per training unit."""
+    """Return what each fit of a candidate used, chose and warned: one row per training unit."""
     return [
         {
             "train_unit": str(entry["train_unit"]),
             "inputs": ",".join(str(sensor) for sensor in entry.get("inputs") or []) or "-",
             "chosen_params": json.dumps(entry.get("chosen_params") or {}, sort_keys=True),
+            "warnings": WarningCounts.from_dict(entry.get("warnings")).text(),
         }
         for entry in entries
     ]
+
+
+def warning_tags(entries: Sequence[Mapping[str, Any]], name: str) -> dict[str, str]:
+    """Return a candidate's ``warnings`` tags: its fits' warnings, summed over training units.
+
+    Parameters
+    ----------
+    entries : sequence of mapping
+        The candidate's ``reports/fitted_models.json`` entries (``warnings`` in each).
+    name : str
+        The child run's name, for the message when a tag is cut to MLflow's limit.
+
+    Returns
+    -------
+    dict
+        ``warnings``: ``0`` or e.g. ``3 (SingularMatrixWarning 2, ConvergenceWarning 1)``;
+        ``warnings.first`` (when any): each category's first message, one per line.
+    """
+    counts = WarningCounts()
+    for entry in entries:
+        counts.add(WarningCounts.from_dict(entry.get("warnings")))
+    tags = {WARNINGS_TAG: _text(counts.text(), MAX_TAG_LENGTH, name)}
+    if counts.first:
+        first = "\n".join(f"{category}: {message}" for category, message in counts.first.items())
+        tags[FIRST_WARNINGS_TAG] = _text(first, MAX_TAG_LENGTH, name)
+    return tags
 
 
 def headline(scores: Mapping[str, float], groups: Mapping[str, float], name: str) -> dict:
@@ -411,6 +443,7 @@ def child_records(inputs: ChildInputs, tags: Mapping[str, str] | None = None) ->
             ELIGIBLE_TAG: str(standing.eligible).lower(),
             RANKED_BY_TAG: ranked_by or "-",
             CHAMPION_TAG: str(standing.champion).lower(),
+            **warning_tags(fits, name),
         }
         if standing.rank:
             child_tags[RANK_TAG] = str(standing.rank)

@@ -1,9 +1,9 @@
 """Write run records to an MLflow tracking store in batches.
 
 The only module of the package that imports :mod:`mlflow`. Every run gets its tags at
-creation, then its parameters and metrics in ``MlflowClient.log_batch`` calls (at most
-``batch_size`` metrics, 100 parameters, 100 tags and 1000 entities per call, MLflow's limits),
-then its end status: about three store round trips per run whatever the number of metrics.
+creation, then its parameters and metrics in one ``MlflowClient.log_batch`` call (which splits
+them into requests within MLflow's limits itself), then its end status: a few store round trips
+per run whatever the number of metrics.
 """
 
 from __future__ import annotations
@@ -14,7 +14,7 @@ import posixpath
 import shutil
 import tempfile
 import time
-from collections.abc import Callable, Iterator, Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from urllib.parse import unquote, urlsplit, urlunsplit
 
@@ -30,53 +30,8 @@ from pipeline.tracking.views import SHARED_VIEW_TAG
 
 logger = logging.getLogger(__name__)
 
-MAX_METRICS_PER_BATCH = 1000
-MAX_PARAMS_TAGS_PER_BATCH = 100
-MAX_ENTITIES_PER_BATCH = 1000
-
-
-def batches(
-    metrics: Mapping[str, float],
-    params: Mapping[str, str],
-    tags: Mapping[str, str],
-    batch_size: int = MAX_METRICS_PER_BATCH,
-) -> Iterator[tuple[list[tuple[str, float]], list[tuple[str, str]], list[tuple[str, str]]]]:
-    """Split metrics, params and tags into chunks that one ``log_batch`` call accepts.
-
-    Parameters
-    ----------
-    metrics, params, tags : mapping
-        What to log.
-    batch_size : int
-        Most metrics per call, 1..1000.
-
-    Yields
-    ------
-    tuple of three lists
-        ``(metrics, params, tags)`` items of one call: at most ``batch_size`` metrics, 100
-        params, 100 tags, 1000 items in all; nothing is yielded when all three are empty.
-
-    Raises
-    ------
-    ValueError
-        If ``batch_size`` is outside 1..1000.
-    """
-    if not 1 <= int(batch_size) <= MAX_METRICS_PER_BATCH:
-        raise ValueError(
-            f"params.yaml track.batch_size = {batch_size}: MLflow accepts 1 to "
-            f"{MAX_METRICS_PER_BATCH} metrics per log_batch call; set a value in that range"
-        )
-    metric_items, param_items = list(metrics.items()), list(params.items())
-    tag_items = list(tags.items())
-    while metric_items or param_items or tag_items:
-        param_chunk = param_items[:MAX_PARAMS_TAGS_PER_BATCH]
-        tag_chunk = tag_items[:MAX_PARAMS_TAGS_PER_BATCH]
-        room = min(int(batch_size), MAX_ENTITIES_PER_BATCH - len(param_chunk) - len(tag_chunk))
-        metric_chunk = metric_items[:room]
-        yield metric_chunk, param_chunk, tag_chunk
-        metric_items = metric_items[len(metric_chunk) :]
-        param_items = param_items[len(param_chunk) :]
-        tag_items = tag_items[len(tag_chunk) :]
+MAX_TAGS_AT_CREATION = 100
+"""Tags sent with ``create_run``; the rest follow in a ``log_batch`` call."""
 
 
 # MLflow's own defaults retry an unreachable server for minutes; fail within about a minute
@@ -212,36 +167,25 @@ def discard_incomplete(
     return deleted
 
 
-def log_record(client: MlflowClient, run_id: str, record: RunRecord, batch_size: int) -> int:
-    """Log a record's params and metrics (tags are set at run creation) in batches.
-
-    Returns
-    -------
-    int
-        Number of ``log_batch`` calls made.
-    """
+def log_record(client: MlflowClient, run_id: str, record: RunRecord) -> None:
+    """Log a record's params and metrics (tags are set at run creation) in one ``log_batch``."""
+    if not record.metrics and not record.params:
+        return
     timestamp = int(time.time() * 1000)
-    calls = 0
-    for metric_chunk, param_chunk, _ in batches(record.metrics, record.params, {}, batch_size):
-        client.log_batch(
-            run_id,
-            metrics=[Metric(key, value, timestamp, 0) for key, value in metric_chunk],
-            params=[Param(key, value) for key, value in param_chunk],
-            tags=[],
-        )
-        calls += 1
-    return calls
+    client.log_batch(
+        run_id,
+        metrics=[Metric(key, value, timestamp, 0) for key, value in record.metrics.items()],
+        params=[Param(key, value) for key, value in record.params.items()],
+        tags=[],
+    )
 
 
-def _create_run(
-    client: MlflowClient, experiment_id: str, record: RunRecord, batch_size: int, extra: dict
-) -> str:
-    tags = {**record.tags, **extra}
-    first = dict(list(tags.items())[:MAX_PARAMS_TAGS_PER_BATCH])
+def _create_run(client: MlflowClient, experiment_id: str, record: RunRecord, extra: dict) -> str:
+    tags = list({**record.tags, **extra}.items())
+    first = dict(tags[:MAX_TAGS_AT_CREATION])
     run = client.create_run(experiment_id, tags=first, run_name=record.name)
-    rest = dict(list(tags.items())[MAX_PARAMS_TAGS_PER_BATCH:])
-    for _, _, tag_chunk in batches({}, {}, rest, batch_size):
-        client.log_batch(run.info.run_id, tags=[RunTag(key, value) for key, value in tag_chunk])
+    if rest := tags[MAX_TAGS_AT_CREATION:]:
+        client.log_batch(run.info.run_id, tags=[RunTag(key, value) for key, value in rest])
     return run.info.run_id
 
 
@@ -264,15 +208,14 @@ def _log_one(
     client: MlflowClient,
     experiment_id: str,
     record: RunRecord,
-    batch_size: int,
     extra: dict,
     hook: Callable[[RunRecord, str], None] | None = None,
 ) -> str:
-    run_id = _create_run(client, experiment_id, record, batch_size, extra)
+    run_id = _create_run(client, experiment_id, record, extra)
     try:
         if hook is not None:
             hook(record, run_id)
-        log_record(client, run_id, record, batch_size)
+        log_record(client, run_id, record)
         log_evidence(client, run_id, record)
     except BaseException:
         client.set_terminated(run_id, RunStatus.to_string(RunStatus.FAILED))
@@ -286,7 +229,6 @@ def log_pipeline(
     parent: RunRecord,
     children: Sequence[RunRecord],
     artifacts: Sequence[tuple[Path, str]],
-    batch_size: int,
     with_child: Callable[[RunRecord, str], None] | None = None,
 ) -> str:
     """Log the parent run, its child runs and the parent's artifacts.
@@ -306,8 +248,6 @@ def log_pipeline(
         One per candidate (axis, model, selection, mode); linked with ``mlflow.parentRunId``.
     artifacts : sequence of (Path, str)
         Local file and the artifact folder it goes to on the parent (e.g. ``"reports"``).
-    batch_size : int
-        Most metrics per ``log_batch`` call.
     with_child : callable, optional
         Called with each child's record and run id right after the child is created, before
         its metrics are logged (an axis' champion model is logged and registered there, from
@@ -319,12 +259,12 @@ def log_pipeline(
     str
         The parent run id.
     """
-    parent_id = _create_run(client, experiment_id, parent, batch_size, {})
+    parent_id = _create_run(client, experiment_id, parent, {})
     try:
-        log_record(client, parent_id, parent, batch_size)
+        log_record(client, parent_id, parent)
         for child in children:
             child_id = _log_one(
-                client, experiment_id, child, batch_size, {PARENT_RUN_TAG: parent_id}, with_child
+                client, experiment_id, child, {PARENT_RUN_TAG: parent_id}, with_child
             )
             client.set_terminated(child_id)
         for path, folder in artifacts:

@@ -1,6 +1,8 @@
 """Linear-axis (Y) positioning twin: geometric error plus a thermal slope from the ball screw.
 
-Follows the patent (seeds/002_...): the cold machine's laser run carries the geometric error
+Follows the Chinese invention patent "Optimal selection method for the thermal
+temperature-sensitive points of a machine tool's linear axis based on independent-variable
+selection criteria" (published 2022): the cold machine's laser run carries the geometric error
 (a 4th-order polynomial over position); warming the axis by moving it makes the error grow
 linearly with position, with a slope k (um/mm) that follows the screw/nut temperatures. Here
 ``k = alpha_steel * (T_screw(t) - T_screw(0))`` (1e-3 alpha um/(mm K) = 0.0115 um/(mm K)),

@@ -7,11 +7,11 @@ machine state (bearing preload and lubrication, convection by season, a warm sta
 earlier job, the probe mounting) or, without a state scatter, a small scatter of the heat
 sources, then runs the twin and passes the result through the sensors:
 
-* spindle drift (PCDL paper, seeds/000_...): constant speed 2000/4000/6000 rpm for 4.5 h, then
-  1 h stopped, a sample every 3 min; 10 DS18B20 (per-sensor offset within +-0.2 degC, noise,
-  0.0625 degC quantisation; with ``sensor_lag`` each through the lag of its mounting) and an
-  eddy-current probe (+-0.5 um, re-mounted for every campaign: a constant offset);
-* axis positioning (patent, seeds/002_...): Y axis warmed up by moving it (20 mm/s), laser
+* spindle drift (the PCDL paper, Miao et al. 2016): constant speed 2000/4000/6000 rpm for 4.5 h,
+  then 1 h stopped, a sample every 3 min; 10 DS18B20 (per-sensor offset within +-0.2 degC,
+  noise, 0.0625 degC quantisation; with ``sensor_lag`` each through the lag of its mounting) and
+  an eddy-current probe (+-0.5 um, re-mounted for every campaign: a constant offset);
+* axis positioning (the linear-axis patent, 2022): Y axis warmed up by moving it (20 mm/s), laser
   passes over 0..280 mm every 10 mm in both directions at 0/20/50/110/190/340/390 min, 7 PT100
   read every 10 min.
 

@@ -39,7 +39,7 @@ X terms
     mass) gives about -0.5 um/K.
 
 All lengths and the share ``s`` are engineering estimates for a 450-500 mm travel vertical
-machining centre (Leaderway V450 size, the PCDL paper's machine, seeds/000_...), not values
+machining centre (Leaderway V450 size, the machine of Miao et al. 2016, the PCDL paper), not values
 from a drawing or a measurement; the mechanisms are the textbook ones (thermal bending of the
 column, asymmetric heat sources, offset of the spindle axis from the thermal datum). With the
 twin's temperatures they give X within about 10 um and Y within about 25 um over a two-day run,

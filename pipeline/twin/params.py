@@ -4,13 +4,18 @@ Change a value with :func:`dataclasses.replace` (and :meth:`ThermalNetwork.with_
 the network); nothing here is mutated by the simulation. Magnitudes are chosen so that the demo
 campaigns look like the sources:
 
-* the PCDL paper (Miao et al., Optics and Precision Engineering 24(10), 2016; seeds/000_...):
-  Leaderway V450 vertical machining centre, spindle Z drift at 2000/4000/6000 rpm, 3-min
-  sampling for more than 4 h, DS18B20 sensors (+-0.2 degC, 0.0625 degC resolution), eddy-current
-  probe (+-0.5 um), 12 seasonal batches plus 6 validation batches (October, December);
-* the patent (seeds/002_...): Y axis, 280 mm stroke measured every 10 mm in both directions by a
-  laser interferometer at 0/20/50/110/190/340/390 min of warm-up (20 mm/s, 10 mm/s^2), 7 PT100
-  sensors every 10 min, a 4th-order geometric polynomial and a thermal slope k(T) in um/mm.
+* the PCDL paper (Miao Enming, Liu Yi, Dong Yunfei and Chen Weikang, 2016, "Improvement of
+  forecasting robustness of time series model for thermal error on CNC machine tool", Optics
+  and Precision Engineering 24(10), 2480-2489): Leaderway V450 vertical machining centre,
+  spindle Z drift at 2000/4000/6000 rpm, 3-min sampling for more than 4 h, DS18B20 sensors
+  (+-0.2 degC, 0.0625 degC resolution), eddy-current probe (+-0.5 um), 12 seasonal batches plus
+  6 validation batches (October, December);
+* the linear-axis patent (Chinese invention patent "Optimal selection method for the thermal
+  temperature-sensitive points of a machine tool's linear axis based on independent-variable
+  selection criteria", published 2022): Y axis, 280 mm stroke measured every 10 mm in both
+  directions by a laser interferometer at 0/20/50/110/190/340/390 min of warm-up (20 mm/s,
+  10 mm/s^2), 7 PT100 sensors every 10 min, a 4th-order geometric polynomial and a thermal
+  slope k(T) in um/mm.
 
 Typical values reached: 2-15 K temperature rise, 10-60 um Z drift in 4 h, axis slopes up to
 ~0.08 um/mm (screw rise x 0.0115 um/(mm K)).
@@ -152,7 +157,7 @@ def _spindle_sensors() -> tuple[SensorSpec, ...]:
 class SpindleParams:
     """Physical twin of the spindle Z drift of a vertical machining centre.
 
-    Modelled on the PCDL paper's Leaderway V450 (seeds/000_...): spindle at 2000-6000 rpm,
+    Modelled on the PCDL paper's Leaderway V450 (Miao et al. 2016): spindle at 2000-6000 rpm,
     10 DS18B20 sensors, eddy-current probe at the spindle nose. Sign of ``z``: positive = tool
     moves away from the table (the raw contract).
 
@@ -270,7 +275,7 @@ def _axis_sensors() -> tuple[SensorSpec, ...]:
 
 @dataclass(frozen=True)
 class AxisParams:
-    """Physical twin of a linear axis (Y) positioning error, after the patent (seeds/002_...).
+    """Physical twin of a linear axis (Y) positioning error, after the linear-axis patent.
 
     Positioning deviation at target x (mm) of pass p, direction d = +-1::
 

@@ -1,8 +1,11 @@
 """Every check of every campaign of the ingested tables, combined into one validation result.
 
-Per campaign: the Pandera models of :mod:`schemas` (its sensor map and displacement axes added),
-the sample, laser and plausibility checks of this package, and the ingest problems; a campaign
-with any problem is quarantined (:class:`pipeline.validation.problems.ValidationResult`).
+First the folder: campaigns of more than one machine stop validation
+(:mod:`pipeline.validation.machines`). Per campaign: the Pandera models of :mod:`schemas` (its
+sensor map and displacement axes added), the sample, laser and plausibility checks of this
+package, and the ingest problems; a campaign with any problem is quarantined
+(:class:`pipeline.validation.problems.ValidationResult`). The gaps of missing readings of the
+other campaigns are warnings (:mod:`pipeline.validation.gaps`).
 """
 
 from __future__ import annotations
@@ -11,8 +14,10 @@ import pandas as pd
 
 from pipeline.validation.campaign_checks import validate_campaign_table
 from pipeline.validation.findings import Finding
+from pipeline.validation.gaps import gaps_of_campaigns
 from pipeline.validation.ingest_problems import problems_from_ingest
 from pipeline.validation.laser_checks import validate_laser
+from pipeline.validation.machines import require_one_machine
 from pipeline.validation.plausibility import validate_plausibility
 from pipeline.validation.problems import (
     CAMPAIGN_FILE,
@@ -49,14 +54,22 @@ def validate_tables(
     Returns
     -------
     ValidationResult
-        All problems: ingest's, campaign.yaml's, samples' (every campaign) and laser's
+        The gaps of missing readings of the campaigns without problems (warnings; a campaign
+        they leave with fewer than ``min_samples`` samples gets ``too_few_readings``), and
+        all problems: ingest's, campaign.yaml's, samples' (every campaign) and laser's
         (axis_positioning campaigns) and the campaign-level plausibility checks (sample count,
         units). :data:`FOLLOW_ON_CHECKS` are left out when ingest already reported a file-level
         problem (no row) with that file, e.g. a missing file, and a campaign.yaml problem on a
         key ingest already reported (e.g. ``missing_key`` kind, then not ``kind_known``).
         A campaign with data but no campaigns row and no ingest problem gets
         ``campaign_metadata_missing``.
+
+    Raises
+    ------
+    MixedMachinesError
+        When the campaigns name more than one ``machine``.
     """
+    require_one_machine(campaigns)
     found = problems_from_ingest(problems)
     unreadable = {(p.campaign, p.file) for p in found if p.row is None}
     yaml_keys = {(p.campaign, p.column) for p in found if p.file == CAMPAIGN_FILE and p.column}
@@ -85,5 +98,10 @@ def validate_tables(
     ]
     found += problems_from_findings(orphans, limits)
     all_ids = known | {f.campaign for f in orphans}
+    bad = {p.campaign for p in found}
+    gaps, short = gaps_of_campaigns(samples, sorted(all_ids - bad), limits)
+    found += short
     ordered = sorted(found, key=lambda p: p.campaign)  # stable: keeps the order within one
-    return ValidationResult(campaigns=tuple(sorted(all_ids)), problems=tuple(ordered))
+    return ValidationResult(
+        campaigns=tuple(sorted(all_ids)), problems=tuple(ordered), gaps=tuple(gaps)
+    )

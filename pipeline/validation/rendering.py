@@ -56,7 +56,7 @@ def _field_text(value: Any) -> str:
     return "empty" if value is None else str(value)
 
 
-def _span_text(noun: str, first: int, last: int) -> str:
+def span_text(noun: str, first: int, last: int) -> str:
     """Return ``row 3`` or ``rows 1-2`` (``noun`` "row"/"line") for a run of numbers."""
     return f"{noun} {first}" if first == last else f"{noun}s {first}-{last}"
 
@@ -79,6 +79,7 @@ def _limit_fields(limits: ValidationLimits) -> dict[str, Any]:
         "air_temperature_max": limits.air_temperature_max_degC,
         "displacement_min_span": limits.displacement_min_span_um,
         "min_program_coverage_pct": round(100 * limits.min_program_coverage, 6),
+        "max_bridged_gap_s": f"{limits.max_bridged_gap_s:g}",
     }
 
 
@@ -108,9 +109,9 @@ def render(group: list[Finding], limits: ValidationLimits) -> Problem:
             values.append(value)
     value = values[0] if len(values) == 1 else values
     location = f"{first.campaign}/{first.file}"
-    rows_text = _span_text("row", rows[0], rows[-1]) if rows else ""
+    rows_text = span_text("row", rows[0], rows[-1]) if rows else ""
     if rows:
-        where = f"{location} {rows_text} ({_span_text('line', rows[0] + 1, rows[-1] + 1)})"
+        where = f"{location} {rows_text} ({span_text('line', rows[0] + 1, rows[-1] + 1)})"
     else:
         where = location
     fields = TemplateFields(

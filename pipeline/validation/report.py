@@ -1,15 +1,19 @@
-"""Report a validation result: ``reports/validation.json``, the log line, the failure."""
+"""Report a validation result: ``reports/validation.json``, the log lines, the failure."""
 
 from __future__ import annotations
 
 from pathlib import Path
 from typing import Any
 
-from pipeline.validation.problems import NoValidCampaignError, ValidationResult
+from pipeline.validation.problems import BRIDGED, DROPPED, NoValidCampaignError, ValidationResult
 
 
 def build_report(result: ValidationResult) -> dict[str, Any]:
-    """Return the content of ``reports/validation.json``."""
+    """Return the content of ``reports/validation.json``.
+
+    ``problems`` quarantine their campaigns; ``warnings`` are the gaps of missing readings of
+    the other campaigns, each with how it is handled in the validated data.
+    """
     return {
         "summary": {
             "campaigns": len(result.campaigns),
@@ -17,6 +21,7 @@ def build_report(result: ValidationResult) -> dict[str, Any]:
             "quarantined": result.quarantined,
         },
         "problems": [p.to_dict() for p in result.problems],
+        "warnings": [g.to_dict() for g in result.gaps],
     }
 
 
@@ -44,3 +49,23 @@ def quarantine_summary(result: ValidationResult, campaign_id: str) -> str:
         counts[label] = counts.get(label, 0) + 1
     parts = [f"{label} x{n}" if n > 1 else label for label, n in counts.items()]
     return f"{len(own)} problem(s): " + "; ".join(parts)
+
+
+def gap_summaries(result: ValidationResult) -> dict[str, str]:
+    """Return a one-line summary of each campaign's gaps of missing readings, for the log.
+
+    Returns
+    -------
+    dict of str to str
+        Campaign id -> e.g. ``3 gap(s) of missing readings: 2 bridged, 1 dropped (4 samples)``.
+    """
+    summaries = {}
+    for campaign_id in dict.fromkeys(g.campaign for g in result.gaps):
+        own = [g for g in result.gaps if g.campaign == campaign_id]
+        bridged = sum(g.handling == BRIDGED for g in own)
+        dropped = {s for g in own if g.handling == DROPPED for s in g.samples}
+        summaries[campaign_id] = (
+            f"{len(own)} gap(s) of missing readings: {bridged} bridged, "
+            f"{len(own) - bridged} dropped ({len(dropped)} samples)"
+        )
+    return summaries

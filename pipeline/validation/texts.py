@@ -1,5 +1,7 @@
 """How each check's failures are worded: message and action per check id.
 
+:data:`PROBLEM_TEXTS` quarantine a campaign; :data:`WARNING_TEXTS` (missing readings) do not.
+
 The check ids are the Pandera check names of :mod:`schemas` (plus the renamed structural checks
 and the campaign-level ids of :mod:`pipeline.validation`). Templates are ``str.format``
 strings over the fields of a finding group (see :func:`pipeline.validation.rendering.render`).
@@ -139,6 +141,15 @@ PROBLEM_TEXTS: dict[str, ProblemText] = {
         "separate and model a thermal error",
         "add the rest of the temperature log to {campaign}/temperature.csv, or remove the "
         f"campaign folder (a campaign of a few samples cannot be modelled), {RERUN}",
+        row_level=False,
+    ),
+    "too_few_readings": ProblemText(
+        "{campaign} keeps {value} sample(s) once the gaps of missing readings longer than "
+        "validate.max_bridged_gap_s = {max_bridged_gap_s} s are dropped (the warnings of the "
+        "report name them); at least {min_samples} are needed to separate and model a thermal "
+        "error",
+        "fill in the missing readings the warnings name in the files of {campaign}, or raise "
+        f"validate.max_bridged_gap_s in params.yaml to bridge longer gaps, {RERUN}",
         row_level=False,
     ),
     "temperature_unit": ProblemText(
@@ -518,6 +529,13 @@ PROBLEM_TEXTS: dict[str, ProblemText] = {
         + f"), {RERUN}",
         row_level=False,
     ),
+    "misspelt_key": ProblemText(
+        "{column}: in {campaign}/campaign.yaml is not a key of the contract but looks like "
+        "{suggestion}:, which the file lacks (the keys there: {allowed})",
+        "rename {column}: to {suggestion}: in {campaign}/campaign.yaml (a key the contract does "
+        f"not have is read as a comment, see {CONTRACT}), {RERUN}",
+        row_level=False,
+    ),
     "campaign_id_unsafe": ProblemText(
         "campaign_id {value} in {campaign}/campaign.yaml is not a plain id: only letters, digits, "
         "'-' and '_' are allowed (a path such as '../x' is never followed)",
@@ -525,6 +543,46 @@ PROBLEM_TEXTS: dict[str, ProblemText] = {
         row_level=False,
     ),
 }
+
+DROPPED_SAMPLES = "{n_dropped} sample(s) dropped (temperature.csv {dropped_rows})"
+WARNING_TEXTS: dict[str, ProblemText] = {
+    "missing_reading_bridged": ProblemText(
+        "{column} has no reading at {where}: bridged by linear interpolation in time between "
+        "rows {before} and {after}, {gap_s} s apart (validate.max_bridged_gap_s = "
+        "{max_bridged_gap_s} s)",
+        "nothing to do; if the readings exist, fill in {column} in {campaign}/{file} {rows}, "
+        f"{RERUN}",
+    ),
+    "missing_reading_dropped": ProblemText(
+        "{column} has no reading at {where}: "
+        + DROPPED_SAMPLES
+        + ": the gap of {gap_s} s between rows {before} and {after} is longer than "
+        "validate.max_bridged_gap_s = {max_bridged_gap_s} s",
+        "fill in {column} in {campaign}/{file} {rows} to keep these samples, or raise "
+        f"validate.max_bridged_gap_s in params.yaml to bridge the gap, {RERUN}",
+    ),
+    "missing_reading_at_start": ProblemText(
+        "{column} has no reading at {where}, the start of its record: "
+        + DROPPED_SAMPLES
+        + ", there is no reading before them to interpolate from; the campaign now starts at "
+        "temperature.csv row {first_kept}, and a run is counted from its first sample",
+        f"fill in {{column}} in {{campaign}}/{{file}} {{rows}} to keep the first samples, {RERUN}",
+    ),
+    "missing_reading_at_end": ProblemText(
+        "{column} has no reading at {where}, the end of its record: "
+        + DROPPED_SAMPLES
+        + ", there is no reading after them to interpolate from; the campaign now ends at "
+        "temperature.csv row {last_kept}, so a campaign that continues it without follows: is "
+        "linked only if it starts within separate.runs.max_gap_s of that sample",
+        "fill in {column} in {campaign}/{file} {rows} to keep the last samples (or declare "
+        f"follows: in the campaign that continues this one), {RERUN}",
+    ),
+}
+"""How each gap of missing readings (empty cells) is reported: a warning, never a problem.
+
+The campaign stays valid; the validated samples are bridged or lose the gap's samples
+(:mod:`pipeline.validation.gaps`).
+"""
 
 FALLBACK_TEXT = ProblemText(
     "{column} failed the check {check} at {where} (value {value})",
@@ -535,8 +593,8 @@ FALLBACK_TEXT = ProblemText(
 
 
 def text_for(check: str) -> ProblemText:
-    """Return the text of check id ``check`` (:data:`FALLBACK_TEXT` when it has none)."""
-    return PROBLEM_TEXTS.get(check, FALLBACK_TEXT)
+    """Return the text of check or warning id ``check`` (:data:`FALLBACK_TEXT` when none)."""
+    return PROBLEM_TEXTS.get(check) or WARNING_TEXTS.get(check, FALLBACK_TEXT)
 
 
 def word(check: str, fields: Mapping[str, Any]) -> tuple[str, str]:

@@ -2,7 +2,7 @@
 
 :func:`read_store` copies what the store holds about the execution named in
 ``reports/mlflow_run.json`` (experiment, parent run, child runs with tags, metrics and
-```` artifacts, each champion's registered version) into plain data;
+artifacts, each champion's registered version) into plain data;
 :func:`make_plan` (pure) checks the tracking layout and decides, per axis, which runs the pages
 must show and in which order:
 
@@ -185,7 +185,7 @@ def read_store(client: Any, record: Mapping[str, Any]) -> StoreView:
     -------
     StoreView
         The experiment, the parent's tags, every child run with its tags, metrics and
-        ```` artifacts, and each champion's registered version (None if absent).
+        artifacts, and each champion's registered version (None if absent).
 
     Raises
     ------

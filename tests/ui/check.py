@@ -1,10 +1,11 @@
-"""``thermal ui-check``: prove in a real browser that the MLflow UI shows the pipeline's runs.
+"""``make ui-check``: prove in a real browser that the MLflow UI shows the pipeline's runs.
 
-After ``make run`` (its ``track`` stage), ``thermal ui-check`` reads ``reports/mlflow_run.json``
-and the store, starts ``mlflow ui`` on the store (a tracking server, ``MLFLOW_TRACKING_URI``
-``http(s)://...``, is used as it is, and so is ``--ui-url``), opens each page a metrology
-engineer needs in headless Chromium, writes a screenshot of each to ``reports/ui/`` and checks
-the rendered text:
+After ``make run`` (its ``track`` stage), ``python -m tests.ui.check`` reads
+``reports/mlflow_run.json`` and the store, starts ``mlflow ui`` on the store (a tracking server,
+``MLFLOW_TRACKING_URI`` ``http(s)://...``, is used as it is, and so is ``--ui-url``), opens each
+page a metrology engineer needs in headless Chromium (driven by Playwright,
+:mod:`tests.ui.browser`), writes a screenshot of each to ``reports/ui/`` and checks the rendered
+text:
 
 1. ``01_experiment.png``: the experiment, model-training view: its name and description;
 2. ``02_runs_ranked_<axis>.png``: the axis' eligible candidates sorted by the metric the
@@ -12,16 +13,16 @@ the rendered text:
    top-ranked runs, in rank order, and the number of eligible runs;
 3. ``03_compare_<axis>.png``: the Compare page of the top-ranked candidates (names, ``rank``)
    with ``cross_season_rms.png`` clicked in its Artifacts file tree: one heat-map per run, side
-   by side (driven through the DevTools protocol, :mod:`pipeline.tracking.ui_compare`);
+   by side;
 4. ``04_champion_model_<axis>.png``: the champion's registered version: name, version,
    description, alias ``champion``, source run;
 5. ``05_ranking_metric_<axis>.png``: the ranking metric of the top-ranked candidates;
 6. ``06_champion_heatmap_<axis>.png``: the champion's ``cross_season_rms.png``.
 
-It also checks the store's layout (:mod:`pipeline.tracking.ui_expect`) and that the UI server
-serves each champion's evidence files. Each problem is one line naming the page (or ``store``,
-``record``, ``artifacts``) and what is missing. Exit code 0 when there is none, 1 otherwise, 2
-without Chromium.
+It also checks the store's layout (:mod:`tests.ui.expect`) and that the UI server serves each
+champion's evidence files. Each problem is one line naming the page (or ``store``, ``record``,
+``artifacts``) and what is missing. Exit code 0 when there is none, 1 otherwise, 2 without
+Chromium.
 """
 
 from __future__ import annotations
@@ -31,21 +32,25 @@ import json
 import os
 import sys
 import tempfile
-from collections.abc import Callable, Mapping, Sequence
+import urllib.error
+import urllib.request
+from collections.abc import Callable, Iterator, Mapping, Sequence
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 from urllib.parse import urlencode
 
 from pipeline.config import DEFAULT_PARAMS, load_section
-from pipeline.errors import InputDataError, MissingInputError
+from pipeline.errors import InputDataError, MissingInputError, UserError
 from pipeline.paths import REPORTS, TRACKING_RECORD
-from pipeline.tracking import ui_browser, ui_compare
 from pipeline.tracking.store import public_uri as public
 from pipeline.tracking.store import sqlite_path
-from pipeline.tracking.ui_dom import PageDom, parse_dom
-from pipeline.tracking.ui_expect import EVIDENCE, Plan, make_plan, read_store
-from pipeline.tracking.ui_pages import WINDOW_WIDTH, Page, check_page, make_pages
+from tests.helpers.processes import HEALTH_TIMEOUT_S, ServerError, healthy, running_mlflow
+from tests.ui import browser
+from tests.ui.expect import EVIDENCE, Plan, make_plan, read_store
+from tests.ui.pages import Page, check_page, make_pages
 
+PROG = "ui-check"
 ENV_TRACKING_URI = "MLFLOW_TRACKING_URI"
 DEFAULT_STORE = "sqlite:///mlflow.db"
 SCREENSHOTS = REPORTS / "ui"
@@ -136,6 +141,30 @@ def is_server(uri: str) -> bool:
     return uri.startswith(("http://", "https://"))
 
 
+@contextmanager
+def running_mlflow_ui(store_uri: str, timeout_s: float = HEALTH_TIMEOUT_S) -> Iterator[str]:
+    """Run ``mlflow ui`` on ``store_uri`` until the ``with`` block ends; yield its base URL.
+
+    The runs' artifacts are served from their own (``file://``) artifact locations; see
+    :func:`tests.helpers.processes.running_mlflow`.
+    """
+    with tempfile.TemporaryDirectory(prefix="thermal-ui-check-") as folder:
+        arguments = ["ui", "--backend-store-uri", store_uri]
+        with running_mlflow(arguments, Path(folder), timeout_s) as base_url:
+            yield base_url
+
+
+def fetch(url: str, timeout_s: float = 30.0) -> tuple[int, bytes]:
+    """GET ``url``; return the HTTP status and body (status 0 when nothing answered)."""
+    try:
+        with urllib.request.urlopen(url, timeout=timeout_s) as response:  # noqa: S310
+            return response.status, response.read()
+    except urllib.error.HTTPError as error:
+        return error.code, error.read()
+    except (urllib.error.URLError, OSError):
+        return 0, b""
+
+
 def _is_table(body: bytes) -> bool:
     try:
         table = json.loads(body)
@@ -157,7 +186,7 @@ def evidence_problems(base: str, plan: Plan) -> list[str]:
             continue
         for path in (path for path in EVIDENCE if path in champion.artifacts):
             query = urlencode({"path": path, "run_uuid": champion.run_id})
-            status, body = ui_browser.fetch(f"{base}/get-artifact?{query}")
+            status, body = fetch(f"{base}/get-artifact?{query}")
             served = body.startswith(b"\x89PNG") if path.endswith(".png") else _is_table(body)
             if status != 200 or not served:
                 problems.append(
@@ -167,55 +196,29 @@ def evidence_problems(base: str, plan: Plan) -> list[str]:
     return problems
 
 
-def render(
-    page: Page, chromium: str, screenshot: Path, profile: Path, budget_ms: int
-) -> tuple[PageDom, list[str]]:
-    """Render ``page``, write its screenshot; return its DOM and, as notes, what went wrong.
-
-    A page with an artifact to select (Compare) is driven through the DevTools protocol
-    (:mod:`pipeline.tracking.ui_compare`), the others by one ``chromium --screenshot --dump-dom``.
-
-    Raises
-    ------
-    ui_browser.BrowserError
-        If Chromium did not render the page.
-    """
-    window = (WINDOW_WIDTH, page.height)
-    if page.select is None:
-        html = ui_browser.render_page(chromium, page.url, screenshot, profile, window, budget_ms)
-        return parse_dom(html), []
-    capture = ui_compare.capture_selected(
-        chromium, page.url, page.select, page.image_count, screenshot, window, budget_ms / 1000
-    )
-    dom = parse_dom(capture.html)
-    dom.loaded = capture.loaded
-    return dom, capture.notes
-
-
 def visit(
     pages: Sequence[Page], chromium: str, out: Path, budget_ms: int, write: Write
 ) -> list[str]:
-    """Render each page, write its screenshot and summary; return the problems.
-
-    The pages rendered by ``--dump-dom`` share one fresh temporary Chromium profile (its cache
-    spares reloading the app); a DevTools session has its own.
-    """
+    """Render each page in one Chromium, write its screenshot and summary; return the problems."""
     problems: list[str] = []
-    with tempfile.TemporaryDirectory(prefix="thermal-ui-check-chromium-") as profile:
-        for page in pages:
-            screenshot = out / page.screenshot
-            write(f"{page.name}\n  {page.url}\n")
-            try:
-                dom, notes = render(page, chromium, screenshot, Path(profile), budget_ms)
-            except ui_browser.BrowserError as error:
-                problems.append(f"{page.name}: not rendered: {str(error).splitlines()[0]}")
-                write(f"  not rendered: {error}\n")
-                continue
-            result = check_page(page, dom)
-            problems += [f"{page.name}: {note}" for note in notes] + result.problems
-            write(f"  screenshot {screenshot}\n  found: {'; '.join(result.found) or '-'}\n")
-            if result.missing or notes:
-                write(f"  missing: {'; '.join(notes + result.missing)}\n")
+    try:
+        with browser.launched(chromium) as running:
+            for page in pages:
+                screenshot = out / page.screenshot
+                write(f"{page.name}\n  {page.url}\n")
+                try:
+                    dom, notes = browser.render(running, page, screenshot, budget_ms)
+                except browser.BrowserError as error:
+                    problems.append(f"{page.name}: not rendered: {str(error).splitlines()[0]}")
+                    write(f"  not rendered: {error}\n")
+                    continue
+                result = check_page(page, dom)
+                problems += [f"{page.name}: {note}" for note in notes] + result.problems
+                write(f"  screenshot {screenshot}\n  found: {'; '.join(result.found) or '-'}\n")
+                if result.missing or notes:
+                    write(f"  missing: {'; '.join(notes + result.missing)}\n")
+    except browser.BrowserError as error:
+        problems.append(f"chromium: {str(error).splitlines()[0]}")
     return problems
 
 
@@ -238,20 +241,20 @@ def run_check(args: argparse.Namespace, chromium: str, write: Write) -> list[str
 
     if args.ui_url or is_server(store):
         base = (args.ui_url or store).rstrip("/")
-        if not ui_browser.healthy(base, timeout_s=10):
+        if not healthy(base, timeout_s=10):
             raise InputDataError(f"the MLflow UI at {public(base)} does not answer /health")
-        write(f"thermal ui-check: MLflow UI {public(base)}, store {public(store)}\n")
+        write(f"{PROG}: MLflow UI {public(base)}, store {public(store)}\n")
         return check(base)
     try:
-        with ui_browser.running_mlflow_ui(store) as base:
-            write(f"thermal ui-check: started mlflow ui {base} on {store}\n")
+        with running_mlflow_ui(store) as base:
+            write(f"{PROG}: started mlflow ui {base} on {store}\n")
             return check(base)
-    except ui_browser.ServerError as error:
+    except ServerError as error:
         raise InputDataError(str(error)) from None
 
 
 def _parse_args(argv: list[str] | None) -> argparse.Namespace:
-    parser = argparse.ArgumentParser(prog="thermal ui-check", description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(prog=PROG, description=__doc__.splitlines()[0])
     parser.add_argument(
         "--tracking-uri",
         help=f"store to check (default: ${ENV_TRACKING_URI}, the record's tracking_uri, "
@@ -266,7 +269,8 @@ def _parse_args(argv: list[str] | None) -> argparse.Namespace:
         "--budget-ms",
         type=int,
         default=BUDGET_MS,
-        help=f"Chromium's virtual time budget per page, ms (default {BUDGET_MS})",
+        help="longest wait per page for what it must show, and on Compare for the file tree "
+        f"and the images, ms (default {BUDGET_MS})",
     )
     parser.add_argument("--top", type=int, default=3, help="best-ranked runs to compare")
     return parser.parse_args(argv)
@@ -278,24 +282,33 @@ def main(argv: list[str] | None = None) -> int:
     Returns
     -------
     int
-        0 when every page shows what it must, 1 otherwise, 2 without Chromium.
+        0 when every page shows what it must, 1 otherwise (or when the record or the store
+        cannot be read), 2 without Chromium.
     """
     args = _parse_args(argv)
-    chromium = ui_browser.find_chromium()
+    chromium = browser.find_chromium()
     if chromium is None:
-        sys.stderr.write(f"thermal ui-check: error: {NO_CHROMIUM}\n")
+        sys.stderr.write(f"{PROG}: error: {NO_CHROMIUM}\n")
         return 2
 
     def write(text: str) -> None:
         sys.stdout.write(text)
         sys.stdout.flush()
 
-    problems = run_check(args, chromium, write)
+    try:
+        problems = run_check(args, chromium, write)
+    except UserError as error:
+        sys.stderr.write(f"{PROG}: error: {error}\n")
+        return 1
     if problems:
         sys.stderr.write(
-            f"thermal ui-check: {len(problems)} problem(s):\n"
+            f"{PROG}: {len(problems)} problem(s):\n"
             + "".join(f"  {problem}\n" for problem in problems)
         )
         return 1
-    write("thermal ui-check: every page shows what it must\n")
+    write(f"{PROG}: every page shows what it must\n")
     return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,4 +1,4 @@
-"""The pages of the MLflow UI (3.x) that ``thermal ui-check`` visits, and their checks (pure).
+"""The pages of the MLflow UI (3.x) that the UI check visits, and their checks (pure).
 
 The UI is a single-page app; everything after ``#`` is its route. The parameters below were
 read from its bundled JavaScript (``mlflow/server/js/build/static/js/``):
@@ -33,8 +33,8 @@ from typing import Any
 from urllib.parse import quote, urlencode
 
 from pipeline.tracking import views
-from pipeline.tracking.ui_dom import PageDom, error_phrases
-from pipeline.tracking.ui_expect import HEAT_MAP, AxisPlan, Child, Plan, Version
+from tests.ui.dom import PageDom, error_phrases
+from tests.ui.expect import HEAT_MAP, AxisPlan, Child, Plan, Version
 
 ML_VIEW = {"workflowType": "machine_learning"}
 DESCRIPTION_WORDS = 8
@@ -100,7 +100,7 @@ class Page:
         How many such images it must show: one per compared run on Compare.
     select : str or None
         Artifact to click in the Compare page's Artifacts file tree before the capture (the
-        selection is React state, not in the URL; :mod:`pipeline.tracking.ui_compare`).
+        selection is React state, not in the URL; :func:`tests.ui.browser.render` clicks it).
     height : int
         Window height, CSS px (tables render only the rows that fit).
     """

@@ -1,28 +1,17 @@
-"""``thermal ui-check``: the MLflow UI in a real Chromium, on a real store and a real mlflow ui.
+"""The UI check's pure parts: reading a rendered page, the UI's addresses, what each page must show.
 
-Fast tests: reading a rendered DOM (error banners and phrases, table rows), the URLs, what the
-pages must show for a complete and for an older store layout, the store's resolution, the exit
-code without Chromium. Slow tests (skipped without Chromium): a small store in the tracking
-layout (``tests/ui_store.py``, no pipeline run) served by one ``mlflow ui`` for the module; the
-check passes on it and writes its screenshots, and it fails, naming the page and the item, when
-the champion's ranking metric is missing.
+No browser, no server: DOM strings in (error banners and phrases, table rows, images), the URLs
+of the UI's routes, the plan made from a complete and from an older store layout, and the
+problems :func:`tests.ui.pages.check_page` names.
 """
 
 from __future__ import annotations
 
-import os
-import subprocess
-import sys
-from pathlib import Path
-
 import pytest
 
-from pipeline.errors import MissingInputError
-from pipeline.tracking import ui_browser
-from pipeline.tracking.ui_check import NO_CHROMIUM, public, resolve_store
-from pipeline.tracking.ui_dom import error_phrases, parse_dom
-from pipeline.tracking.ui_expect import Child, StoreView, Version, make_plan
-from pipeline.tracking.ui_pages import (
+from tests.ui.dom import error_phrases, parse_dom
+from tests.ui.expect import Child, StoreView, Version, make_plan
+from tests.ui.pages import (
     Check,
     Page,
     check_page,
@@ -34,19 +23,15 @@ from pipeline.tracking.ui_pages import (
     runs_url,
 )
 
-BIN = Path(sys.executable).parent
-THERMAL = (
-    [str(BIN / "thermal")] if (BIN / "thermal").exists() else [sys.executable, "-m", "pipeline"]
-)
 PARENT = "p" * 32
-SCREENSHOTS = (
+SCREENSHOTS = [
     "01_experiment.png",
     "02_runs_ranked_Z.png",
     "03_compare_Z.png",
     "04_champion_model_Z.png",
     "05_ranking_metric_Z.png",
     "06_champion_heatmap_Z.png",
-)
+]
 
 
 # --- reading a rendered page ------------------------------------------------------------------
@@ -191,7 +176,7 @@ def test_plan_of_the_complete_layout_ranks_the_eligible_runs():
     assert axis.metric == "loso_Mn_rms_um"
     assert axis.search_filter.endswith("and tags.axis = 'Z' and tags.eligible = 'true'")
     pages = make_pages("http://h", plan)
-    assert [page.screenshot for page in pages] == list(SCREENSHOTS)
+    assert [page.screenshot for page in pages] == SCREENSHOTS
     (runs,) = [page for page in pages if page.name == "runs Z"]
     assert runs.url.endswith("/runs?workflowType=machine_learning&viewStateShareKey=ranked-Z")
     (compare,) = [page for page in pages if page.name == "compare Z"]
@@ -288,137 +273,3 @@ def test_compare_must_show_one_loaded_heat_map_per_run():
     ]
     dom = parse_dom("<body><h3>Select a file to preview</h3></body>")
     assert check_page(page, dom).missing == ["0 of 3 compared runs show image cross_season_rms.png"]
-
-
-# --- the store and the command ----------------------------------------------------------------
-
-
-def test_resolve_store_order_and_missing_sqlite_file(tmp_path, monkeypatch):
-    monkeypatch.chdir(tmp_path)
-    (tmp_path / "mlflow.db").write_bytes(b"")
-    record = {"tracking_uri": "sqlite:///mlflow.db"}
-    absolute = f"sqlite:///{(tmp_path / 'mlflow.db').resolve().as_posix()}"
-    assert resolve_store(None, {}, record) == absolute
-    assert resolve_store(None, {"MLFLOW_TRACKING_URI": "http://srv:5000"}, record) == (
-        "http://srv:5000"
-    )
-    assert resolve_store("https://a", {"MLFLOW_TRACKING_URI": "http://b"}, record) == "https://a"
-    with pytest.raises(MissingInputError, match="no MLflow store at other.db"):
-        resolve_store("sqlite:///other.db", {}, record)
-
-
-def test_credentials_are_not_printed():
-    assert public("https://me:secret@mlflow.example:5000/") == "https://mlflow.example:5000/"
-    assert public("sqlite:////abs/mlflow.db") == "sqlite:////abs/mlflow.db"
-
-
-def test_without_chromium_the_command_exits_2_with_what_to_do(tmp_path):
-    env = {k: v for k, v in os.environ.items() if k != "CHROMIUM"}
-    env["PATH"] = str(BIN)  # the venv only: no chromium there
-    done = subprocess.run(
-        [*THERMAL, "ui-check"], cwd=tmp_path, env=env, capture_output=True, text=True
-    )
-    assert done.returncode == 2, done.stderr
-    assert done.stderr.strip() == f"thermal ui-check: error: {NO_CHROMIUM}"
-
-
-# --- a real browser on a real store -----------------------------------------------------------
-
-
-@pytest.fixture(scope="module")
-def chromium() -> str:
-    path = ui_browser.find_chromium()
-    if path is None:
-        pytest.skip("no Chromium: apt-get install -y chromium, or set CHROMIUM=/path")
-    return path
-
-
-@pytest.fixture(scope="module")
-def served_store(tmp_path_factory, chromium):
-    """Two executions in one SQLite store, served by one mlflow ui for the module."""
-    from tests.ui_store import build_ui_store
-
-    root = tmp_path_factory.mktemp("ui-store")
-    complete = build_ui_store(root, "thermal-error-ui", "thermal-error-spindle-ui-Z")
-    broken = build_ui_store(
-        root,
-        "thermal-error-ui-broken",
-        "thermal-error-spindle-broken-Z",
-        drop_champion_metric=True,
-        drop_heat_map_rank="2",
-    )
-    with ui_browser.running_mlflow_ui(complete.tracking_uri) as base:
-        yield base, complete, broken
-
-
-def _ui_check(work: Path, store, base: str) -> subprocess.CompletedProcess:
-    from tests.ui_store import write_record
-
-    write_record(work, store.record)
-    env = {**os.environ, "MLFLOW_TRACKING_URI": store.tracking_uri}
-    return subprocess.run(
-        [*THERMAL, "ui-check", "--ui-url", base],
-        cwd=work,
-        env=env,
-        capture_output=True,
-        text=True,
-        timeout=600,
-    )
-
-
-@pytest.mark.slow
-def test_ui_check_passes_and_writes_the_screenshots(tmp_path, served_store):
-    base, complete, _ = served_store
-    done = _ui_check(tmp_path, complete, base)
-    assert done.returncode == 0, done.stdout + done.stderr
-    assert "every page shows what it must" in done.stdout
-    assert f"found: champion run '{complete.champion_run_name}'" in done.stdout
-    compare = done.stdout.split("\ncompare Z\n", 1)[1].split("\nmodel Z\n", 1)[0]
-    assert "; 3 of 3 compared runs show image cross_season_rms.png" in compare, compare
-    assert "missing:" not in compare, compare
-    for name in SCREENSHOTS:
-        png = (tmp_path / "reports" / "ui" / name).read_bytes()
-        assert png.startswith(b"\x89PNG") and len(png) > 20_000, name
-
-
-@pytest.mark.slow
-def test_ui_check_names_the_missing_ranking_metric_and_heat_map(tmp_path, served_store):
-    base, _, broken = served_store
-    done = _ui_check(tmp_path, broken, base)
-    assert done.returncode == 1, done.stdout + done.stderr
-    problems = done.stderr
-    assert "store: metric loso_Mn_rms_um missing (axis Z): 1 of 4 child runs" in problems
-    assert (
-        "runs Z: the first rows show Z/ridge_dl/gra_top_k/static, Z/mlr/best_subset/static, "
-        "Z/none/none/static; expected in rank order Z/pls_dl/gra_top_k/static, "
-        "Z/ridge_dl/gra_top_k/static, Z/mlr/best_subset/static"
-    ) in problems
-    assert (
-        "metric Z: loso_Mn_rms_um of 'Z/pls_dl/gra_top_k/static' (none in the store) not shown"
-    ) in problems
-    assert "runs Z: champion run" not in problems  # the champion is listed, only not first
-    # The rank-2 run logged no heat-map: Compare's file tree (common files only) cannot list it.
-    assert "store: artifact cross_season_rms.png missing: 1 of 5 child runs" in problems
-    assert (
-        "compare Z: the Artifacts file tree lists no cross_season_rms.png (it lists: " in problems
-    )
-    assert (
-        "compare Z: 0 of 3 compared runs show image cross_season_rms.png in the Artifacts section"
-    ) in problems
-
-
-@pytest.mark.slow
-def test_a_server_that_cannot_start_is_reported_with_its_output(tmp_path):
-    (tmp_path / "not-a-db.db").write_text("this is not SQLite\n" * 100)
-    with pytest.raises(ui_browser.ServerError, match=r"mlflow ui exited with code \d+"):
-        with ui_browser.running_mlflow_ui(f"sqlite:///{tmp_path / 'not-a-db.db'}", timeout_s=60):
-            pass
-
-
-def test_chromium_from_the_environment(tmp_path):
-    fake = tmp_path / "my-chromium"
-    fake.write_text("#!/bin/sh\n")
-    fake.chmod(0o755)
-    assert ui_browser.find_chromium({"CHROMIUM": str(fake), "PATH": ""}) == str(fake)
-    assert ui_browser.find_chromium({"CHROMIUM": str(tmp_path / "none"), "PATH": ""}) is None
-    assert ui_browser.find_chromium({"PATH": str(tmp_path)}) is None

@@ -1,4 +1,4 @@
-"""Build a small real MLflow store in the pipeline's tracking layout, for ``thermal ui-check``.
+"""Build a small real MLflow store in the pipeline's tracking layout, for the UI check's tests.
 
 No pipeline run: :class:`mlflow.MlflowClient` on a SQLite store writes one experiment with a
 description, one parent run (tag ``ranked_by.Z``), five child runs of axis Z (tags ``axis``,

@@ -1,11 +1,11 @@
 """Read a page of the MLflow UI from the DOM Chromium rendered (pure: strings in, data out).
 
-``chromium --dump-dom`` prints the document after the React app ran. :func:`parse_dom` keeps
-what ``thermal ui-check`` looks at: the text nodes of the body (scripts, styles, ``noscript`` and
-SVG left out), the error banners the UI draws (Ant/Du Bois alerts, messages, notifications and
-result pages of type error/404/500), the images (``alt``, ``src``) and, in a run table, which
-run each row shows in which position (``row-index``). :func:`error_phrases` finds the exact
-phrases the UI uses to say that something failed.
+The browser (:mod:`tests.ui.browser`) serialises the document after the React app ran.
+:func:`parse_dom` keeps what the UI check looks at: the text nodes of the body (scripts,
+styles, ``noscript`` and SVG left out), the error banners the UI draws (Ant/Du Bois alerts,
+messages, notifications and result pages of type error/404/500), the images (``alt``, ``src``)
+and, in a run table, which run each row shows in which position (``row-index``).
+:func:`error_phrases` finds the exact phrases the UI uses to say that something failed.
 """
 
 from __future__ import annotations
@@ -66,7 +66,7 @@ class PageDom:
         Run ids linked from each table row, by the row's ``row-index`` (its position on screen).
     loaded : frozenset of str or None
         ``src`` of the images the browser had loaded (complete, natural width > 0) when the DOM
-        was taken; None when unknown (``--dump-dom`` says nothing about it).
+        was taken; None when unknown (a DOM parsed from its text alone).
     """
 
     nodes: list[str] = field(default_factory=list)
@@ -140,7 +140,7 @@ class _DomReader(HTMLParser):
 
 
 def parse_dom(html: str) -> PageDom:
-    """Parse the DOM Chromium printed with ``--dump-dom``.
+    """Parse the DOM Chromium rendered (``document.documentElement.outerHTML``).
 
     Parameters
     ----------
