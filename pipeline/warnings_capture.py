@@ -200,12 +200,15 @@ def summarise_warnings(details: str = "") -> Callable[[Callable[..., int]], Call
 
         @functools.wraps(main)
         def wrapped(*args, **kwargs) -> int:
-            counts = WarningCounts()
+            counts, succeeded = WarningCounts(), False
             try:
                 with captured() as counts:
-                    return main(*args, **kwargs)
+                    status = main(*args, **kwargs)
+                    succeeded = status in (0, None)
+                    return status
             finally:  # the block has ended: its warnings are counted
-                logger.info("%s", summary_line(counts, details))
+                if counts.total or succeeded:  # a failed stage without warnings: its error says it
+                    logger.info("%s", summary_line(counts, details))
                 for name, message in counts.first.items():
                     logger.debug("first %s: %s", name, message)
 

@@ -31,8 +31,8 @@ from pipeline import cli, paths
 from pipeline.stages import ingest, validate
 from pipeline.validation.plausibility import CHECKS as PLAUSIBILITY_CHECKS
 from pipeline.validation.texts import FALLBACK_TEXT, PROBLEM_TEXTS
-from tests.raw_builders import write_axis_campaign, write_spindle_campaign
-from tests.raw_edits import (
+from tests.helpers.raw_builders import write_axis_campaign, write_spindle_campaign
+from tests.helpers.raw_edits import (
     drop_column,
     edit_rows,
     edit_yaml,

@@ -18,7 +18,7 @@ from asyncua.sync import Client
 from pipeline.compensation.axis import bound
 from pipeline.compensation.bundle import write_bundle
 from pipeline.settings.compensation import CompensationSettings
-from tests.compensation_bundle import SENSORS, campaign, fitted_bundle, offline_prediction
+from tests.helpers.compensation_bundle import SENSORS, campaign, fitted_bundle, offline_prediction
 from tests.helpers.processes import free_port, stop_group
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -92,7 +92,7 @@ def test_the_runtime_compensates_a_replayed_campaign_through_a_real_opcua_server
     )
     logs = [server_log, runtime_log]
     server = _start(
-        [sys.executable, "-m", "tests.opcua_controller", str(port), *SENSORS], server_log
+        [sys.executable, "-m", "tests.helpers.opcua_controller", str(port), *SENSORS], server_log
     )
     runtime = None
     try:
@@ -156,7 +156,7 @@ def test_a_controller_refusing_the_offset_is_reported_and_the_runtime_keeps_runn
         [
             sys.executable,
             "-m",
-            "tests.opcua_controller",
+            "tests.helpers.opcua_controller",
             str(port),
             *SENSORS,
             "--read-only-axis",
@@ -211,7 +211,7 @@ def test_a_controller_that_restarts_stalls_the_runtime_which_reconnects(tmp_path
     url = f"opc.tcp://127.0.0.1:{port}/controller"
     logs = [tmp_path / "server.log", tmp_path / "runtime.log"]
     events = tmp_path / "events.jsonl"
-    command = [sys.executable, "-m", "tests.opcua_controller", str(port), *SENSORS]
+    command = [sys.executable, "-m", "tests.helpers.opcua_controller", str(port), *SENSORS]
     server = _start(command, logs[0])
     runtime = None
     try:

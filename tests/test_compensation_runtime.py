@@ -21,7 +21,7 @@ from pipeline.compensation.runtime import CompensationRuntime, EventLog
 from pipeline.errors import ParamsError
 from pipeline.settings.base import parse_section
 from pipeline.settings.compensation import AxisLimits, CompensationSettings
-from tests.compensation_bundle import SENSORS, campaign, fitted_bundle, offline_prediction
+from tests.helpers.compensation_bundle import SENSORS, campaign, fitted_bundle, offline_prediction
 
 ROOT = Path(__file__).resolve().parents[1]
 LOOSE = CompensationSettings(

@@ -12,14 +12,13 @@ from __future__ import annotations
 
 import itertools
 import json
-from dataclasses import dataclass, replace
+from dataclasses import replace
 from datetime import datetime
 
 import numpy as np
 import pytest
 
 from benchmarks.discrepancy_trials import SteppedPlan
-from pipeline.discrepancy import MeasuredCampaign, build_model, calibrate
 from pipeline.discrepancy.calibrate import weighted_residuals
 from pipeline.discrepancy.collinearity import (
     collinearity_index,
@@ -44,18 +43,15 @@ from pipeline.discrepancy.report_text import markdown
 from pipeline.discrepancy.search import FitResult, ModelEvidence, SearchResult
 from pipeline.discrepancy.visibility import PLAUSIBLE, RISE_SIZED, Visibility, baseline_point
 from pipeline.errors import ParamsError
-from pipeline.settings.base import load_settings
-from pipeline.settings.discrepancy import DiscrepancySettings, IdentifiabilityParams
-from pipeline.thermal.program import Program, Segment
-from pipeline.twin.campaigns import SpindlePlan, simulate_spindle_campaign
-from pipeline.twin.params import SpindleParams
-from tests.twin_measured import measured_from_twin
-
-SECTION = load_settings(DiscrepancySettings, "discrepancy")
-SETTINGS = IdentifiabilitySettings.from_settings(SECTION.identifiability)
-# no campaign-to-campaign heat scatter: the data are the generator's baseline plus sensor noise
-NO_SCATTER = replace(SpindleParams(), heat_scatter_rel=0.0)
-
+from pipeline.settings.discrepancy import IdentifiabilityParams
+from tests.helpers.twin_cases import (
+    SECTION,
+    SETTINGS,
+    calibrated,
+    constant_speed_campaigns,
+    measured,
+    report_entry,
+)
 
 # ------------------------------------------------------------------ linear algebra
 
@@ -172,40 +168,10 @@ def test_settings_give_every_effect_parameter_a_size_within_its_bounds():
 # ------------------------------------------------------------------ the twin on campaigns
 
 
-@dataclass(frozen=True)
-class ConstantPlan(SpindlePlan):
-    """One speed from the first sample to the last: no step, no stop."""
-
-    def program(self) -> Program:
-        """The constant speed, open-ended."""
-        return Program((Segment(0.0, None, float(self.rpm)),), key="rpm")
-
-
-def _measured(plan: SpindlePlan) -> MeasuredCampaign:
-    campaign = simulate_spindle_campaign(plan, seed=5, params=NO_SCATTER, effects=frozenset())
-    return measured_from_twin(campaign)
-
-
-def _calibrated(campaigns: list[MeasuredCampaign]):
-    roles = {r for c in campaigns for r in c.roles.values()}
-    model = build_model(roles)
-    fit = calibrate(model, campaigns, max_nfev=60)
-    return model, fit, roles
-
-
-def constant_speed_campaigns() -> list[MeasuredCampaign]:
-    """Three 4 h campaigns at one constant 4000 rpm, a month apart, no cool-down."""
-    plans = [
-        ConstantPlan(f"C{i}", datetime(2024, 3 + i, 5, 8), 4000.0, run_min=240.0, cooldown_min=0)
-        for i in range(3)
-    ]
-    return [_measured(p) for p in plans]
-
-
 @pytest.fixture(scope="module")
 def constant_speed():
     campaigns = constant_speed_campaigns()
-    return campaigns, *_calibrated(campaigns)
+    return campaigns, *calibrated(campaigns)
 
 
 @pytest.fixture(scope="module")
@@ -221,8 +187,8 @@ def speed_steps():
         )
         for i in range(3)
     ]
-    campaigns = [_measured(p) for p in plans]
-    return campaigns, *_calibrated(campaigns)
+    campaigns = [measured(p) for p in plans]
+    return campaigns, *calibrated(campaigns)
 
 
 def _classes(case) -> dict:
@@ -350,32 +316,14 @@ def test_the_search_s_baseline_and_outcome_give_every_candidate_its_class(speed_
 # ------------------------------------------------------------------ the report's words
 
 
-def _entry(status: str, signal: float, index: float, shortfalls: list[str]) -> dict:
-    return {
-        "class": status,
-        "shortfalls": shortfalls,
-        "collinearity_index": index,
-        "collinearity_index_all_parameters": 1e6,
-        "signal_sigma": signal,
-        "signal_Z_sigma": signal,
-        "signal_T_sigma": signal,
-        "signal_Z_um": 0.05,
-        "signal_T_K": 0.012,
-        "response_Z_um": 0.6,
-        "response_T_K": 0.23,
-        "plausible_values": {"sensor_lag_s": {"value": 600.0, "unit": "s"}},
-        "thresholds": SETTINGS.thresholds(),
-    }
-
-
 def test_the_report_says_each_class_in_words():
     from pipeline.discrepancy.report_text import _identifiability_lines
 
     entries = {
-        "sensor_lag": _entry("not_identifiable", 0.34, 8.0, ["signal"]),
-        "thermal_bending": _entry("not_identifiable", 5.0, 44.0, ["collinearity"]),
-        "centrifugal_growth": _entry("not_needed", 4.2, 3.0, []),
-        "motor_heat": _entry("named", 9.0, 2.0, []),
+        "sensor_lag": report_entry("not_identifiable", 0.34, 8.0, ["signal"]),
+        "thermal_bending": report_entry("not_identifiable", 5.0, 44.0, ["collinearity"]),
+        "centrifugal_growth": report_entry("not_needed", 4.2, 3.0, []),
+        "motor_heat": report_entry("named", 9.0, 2.0, []),
         "ambient_variation": {
             "class": "untestable",
             "missing_roles": ["ambient"],
@@ -437,9 +385,9 @@ def test_the_threshold_trials_count_hidden_effects_on_the_wrong_side():
 
     from benchmarks.identifiability_trials import misplaced, thresholds_markdown, trial_rows
 
-    lag = _entry("not_identifiable", 0.4, 9.0, ["signal"])
-    centrifugal = _entry("named", 3.0, 3.0, [])
-    motor = _entry("named", 0.9, 40.0, ["signal"])
+    lag = report_entry("not_identifiable", 0.4, 9.0, ["signal"])
+    centrifugal = report_entry("named", 3.0, 3.0, [])
+    motor = report_entry("named", 0.9, 40.0, ["signal"])
     doc = {
         "named_effects": ["centrifugal_growth", "motor_heat"],
         "identifiability": {

@@ -34,7 +34,7 @@ from pipeline.validation.checks import validate_tables
 from pipeline.validation.tables import select_valid
 from schemas.vocabulary import SENSOR_ROLES
 from tests.helpers.repo_params import alignment_gap_s, validation_limits
-from tests.twin_measured import measured_from_twin
+from tests.helpers.twin_measured import measured_from_twin
 
 ALL_ROLES = set(SENSOR_ROLES) - {"nut", "coolant"}
 # no campaign-to-campaign heat scatter: the data are exactly the twin's baseline plus noise

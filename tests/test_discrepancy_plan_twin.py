@@ -17,14 +17,14 @@ from pipeline.discrepancy.calibrate import calibrate, prior_scales, weighted_res
 from pipeline.discrepancy.plan_twin import plan_twin
 from pipeline.discrepancy.visibility import baseline_point
 from pipeline.thermal.program import Program, Segment
-from tests.test_discrepancy_identifiability import _calibrated, constant_speed_campaigns
+from tests.helpers.twin_cases import calibrated, constant_speed_campaigns
 
 
 @pytest.fixture(scope="module")
 def flat():
     """Three campaigns at one constant 4000 rpm, their model and calibrated baseline point."""
     campaigns = constant_speed_campaigns()
-    model, fit, roles = _calibrated(campaigns)
+    model, fit, roles = calibrated(campaigns)
     point = baseline_point(campaigns, {k: v for k, (v, _) in fit.params.items()}, roles)
     return model, point, plan_twin(point)
 

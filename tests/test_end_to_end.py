@@ -15,8 +15,8 @@ import pytest
 import yaml
 from mlflow.tracking import MlflowClient
 
+from tests.helpers.mlflow_server import running_mlflow_server
 from tests.helpers.repository import copy_repository
-from tests.mlflow_server import running_mlflow_server
 
 pytestmark = pytest.mark.slow
 

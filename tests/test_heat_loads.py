@@ -32,8 +32,8 @@ from pipeline.twin.params import SpindleParams
 from pipeline.twin.spindle import simulate_spindle
 from pipeline.twin.writer import write_campaign
 from schemas.vocabulary import STRUCTURE_ROLES
-from tests.raw_builders import write_axis_campaign, write_spindle_campaign
-from tests.raw_edits import edit_yaml
+from tests.helpers.raw_builders import write_axis_campaign, write_spindle_campaign
+from tests.helpers.raw_edits import edit_yaml
 
 REPO = Path(__file__).resolve().parents[1]
 BAD = "B01"

@@ -3,8 +3,8 @@ import pandas as pd
 import pytest
 
 from pipeline.io.tables import ingest
-from tests.raw_builders import write_spindle_campaign
-from tests.raw_edits import set_cell
+from tests.helpers.raw_builders import write_spindle_campaign
+from tests.helpers.raw_edits import set_cell
 
 
 def test_ingest_reads_samples_on_temperature_time_base(tmp_path):

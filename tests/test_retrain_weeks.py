@@ -32,9 +32,9 @@ import pytest
 import yaml
 from mlflow.tracking import MlflowClient
 
+from tests.helpers.mlflow_server import running_mlflow_server
 from tests.helpers.repository import copy_repository
-from tests.mlflow_server import running_mlflow_server
-from tests.s3_server import S3_CREDENTIALS, running_s3_server
+from tests.helpers.s3_server import S3_CREDENTIALS, running_s3_server
 
 pytestmark = pytest.mark.slow
 

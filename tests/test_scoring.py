@@ -13,6 +13,7 @@ from pipeline.protocol.scoring import (
     score_matrix,
     summarise,
 )
+from tests.helpers.score_rows import score_rows, two_campaigns_and_a_season
 
 
 def test_information_criteria_match_their_definitions_and_aicc_is_undefined_without_room():
@@ -43,29 +44,9 @@ def test_residual_std_matches_eq_8_and_ignores_nan():
     assert np.isnan(residual_std(np.array([1.0])))
 
 
-def _rows(train, values, scheme="campaign", mode="static"):
-    return [
-        {
-            "axis": "Z",
-            "model": "mlr",
-            "selection": "all",
-            "mode": mode,
-            "scheme": scheme,
-            "train_unit": train,
-            "test_campaign": test,
-            "test_split": split,
-            "role": role,
-            "resid_std_um": v,
-            "rmse_um": 2 * v,
-            "uncompensated_rms_um": 10.0 * v,
-        }
-        for test, split, role, v in values
-    ]
-
-
 def test_summary_uses_other_training_campaigns_for_mn_and_validation_separately():
     scores = pd.DataFrame(
-        _rows(
+        score_rows(
             "K1",
             [
                 ("K1", "train", "fit", 1.0),
@@ -91,38 +72,8 @@ def test_eta_is_one_minus_rms_over_the_uncompensated_rms():
     assert np.isnan(compensation_ratio(1.0, 0.0))
 
 
-def _two_campaigns_and_a_season():
-    return pd.DataFrame(
-        _rows(
-            "K1",
-            [
-                ("K1", "train", "fit", 1.0),
-                ("K2", "train", "prediction", 3.0),
-                ("V1", "validation", "validation", 6.0),
-            ],
-        )
-        + _rows(
-            "K2",
-            [
-                ("K1", "train", "prediction", 2.0),
-                ("K2", "train", "fit", 0.5),
-                ("V1", "validation", "validation", 4.0),
-            ],
-        )
-        + _rows(
-            "not_winter",
-            [
-                ("K1", "train", "prediction", 7.0),
-                ("K2", "train", "fit", 0.2),
-                ("V1", "validation", "validation", 5.0),
-            ],
-            scheme="loso",
-        )
-    )
-
-
 def test_metrics_tree_and_matrix_layout():
-    scores = _two_campaigns_and_a_season()
+    scores = two_campaigns_and_a_season()
     tree = metrics_tree(scores)["Z"]["mlr"]["all"]["static"]
     assert set(tree["by_train_unit"]) == {"K1", "K2", "not_winter"}
     assert tree["S_um"] == pytest.approx(0.75)
@@ -142,7 +93,7 @@ def test_metrics_tree_and_matrix_layout():
 
 
 def test_candidate_summary_has_one_row_per_candidate_with_scheme_prefixes():
-    scores = _two_campaigns_and_a_season()
+    scores = two_campaigns_and_a_season()
     summary = candidate_summary(scores)
     assert len(summary) == 1
     row = summary.iloc[0]
@@ -153,7 +104,7 @@ def test_candidate_summary_has_one_row_per_candidate_with_scheme_prefixes():
 
 
 def test_group_scores_per_held_out_season_and_validation_season():
-    scores = _two_campaigns_and_a_season().assign(
+    scores = two_campaigns_and_a_season().assign(
         test_season=lambda t: t["test_campaign"].map(
             {"K1": "winter", "K2": "summer", "V1": "spring"}
         ),

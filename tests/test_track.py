@@ -50,7 +50,7 @@ from pipeline.separation.features import InputSpec, model_inputs
 from pipeline.stages import track
 from pipeline.tracking import identity, records, stage_outputs, store
 from schemas.evaluated import CrossSeasonScoresModel
-from tests.mlflow_server import running_mlflow_server
+from tests.helpers.mlflow_server import running_mlflow_server
 
 EXPERIMENT = "thermal-test"
 REGISTERED = "thermal-error-spindle"

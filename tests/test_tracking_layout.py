@@ -10,7 +10,7 @@ import pandas as pd
 
 from pipeline.protocol.scoring import SCHEME_PREFIX, candidate_summary, group_score_name, summarise
 from pipeline.tracking import guide, records, views
-from tests.test_scoring import _two_campaigns_and_a_season
+from tests.helpers.score_rows import two_campaigns_and_a_season
 
 
 def _statistic(column: str) -> str:
@@ -23,7 +23,7 @@ def _statistic(column: str) -> str:
 
 
 def test_the_experiment_description_explains_every_score_name():
-    scores = _two_campaigns_and_a_season()
+    scores = two_campaigns_and_a_season()
     columns = [c for c in candidate_summary(scores).columns if c not in records.KEY_COLUMNS]
     assert {_statistic(c) for c in columns} <= set(guide.STATISTICS)
     statistics = "S Mn Sd Mn_val Sd_val S_rms Mn_rms Sd_rms Mn_val_rms Sd_val_rms".split()

@@ -2,8 +2,8 @@
 
 :func:`running_mlflow` starts the ``mlflow`` executable of the running Python environment on a
 free port, waits for ``/health`` and always stops it with its workers (:func:`stop_group`, its
-whole process group). The MLflow server of the end-to-end tests (``tests/mlflow_server.py``), the
-UI check (``tests/ui/``), the S3 server and the OPC UA controller start their processes this way.
+whole process group). The MLflow server of the end-to-end tests (:mod:`.mlflow_server`), the UI
+check (``tests/ui/``), the S3 server and the OPC UA controller start their processes this way.
 """
 
 from __future__ import annotations

@@ -2,7 +2,7 @@
 
 Usage (in a test marked ``@pytest.mark.slow``)::
 
-    from tests.s3_server import running_s3_server
+    from tests.helpers.s3_server import running_s3_server
 
     with running_s3_server(tmp_path, bucket="campaigns") as endpoint:  # "http://127.0.0.1:<port>"
         env = {**os.environ, **S3_CREDENTIALS}

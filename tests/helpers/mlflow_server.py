@@ -2,7 +2,7 @@
 
 Usage (in a test marked ``@pytest.mark.slow``)::
 
-    from tests.mlflow_server import running_mlflow_server
+    from tests.helpers.mlflow_server import running_mlflow_server
 
     with running_mlflow_server(tmp_path) as uri:   # "http://127.0.0.1:<port>"
         env = {**os.environ, "MLFLOW_TRACKING_URI": uri}

@@ -1,7 +1,7 @@
 """A stand-in for a machine controller's OPC UA server, run as its own process by the tests.
 
-``python -m tests.opcua_controller <port> <sensor> [<sensor> ...] --axes Z [X ...]`` serves, in
-namespace 2 with string node ids, a Double variable per sensor, ``rpm``, ``elapsed_s``,
+``python -m tests.helpers.opcua_controller <port> <sensor> [<sensor> ...] --axes Z [X ...]``
+serves, in namespace 2 with string node ids, a Double variable per sensor, ``rpm``, ``elapsed_s``,
 ``offset_<axis>`` per axis and ``compensation_t_s``; ``--read-only-axis A`` makes
 ``offset_A`` refuse writes. Prints ``ready`` once it listens, and runs until killed.
 """

@@ -34,12 +34,7 @@ from pipeline.discrepancy.report_text import _identifiability_line
 from pipeline.discrepancy.visibility import Visibility, baseline_point, visibility
 from pipeline.thermal.program import Program
 from schemas.vocabulary import SENSOR_ROLES
-from tests.test_discrepancy_identifiability import (
-    SETTINGS,
-    _calibrated,
-    _entry,
-    constant_speed_campaigns,
-)
+from tests.helpers.twin_cases import SETTINGS, calibrated, constant_speed_campaigns, report_entry
 
 SPEED_EFFECTS = ("nonlinear_bearing_heat", "centrifugal_growth")
 
@@ -48,7 +43,7 @@ SPEED_EFFECTS = ("nonlinear_bearing_heat", "centrifugal_growth")
 def flat():
     """Three campaigns at one constant 4000 rpm, the calibrated baseline, classes and plans."""
     campaigns = constant_speed_campaigns()
-    _, fit, roles = _calibrated(campaigns)
+    _, fit, roles = calibrated(campaigns)
     point = baseline_point(campaigns, {k: v for k, (v, _) in fit.params.items()}, roles)
     classes = assess_effects(point, EFFECTS, [], {}, SETTINGS)
     return point, classes, tp.propose_tests(point, classes, SETTINGS)
@@ -379,12 +374,12 @@ def test_a_plan_the_search_would_name_comes_before_a_cheaper_one_it_would_not(mo
 
 def test_the_report_gives_the_engineer_the_paragraph():
     entry = {
-        **_entry(NOT_IDENTIFIABLE, 0.5, 10.0, ["signal"]),
+        **report_entry(NOT_IDENTIFIABLE, 0.5, 10.0, ["signal"]),
         "proposed_test": {"text": "Run the 4 h stepped test."},
     }
     line = _identifiability_line("sensor_lag", entry)
     assert "not identifiable" in line and "*Proposed test.* Run the 4 h stepped test." in line
-    plain = _identifiability_line("sensor_lag", _entry(NOT_NEEDED, 3.0, 10.0, []))
+    plain = _identifiability_line("sensor_lag", report_entry(NOT_NEEDED, 3.0, 10.0, []))
     assert "Proposed test" not in plain
 
 
