@@ -22,19 +22,22 @@ run: install
 	$(BIN)/dvc repro
 	$(BIN)/thermal summary
 
-# Two workers (pytest-xdist), each test on whichever is free: the 2-core CI machine's time.
+# Two workers (pytest-xdist), a whole module at a time so that its shared pipeline run is built
+# once; the slow modules start first (tests/conftest.py): the 2-core CI machine's time.
 test: install
-	PATH="$(CURDIR)/$(BIN):$$PATH" $(BIN)/python -m pytest -n 2 --dist worksteal
+	PATH="$(CURDIR)/$(BIN):$$PATH" $(BIN)/python -m pytest -n 2 --dist loadscope
 
 test-fast: install
-	PATH="$(CURDIR)/$(BIN):$$PATH" $(BIN)/python -m pytest -n 2 --dist worksteal -m "not slow"
+	PATH="$(CURDIR)/$(BIN):$$PATH" $(BIN)/python -m pytest -n 2 --dist loadscope -m "not slow"
 
 bench: install
 	PATH="$(CURDIR)/$(BIN):$$PATH" $(BIN)/python -m benchmarks.bench
 
-# Every hidden-effect case over seeds 1-5 (8 campaigns each); trials-quick: 4 campaigns, 2 folds.
+# Every hidden-effect case over seeds 1-5 (8 campaigns each), then the trial tests (seed 1, every
+# case, the proposed tests run; `make test` runs one case); trials-quick: 4 campaigns, 2 folds.
 trials: install
 	$(BIN)/python -m benchmarks.discrepancy_trials --seeds 1 2 3 4 5 --out reports/discrepancy_trials
+	PATH="$(CURDIR)/$(BIN):$$PATH" $(BIN)/python -m pytest -n 2 --dist loadscope -m trials
 
 trials-quick: install
 	$(BIN)/python -m benchmarks.discrepancy_trials --quick --seeds 1 2 3 4 5 --out reports/discrepancy_trials_quick

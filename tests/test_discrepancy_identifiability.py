@@ -350,6 +350,7 @@ def test_the_report_says_each_class_in_words():
 
 
 @pytest.mark.slow
+@pytest.mark.trials
 def test_a_hidden_sensor_lag_is_called_not_identifiable_and_its_test_names_it(tmp_path):
     """With the lag hidden (seed 1, 4 campaigns) the search names nothing, as on
     clean data; the report says the lag is not identifiable with these campaigns instead of

@@ -412,6 +412,7 @@ def test_the_plan_s_sensors_read_with_the_campaigns_noise_floors(flat):
 
 
 @pytest.mark.slow
+@pytest.mark.trials
 def test_the_proposed_heater_tests_run_on_the_same_machine_name_the_bending(tmp_path):
     """The trial with bending hidden (seed 1, 4 campaigns): the workflow calls it not
     identifiable and proposes a heater on a column half, a calibration step first when only

@@ -1,4 +1,9 @@
-"""End-to-end: the real `dvc repro` on a copy of the repository (demo campaigns), real MLflow."""
+"""End-to-end: the real `dvc repro` on a copy of the repository (demo campaigns), real MLflow.
+
+The demo pipeline runs once, in full, against a real ``mlflow server`` (:func:`demo`); the tests
+that add a campaign continue from a copy of that finished run, as a user's next ``dvc repro``
+does, so that only the stages their change reaches run again.
+"""
 
 from __future__ import annotations
 
@@ -7,6 +12,7 @@ import os
 import shutil
 import subprocess
 import sys
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -51,6 +57,30 @@ def _scores(work: Path) -> pd.DataFrame:
     return pd.read_csv(work / "reports" / "cross_season_scores.csv")
 
 
+@dataclass(frozen=True)
+class Demo:
+    """The finished demo run: its repository copy, the server's URI and the repro's output."""
+
+    work: Path
+    uri: str
+    output: str
+
+
+@pytest.fixture(scope="module")
+def demo(tmp_path_factory):
+    tmp = tmp_path_factory.mktemp("demo")
+    work = copy_repository(ROOT, tmp / "repo")
+    with running_mlflow_server(tmp / "server") as uri:
+        yield Demo(work, uri, _repro(work, _env(uri)))
+
+
+def _continue_from(demo: Demo, destination: Path) -> Path:
+    """A copy of the finished demo run (outputs, DVC cache, git) without its MLflow store."""
+    ignore = shutil.ignore_patterns("mlflow.db", "mlartifacts")
+    shutil.copytree(demo.work, destination, symlinks=True, ignore=ignore)
+    return destination
+
+
 def _fewer_candidates(work: Path, candidates: dict[str, str]) -> None:
     """Keep the copy's pipeline short: only these candidates, and two candidate effects in two
     folds in the discrepancy search (everything runs in full in the MLflow test)."""
@@ -60,13 +90,15 @@ def _fewer_candidates(work: Path, candidates: dict[str, str]) -> None:
     (work / "params.yaml").write_text(yaml.safe_dump(params, sort_keys=False))
 
 
-def test_new_campaign_is_scored_old_scores_kept_unrelated_stages_skipped(tmp_path):
-    work = copy_repository(ROOT, tmp_path / "repo")
-    _fewer_candidates(work, {"none": "none", "mlr": "best_subset", "dl": "fc_grd", "arma": "none"})
-    env = _env(f"sqlite:///{work / 'mlflow.db'}")
-    _repro(work, env)
+def test_new_campaign_is_scored_old_scores_kept_unrelated_stages_skipped(demo, tmp_path):
+    work = _continue_from(demo, tmp_path / "repo")
+    candidates = {"none": "none", "mlr": "best_subset", "dl": "fc_grd", "arma": "none"}
     before = _scores(work)
+    pairs = before[["model", "selection"]].apply(tuple, axis=1)
+    before = before[pairs.isin(candidates.items())].reset_index(drop=True)
     assert "K13" not in set(before["test_campaign"])
+    _fewer_candidates(work, candidates)
+    env = _env(f"sqlite:///{work / 'mlflow.db'}")
 
     simulate = (
         "simulate --preset single --id K13 --season summer --rpm 4000 --seed 13 --out data/raw"
@@ -96,8 +128,8 @@ def test_new_campaign_is_scored_old_scores_kept_unrelated_stages_skipped(tmp_pat
     assert "Running stage 'evaluate'" not in output
 
 
-def test_malformed_campaign_is_quarantined_while_the_others_are_scored(tmp_path):
-    work = copy_repository(ROOT, tmp_path / "repo")
+def test_malformed_campaign_is_quarantined_while_the_others_are_scored(demo, tmp_path):
+    work = _continue_from(demo, tmp_path / "repo")
     raw = work / "data" / "raw"
     bad = raw / "K99"
     shutil.copytree(raw / "K01", bad)
@@ -108,7 +140,6 @@ def test_malformed_campaign_is_quarantined_while_the_others_are_scored(tmp_path)
     temperature.loc[0, "T3"] = "85.0"  # DS18B20 power-on value in data row 1
     temperature.to_csv(bad / "temperature.csv", index=False)
     raw_bytes = {p: p.read_bytes() for p in bad.iterdir()}
-    _fewer_candidates(work, {"none": "none", "mlr": "best_subset"})
 
     _repro(work, _env(f"sqlite:///{work / 'mlflow.db'}"))
 
@@ -257,40 +288,38 @@ def _check_compensation(work: Path, uri: str, client) -> None:
     np.testing.assert_allclose(written, expected, atol=1e-3)
 
 
-def test_every_score_reaches_a_real_mlflow_server_once_and_the_champion_loads(tmp_path):
-    work = copy_repository(ROOT, tmp_path / "repo")
-    with running_mlflow_server(tmp_path / "server") as uri:
-        env = _env(uri)
-        output = _repro(work, env)
-        # library warnings are counted (one line per stage, per candidate in the report), not
-        # printed: the demo's fits emit hundreds
-        warned = [line for line in output.splitlines() if "Warning" in line]
-        assert len(warned) <= 20, "\n".join(warned[:40])
-        client = MlflowClient(tracking_uri=uri)
-        experiment = client.get_experiment_by_name(_experiment())
-        runs = client.search_runs([experiment.experiment_id], max_results=1000)
-        parents = [r for r in runs if "mlflow.parentRunId" not in r.data.tags]
-        children = [r for r in runs if "mlflow.parentRunId" in r.data.tags]
-        scores = _scores(work)
-        params = yaml.safe_load((work / "params.yaml").read_text())
-        assert set(scores["model"]) == set(params["evaluate"]["candidates"])
-        assert set(scores["axis"]) == {"Z"}  # the demo campaigns have a Z probe only
-        assert len(parents) == 1
-        assert len(children) == scores.groupby(["axis", "model", "selection", "mode"]).ngroups
-        assert all(r.data.tags["warnings"].split()[0].isdigit() for r in children)
-        _check_child_tables(client, children, scores, tmp_path)
-        _check_child_headlines(work, children)
-        assert parents[0].data.tags.get("git_commit")
-        assert (work / "reports" / "model_comparison.md").is_file()
-        twin = scores.query("model == 'twin'")
-        assert {"K01", "not_summer", "all_training"} <= set(twin["train_unit"])
-        assert twin["rmse_um"].notna().all()
-        _check_discrepancy_run(work, client, params["discrepancy"]["experiment"], parents[0])
-        _check_champion_loads(work, uri, scores)
-        _check_compensation(work, uri, client)
+def test_every_score_reaches_a_real_mlflow_server_once_and_the_champion_loads(demo, tmp_path):
+    work, uri, output = demo.work, demo.uri, demo.output
+    env = _env(uri)
+    # library warnings are counted (one line per stage, per candidate in the report), not
+    # printed: the demo's fits emit hundreds
+    warned = [line for line in output.splitlines() if "Warning" in line]
+    assert len(warned) <= 20, "\n".join(warned[:40])
+    client = MlflowClient(tracking_uri=uri)
+    experiment = client.get_experiment_by_name(_experiment())
+    runs = client.search_runs([experiment.experiment_id], max_results=1000)
+    parents = [r for r in runs if "mlflow.parentRunId" not in r.data.tags]
+    children = [r for r in runs if "mlflow.parentRunId" in r.data.tags]
+    scores = _scores(work)
+    params = yaml.safe_load((work / "params.yaml").read_text())
+    assert set(scores["model"]) == set(params["evaluate"]["candidates"])
+    assert set(scores["axis"]) == {"Z"}  # the demo campaigns have a Z probe only
+    assert len(parents) == 1
+    assert len(children) == scores.groupby(["axis", "model", "selection", "mode"]).ngroups
+    assert all(r.data.tags["warnings"].split()[0].isdigit() for r in children)
+    _check_child_tables(client, children, scores, tmp_path)
+    _check_child_headlines(work, children)
+    assert parents[0].data.tags.get("git_commit")
+    assert (work / "reports" / "model_comparison.md").is_file()
+    twin = scores.query("model == 'twin'")
+    assert {"K01", "not_summer", "all_training"} <= set(twin["train_unit"])
+    assert twin["rmse_um"].notna().all()
+    _check_discrepancy_run(work, client, params["discrepancy"]["experiment"], parents[0])
+    _check_champion_loads(work, uri, scores)
+    _check_compensation(work, uri, client)
 
-        _repro(work, env)
-        again = client.search_runs([experiment.experiment_id], max_results=1000)
-        assert len(again) == len(runs)
-        discrepancy = client.get_experiment_by_name(params["discrepancy"]["experiment"])
-        assert len(client.search_runs([discrepancy.experiment_id])) == 1
+    _repro(work, env)
+    again = client.search_runs([experiment.experiment_id], max_results=1000)
+    assert len(again) == len(runs)
+    discrepancy = client.get_experiment_by_name(params["discrepancy"]["experiment"])
+    assert len(client.search_runs([discrepancy.experiment_id])) == 1
