@@ -40,9 +40,11 @@ from pathlib import Path
 from typing import Any
 from urllib.parse import urlencode
 
-from pipeline.config import DEFAULT_PARAMS, load_section
+from pipeline.config import DEFAULT_PARAMS
 from pipeline.errors import InputDataError, MissingInputError, UserError
 from pipeline.paths import REPORTS, TRACKING_RECORD
+from pipeline.settings.base import load_settings
+from pipeline.settings.tracking import DEFAULT_TRACKING_URI, TrackingSettings
 from pipeline.tracking.store import public_uri as public
 from pipeline.tracking.store import sqlite_path
 from tests.helpers.processes import HEALTH_TIMEOUT_S, ServerError, healthy, running_mlflow
@@ -52,7 +54,7 @@ from tests.ui.pages import Page, check_page, make_pages
 
 PROG = "ui-check"
 ENV_TRACKING_URI = "MLFLOW_TRACKING_URI"
-DEFAULT_STORE = "sqlite:///mlflow.db"
+DEFAULT_STORE = DEFAULT_TRACKING_URI
 SCREENSHOTS = REPORTS / "ui"
 BUDGET_MS = 15000
 NO_CHROMIUM = (
@@ -123,7 +125,7 @@ def resolve_store(
     """
     default = DEFAULT_STORE
     if params_path.is_file():
-        default = str(load_section("tracking", params_path).get("default_tracking_uri") or default)
+        default = load_settings(TrackingSettings, "tracking", params_path).default_tracking_uri
     uri = option or env.get(ENV_TRACKING_URI) or record.get("tracking_uri") or default
     path = sqlite_path(uri)
     if path is None:
