@@ -25,7 +25,7 @@ run: install
 # Two workers (pytest-xdist), a whole module at a time so that its shared pipeline run is built
 # once; the slow modules start first (tests/conftest.py): the 2-core CI machine's time.
 test: install
-	PATH="$(CURDIR)/$(BIN):$$PATH" $(BIN)/python -m pytest -n 2 --dist loadscope
+	PATH="$(CURDIR)/$(BIN):$$PATH" $(BIN)/python -m pytest -n 2 --dist loadscope --durations=15
 
 test-fast: install
 	PATH="$(CURDIR)/$(BIN):$$PATH" $(BIN)/python -m pytest -n 2 --dist loadscope -m "not slow"

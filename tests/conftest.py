@@ -1,17 +1,35 @@
-"""Test-suite order: the slow modules first, so that two workers finish together.
+"""Test-suite order: the longest modules first, so that two workers finish together.
 
 ``make test`` hands whole modules to its two workers (``--dist loadscope``), so a module's
 shared fixture (one pipeline run for all its tests) is built once. Starting with the modules
-that run the pipeline end to end, the longest jobs, and filling in with the fast ones is the
-longest-processing-time-first rule, which keeps one worker from finishing long after the other.
+that run the whole pipeline, the longest jobs, then the other slow ones, and filling in with the
+fast ones is the longest-processing-time-first rule, which keeps one worker from finishing long
+after the other.
 """
 
 from __future__ import annotations
 
 import pytest
 
+PIPELINE_MODULES = (
+    "tests.test_end_to_end",
+    "tests.test_workshop_end_to_end",
+    "tests.test_readme_commands",
+    "tests.test_retrain_weeks",
+    "tests.test_tracking_offline",
+    "tests.test_dvc_remote",
+)
+"""Modules whose tests run ``dvc repro`` on a copy of the repository, longest first."""
+
+
+def _rank(item: pytest.Item, slow_modules: set[str]) -> tuple[int, int]:
+    module = item.module.__name__
+    if module in PIPELINE_MODULES:
+        return 0, PIPELINE_MODULES.index(module)
+    return (1 if module in slow_modules else 2), 0
+
 
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
-    """Put the modules holding ``slow`` tests first, keeping each module's tests together."""
+    """Pipeline modules first, then the other modules with ``slow`` tests, then the rest."""
     slow_modules = {item.module.__name__ for item in items if item.get_closest_marker("slow")}
-    items.sort(key=lambda item: item.module.__name__ not in slow_modules)
+    items.sort(key=lambda item: _rank(item, slow_modules))
