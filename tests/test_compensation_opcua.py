@@ -17,6 +17,7 @@ from asyncua.sync import Client
 
 from pipeline.compensation.axis import bound
 from pipeline.compensation.bundle import write_bundle
+from pipeline.compensation.opcua import NodeMap, OpcUaSource
 from pipeline.settings.compensation import CompensationSettings
 from tests.helpers.compensation_bundle import SENSORS, campaign, fitted_bundle, offline_prediction
 from tests.helpers.processes import free_port, stop_group
@@ -141,6 +142,31 @@ def test_the_runtime_compensates_a_replayed_campaign_through_a_real_opcua_server
     assert modes == [(1.0, "champion", "champion"), (t_lost, "fallback", f"without_{LOST}")]
     assert sum(e["event"] == "write" for e in logged) == len(table)
     assert "120 cycles, 120 writes, 0 refused" in runtime_log.read_text()
+
+
+@pytest.mark.slow
+def test_the_time_found_at_connection_is_not_a_reading_whenever_its_notification_comes(tmp_path):
+    port = free_port()
+    url = f"opc.tcp://127.0.0.1:{port}/controller"
+    log = tmp_path / "server.log"
+    server = _start([sys.executable, "-m", "tests.helpers.opcua_controller", str(port), "T1"], log)
+    try:
+        _wait_for(lambda: "ready ns=2" in log.read_text(), 30.0, "the server", [log])
+        source = OpcUaSource(url, NodeMap.defaults(["T1"], ["Z"], speed=False), publishing_ms=20)
+        client = Client(url, timeout=4)
+        client.connect()
+        try:
+            time.sleep(0.5)  # the subscription's first notification (t = 0.0) has come
+            assert source.poll(0.2) == []
+            client.get_node("ns=2;s=T1").write_value(_double(21.5))
+            client.get_node("ns=2;s=elapsed_s").write_value(_double(1.0))
+            readings = source.poll(5.0)
+        finally:
+            client.disconnect()
+            source.close()
+    finally:
+        stop_group(server)
+    assert [(r.t_s, r.values) for r in readings] == [(1.0, {"T1": 21.5})]
 
 
 @pytest.mark.slow

@@ -13,7 +13,9 @@ and, ideally, a time node, and takes per-axis offsets. The node ids come from a 
     cycle: "ns=2;s=compensation_t_s"  # optional: the machine time each write answers
 
 - :class:`OpcUaSource`: with a ``time`` node, a subscription on it; each change is one reading
-  (every sensor node read at once, a value with a bad status counts as missing). Without one,
+  (every sensor node read at once, a value with a bad status counts as missing). The time found
+  when the runtime first connects is not a change: the first reading is the next machine time,
+  whether the subscription's first notification comes before or after it. Without one,
   the nodes are read every ``cycle_s`` and the reading's time is the wall clock.
 - :class:`OpcUaSink`: writes each axis' offset (Double, um) to its node, then the cycle node; a
   refused write raises, and the runtime retries and reports it.
@@ -152,8 +154,12 @@ class OpcUaSource:
         self._nodes = [self.client.get_node(node_id) for node_id in self._ids]
         self._subscription = None
         if self.nodes.time:
+            time_node = self.client.get_node(self.nodes.time)
+            if self._last_time is None:
+                found = time_node.read_value()
+                self._last_time = float(found) if isinstance(found, int | float) else None
             self._subscription = self.client.create_subscription(self.publishing_ms, self._handler)
-            self._subscription.subscribe_data_change(self.client.get_node(self.nodes.time))
+            self._subscription.subscribe_data_change(time_node)
 
     @property
     def exhausted(self) -> bool:
