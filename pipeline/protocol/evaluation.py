@@ -20,6 +20,7 @@ import pandas as pd
 from pipeline.models import MODELS
 from pipeline.protocol.candidates import candidate_list, run_all
 from pipeline.protocol.champion import (
+    NO_COMPENSATION,
     Decision,
     champion_card,
     choose_champion,
@@ -329,6 +330,59 @@ def best_plain_baseline(summary: pd.DataFrame, column: str | None) -> pd.Series 
     return None if plain.empty else plain.sort_values(column).iloc[0]
 
 
+@dataclass(frozen=True)
+class AxisComparison:
+    """What the report compares on one axis, computed once after the champion is chosen.
+
+    Attributes
+    ----------
+    best : Series
+        Summary row of the best-ranked candidate that compensates (the champion's when every
+        candidate is ``none``).
+    plain : Series or None
+        Summary row of the better plain all-temperature regression (:func:`best_plain_baseline`).
+    best_heldout, plain_heldout : DataFrame
+        Their predictions of each campaign by a fit that did not see it (:func:`heldout_table`,
+        um); ``plain_heldout`` is empty without a plain baseline.
+    groups : DataFrame
+        The axis' held-out scores per season or campaign
+        (:func:`pipeline.protocol.scoring.group_scores`).
+    """
+
+    best: pd.Series
+    plain: pd.Series | None
+    best_heldout: pd.DataFrame
+    plain_heldout: pd.DataFrame
+    groups: pd.DataFrame
+
+
+def compare_axis(
+    item: AxisEvaluation, summary: pd.DataFrame, groups: pd.DataFrame
+) -> AxisComparison:
+    """Return the axis' comparison of its best model with the plain baseline.
+
+    Parameters
+    ----------
+    item : AxisEvaluation
+        With ``decision`` set (:func:`decide`).
+    summary : DataFrame
+        :func:`pipeline.protocol.scoring.candidate_summary` of every axis' scores.
+    groups : DataFrame
+        :func:`pipeline.protocol.scoring.group_scores` of every axis' scores.
+    """
+    decision = item.decision
+    models = decision.ranked[decision.ranked["model"] != NO_COMPENSATION]
+    best = models.iloc[0] if len(models) else decision.champion
+    plain = best_plain_baseline(summary[summary["axis"] == item.axis], decision.column)
+    return AxisComparison(
+        best=best,
+        plain=plain,
+        best_heldout=heldout_table(item, best),
+        plain_heldout=empty_heldout_table() if plain is None else heldout_table(item, plain),
+        groups=groups[groups["axis"] == item.axis],
+    )
+
+
 def input_spec(inputs: list[str], features: str, separation: dict) -> InputSpec:
     """How the champion's inputs are prepared: reference, speed responses, window (separation)."""
     settings = separation.get("settings") or {}
@@ -495,9 +549,12 @@ def heldout_table(item: AxisEvaluation, row: pd.Series) -> pd.DataFrame:
                 }
             )
         )
-    if not frames:
-        return pd.DataFrame({name: pd.Series(dtype=float) for name in HELDOUT_COLUMNS})
-    return pd.concat(frames, ignore_index=True)
+    return pd.concat(frames, ignore_index=True) if frames else empty_heldout_table()
+
+
+def empty_heldout_table() -> pd.DataFrame:
+    """Return a :func:`heldout_table` without rows."""
+    return pd.DataFrame({name: pd.Series(dtype=float) for name in HELDOUT_COLUMNS})
 
 
 def evaluation_metrics(

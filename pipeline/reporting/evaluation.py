@@ -14,41 +14,33 @@ import numpy as np
 import pandas as pd
 
 from pipeline import paths, plots
-from pipeline.protocol.champion import (
-    NO_COMPENSATION,
-)
-from pipeline.protocol.evaluation import (
-    CANDIDATE,
-    AxisEvaluation,
-    best_plain_baseline,
-    held_out_prediction,
-    label,
-)
-from pipeline.protocol.scoring import group_scores, score_matrix
+from pipeline.protocol.evaluation import CANDIDATE, AxisComparison, AxisEvaluation, label
+from pipeline.protocol.scoring import score_matrix
+from pipeline.protocol.units import CampaignSeries
 from pipeline.reporting import comparison as comparison_report
 
 
-def prediction_panels(item: AxisEvaluation, first: pd.Series, second: pd.Series | None) -> dict:
+def prediction_panels(series: list[CampaignSeries], comparison: AxisComparison) -> dict:
     """Measured and predicted error of held-out campaigns, per campaign (um).
 
     The validation campaigns when there are any, else the training campaigns, each predicted by
-    the protocol fit that left it out.
+    the protocol fit that left it out (the comparison's held-out tables); ``second_um`` is NaN
+    where the plain baseline has no such fit.
     """
-    validation = [s for s in item.series if s.split == "validation"]
-    shown = validation or [s for s in item.series if s.split == "train"]
+    validation = [s.campaign_id for s in series if s.split == "validation"]
+    shown = validation or [s.campaign_id for s in series if s.split == "train"]
+    plain = dict(tuple(comparison.plain_heldout.groupby("campaign_id", sort=False)))
     panels = {}
-    for campaign in shown:
-        one = held_out_prediction(item, first, campaign)
-        if one is None:
+    for campaign, first in comparison.best_heldout.groupby("campaign_id", sort=False):
+        if campaign not in shown:
             continue
-        two = None if second is None else held_out_prediction(item, second, campaign)
-        minutes = campaign.features.index.get_level_values("elapsed_s").to_numpy() / 60.0
-        panels[campaign.campaign_id] = pd.DataFrame(
+        second = plain.get(campaign)
+        panels[campaign] = pd.DataFrame(
             {
-                "elapsed_min": minutes,
-                "measured_um": campaign.target,
-                "first_um": one,
-                "second_um": np.full(len(minutes), np.nan) if two is None else two,
+                "elapsed_min": first["elapsed_s"].to_numpy() / 60.0,
+                "measured_um": first["measured_um"].to_numpy(),
+                "first_um": first["predicted_um"].to_numpy(),
+                "second_um": np.nan if second is None else second["predicted_um"].to_numpy(),
             }
         )
     return panels
@@ -118,6 +110,7 @@ class AxisReport:
 
 def report_axis(
     item: AxisEvaluation,
+    comparison: AxisComparison,
     summary: pd.DataFrame,
     card: dict,
     selected: dict,
@@ -126,13 +119,15 @@ def report_axis(
     origin: str,
     twin_text: str,
 ) -> AxisReport:
-    """One axis' report section, its held-out figure and its rows of the DVC plot tables."""
+    """One axis' report section, its held-out figure and its rows of the DVC plot tables.
+
+    Formats what the protocol computed: the evaluation (``item``, champion decided) and its
+    comparison of the best model with the plain baseline (``comparison``).
+    """
     rows = summary[summary["axis"] == item.axis]
     decision = item.decision
-    models = decision.ranked[decision.ranked["model"] != NO_COMPENSATION]
-    first = models.iloc[0] if len(models) else decision.champion
-    second = best_plain_baseline(rows, decision.column)
-    panels = prediction_panels(item, first, second)
+    first, second = comparison.best, comparison.plain
+    panels = prediction_panels(item.series, comparison)
     figure = paths.COMPARISON_FIGURES / f"heldout_{item.axis}.png"
     labels = (
         f"best model: {label(first)}",
@@ -146,7 +141,6 @@ def report_axis(
     seasons = {s.campaign_id: s.season for s in item.series}
     title = f"Axis {item.axis}: {where} ({origin})"
     plots.save_figure(plots.predicted_vs_measured_figure(panels, labels, title, seasons), figure)
-    groups = group_scores(item.scores)
     context = comparison_report.AxisContext(
         item.axis,
         rows,
@@ -156,7 +150,7 @@ def report_axis(
         item.series,
         item.skipped,
         second,
-        groups,
+        comparison.groups,
         {key: counts.text() for key, counts in item.warnings.items()},
     )
     figures = comparison_report.AxisFigures(

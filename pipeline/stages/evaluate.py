@@ -20,6 +20,7 @@ from __future__ import annotations
 import argparse
 import json
 import logging
+from dataclasses import dataclass
 
 import joblib
 import pandas as pd
@@ -27,11 +28,13 @@ import pandas as pd
 from pipeline import paths
 from pipeline.errors import MissingInputError
 from pipeline.protocol.evaluation import (
+    AxisComparison,
     AxisEvaluation,
     Champion,
     all_scores,
     champion_of,
     check_models,
+    compare_axis,
     decide,
     evaluate_axis,
     evaluation_metrics,
@@ -83,13 +86,39 @@ def write_champions(champions: dict[str, Champion]) -> None:
         joblib.dump(champion.heldout_fits, folder / paths.HELDOUT_FITS_FILE)
 
 
-def write_tables(
-    evaluations: list[AxisEvaluation],
-    scores: pd.DataFrame,
-    summary: pd.DataFrame,
-    champions: dict[str, Champion],
-    skipped_axes: dict[str, str],
-) -> None:
+@dataclass(frozen=True)
+class Outcome:
+    """Everything the stage writes, computed before anything is written.
+
+    Attributes
+    ----------
+    evaluations : list of AxisEvaluation
+        One per axis with a model, champion decided.
+    scores : DataFrame
+        The long score table of every axis.
+    summary : DataFrame
+        :func:`pipeline.protocol.scoring.candidate_summary` of ``scores``.
+    groups : DataFrame
+        :func:`pipeline.protocol.scoring.group_scores` of ``scores``.
+    champions : dict of str to Champion
+        Each axis' champion (:func:`pipeline.protocol.evaluation.champion_of`).
+    comparisons : dict of str to AxisComparison
+        Each axis' best model against the plain baseline
+        (:func:`pipeline.protocol.evaluation.compare_axis`).
+    skipped_axes : dict of str to str
+        Axis -> why it has no model; named in the report and the metrics.
+    """
+
+    evaluations: list[AxisEvaluation]
+    scores: pd.DataFrame
+    summary: pd.DataFrame
+    groups: pd.DataFrame
+    champions: dict[str, Champion]
+    comparisons: dict[str, AxisComparison]
+    skipped_axes: dict[str, str]
+
+
+def write_tables(outcome: Outcome) -> None:
     """Write scores, summary, metrics, fitted record and champions."""
     for path in (
         paths.SCORES_LONG,
@@ -99,52 +128,56 @@ def write_tables(
         paths.CHAMPION / "x",
     ):
         path.parent.mkdir(parents=True, exist_ok=True)
-    scores.to_csv(paths.SCORES_LONG, index=False, float_format="%.6g")
-    ranked = ranked_summary(summary, [e.decision for e in evaluations])
+    evaluations, scores = outcome.evaluations, outcome.scores
+    outcome.scores.to_csv(paths.SCORES_LONG, index=False, float_format="%.6g")
+    ranked = ranked_summary(outcome.summary, [e.decision for e in evaluations])
     ranked.to_csv(paths.CANDIDATE_SCORES, index=False, float_format="%.4f")
-    group_scores(scores).to_csv(paths.GROUP_SCORES, index=False, float_format="%.4f")
-    write_champions(champions)
-    cards = {axis: champion.card for axis, champion in champions.items()}
-    metrics = evaluation_metrics(evaluations, scores, cards, skipped_axes)
+    outcome.groups.to_csv(paths.GROUP_SCORES, index=False, float_format="%.4f")
+    write_champions(outcome.champions)
+    cards = {axis: champion.card for axis, champion in outcome.champions.items()}
+    metrics = evaluation_metrics(evaluations, scores, cards, outcome.skipped_axes)
     paths.CROSS_SEASON_METRICS.write_text(json.dumps(metrics, indent=2, sort_keys=True))
     paths.FITTED_MODELS.write_text(json.dumps(fitted_record(evaluations), indent=2, sort_keys=True))
 
 
 def write_outputs(
-    evaluations: list[AxisEvaluation],
-    summary: pd.DataFrame,
-    champions: dict[str, Champion],
+    outcome: Outcome,
     table: pd.DataFrame,
     selected: dict,
     separation: dict,
     twin_text: str = "",
-    skipped_axes: dict[str, str] | None = None,
 ) -> None:
     """Write every output declared for the stage in ``dvc.yaml``.
 
-    Axes of ``skipped_axes`` (axis -> why it has no model) are named in the report and the
-    metrics; with no axis at all every output is still written, empty, and the report says why.
+    With no axis at all every output is still written, empty, and the report says why.
     ``twin_text``: the report's paragraph on the twin candidate
-    (:func:`pipeline.reporting.comparison.twin_section`); ``summary``:
-    :func:`pipeline.protocol.scoring.candidate_summary` of the scores; ``champions``: each
-    axis' champion, chosen before (:func:`pipeline.protocol.evaluation.champion_of`).
+    (:func:`pipeline.reporting.comparison.twin_section`).
     """
-    skipped_axes = dict(skipped_axes or {})
-    scores = all_scores(evaluations)
-    write_tables(evaluations, scores, summary, champions, skipped_axes)
+    write_tables(outcome)
     synthetic = bool(table["synthetic"].any())
     origin = "SYNTHETIC data from the physical twin" if synthetic else "measured data"
-    heatmaps = write_matrices(scores, origin)
+    heatmaps = write_matrices(outcome.scores, origin)
     parts = [
         report_axis(
-            e, summary, champions[e.axis].card, selected, separation, heatmaps, origin, twin_text
+            e,
+            outcome.comparisons[e.axis],
+            outcome.summary,
+            outcome.champions[e.axis].card,
+            selected,
+            separation,
+            heatmaps,
+            origin,
+            twin_text,
         )
-        for e in evaluations
+        for e in outcome.evaluations
     ]
     sections = [part.section for part in parts]
-    sections += [f"## Axis {axis}\n\nNo model: {why}.\n" for axis, why in skipped_axes.items()]
+    sections += [
+        f"## Axis {axis}\n\nNo model: {why}.\n" for axis, why in outcome.skipped_axes.items()
+    ]
+    axes = [e.axis for e in outcome.evaluations]
     paths.MODEL_COMPARISON.write_text(
-        comparison_report.render(sections, separation, synthetic, [e.axis for e in evaluations])
+        comparison_report.render(sections, separation, synthetic, axes)
     )
     plot_rows = [row for part in parts for row in part.plot_rows]
     pd.DataFrame(plot_rows).to_csv(paths.PLOT_MODEL_SCORES, index=False, float_format="%.4f")
@@ -236,13 +269,20 @@ def main(argv: list[str] | None = None) -> int:
         evaluations.append(
             evaluate_axis(axis, series, selected[axis], params, twin, skipped, protocol)
         )
-    summary = candidate_summary(all_scores(evaluations))
+    scores = all_scores(evaluations)
+    summary, groups = candidate_summary(scores), group_scores(scores)
     decide(evaluations, summary, params.champion)
-    champions = {e.axis: champion_of(e, table, features, separation) for e in evaluations}
+    outcome = Outcome(
+        evaluations,
+        scores,
+        summary,
+        groups,
+        champions={e.axis: champion_of(e, table, features, separation) for e in evaluations},
+        comparisons={e.axis: compare_axis(e, summary, groups) for e in evaluations},
+        skipped_axes=skipped_axes,
+    )
     twin_text = (
         "" if twin_source is None else comparison_report.twin_section(twin_source, held_back)
     )
-    write_outputs(
-        evaluations, summary, champions, table, document, separation, twin_text, skipped_axes
-    )
+    write_outputs(outcome, table, document, separation, twin_text)
     return 0
