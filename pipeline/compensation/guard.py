@@ -31,6 +31,8 @@ from pipeline.separation.features import reference_value
 from schemas.checks import stuck_free
 
 RPM = "rpm"
+Columns = pd.DataFrame | Mapping[str, np.ndarray]
+"""A run's readings: a table, or its columns as arrays of equal length (newest last)."""
 
 
 def reading_problem(value: float, checks: InputChecks) -> str | None:
@@ -45,12 +47,16 @@ def reading_problem(value: float, checks: InputChecks) -> str | None:
     return None
 
 
-def stuck_sensors(history: pd.DataFrame, sensors: Sequence[str], checks: InputChecks) -> dict:
+def _column(history: Columns, name: str) -> np.ndarray:
+    return np.asarray(history[name], dtype=float)
+
+
+def stuck_sensors(history: Columns, sensors: Sequence[str], checks: InputChecks) -> dict:
     """Return the sensors whose newest reading ends a stuck run (:func:`schemas.checks.stuck_free`).
 
     Parameters
     ----------
-    history : DataFrame
+    history : DataFrame or mapping of str to ndarray
         The run's samples in time order: ``elapsed_s`` (s) and one column per sensor, degC.
     sensors : sequence of str
     checks : InputChecks
@@ -60,25 +66,25 @@ def stuck_sensors(history: pd.DataFrame, sensors: Sequence[str], checks: InputCh
     dict of str to str
         Sensor -> why.
     """
-    if len(history) < checks.stuck_min_samples:
+    elapsed = _column(history, "elapsed_s")
+    k = checks.stuck_min_samples
+    if len(elapsed) < k:
         return {}
-    tail = history[list(sensors)].to_numpy(dtype=float)[-checks.stuck_min_samples :]
     # a stuck run ending now repeats the newest reading over the last stuck_min_samples at least
-    candidates = [
-        s for s, column in zip(sensors, tail.T, strict=True) if (column == column[-1]).all()
-    ]
+    candidates = [s for s in sensors if (_column(history, s)[-k:] == _column(history, s)[-1]).all()]
     if not candidates:
         return {}
-    step = np.diff(history["elapsed_s"].to_numpy(dtype=float)[-checks.stuck_min_samples :])
+    step = np.diff(elapsed[-k:])
     interval = float(np.median(step)) if step.size else 0.0
-    needed = checks.stuck_min_samples
+    needed = k
     if interval > 0:
         needed = max(needed, int(np.ceil(checks.stuck_min_s / interval)))
-    recent = history.iloc[-(needed + 1) :]
+    names = ["elapsed_s", *sensors]
+    recent = pd.DataFrame({name: _column(history, name)[-(needed + 1) :] for name in names})
     ok = stuck_free(
         recent,
         list(sensors),
-        min_samples=checks.stuck_min_samples,
+        min_samples=k,
         min_other_change=checks.stuck_min_other_change_degC,
         ignore={s: checks.fault_codes for s in sensors},
         min_duration_s=checks.stuck_min_s,
@@ -92,7 +98,7 @@ def stuck_sensors(history: pd.DataFrame, sensors: Sequence[str], checks: InputCh
 
 
 def out_of_training_range(
-    history: pd.DataFrame,
+    history: Columns,
     sensors: Sequence[str],
     features: str,
     spec_reference: tuple[str, int],
@@ -111,7 +117,7 @@ def out_of_training_range(
         column = f"rise_{sensor}" if rise else sensor
         if column not in ranges or sensor not in history:
             continue
-        values = history[sensor].to_numpy(dtype=float)
+        values = _column(history, sensor)
         value = values[-1] - reference_value(values, reference, n) if rise else values[-1]
         low, high = ranges[column]
         if np.isfinite(value) and not (low - margin <= value <= high + margin):
@@ -124,7 +130,7 @@ def out_of_training_range(
 
 
 def bad_inputs(
-    history: pd.DataFrame,
+    history: Columns,
     sensors: Sequence[str],
     checks: InputChecks,
     *,
@@ -137,9 +143,11 @@ def bad_inputs(
 
     Parameters
     ----------
-    history : DataFrame
+    history : DataFrame or mapping of str to ndarray
         The run so far, newest last: ``elapsed_s``, ``rpm`` and sensor columns (degC), bad
-        readings of earlier cycles already set to NaN.
+        readings of earlier cycles already set to NaN. The runtime passes its history's columns
+        as arrays (:meth:`pipeline.compensation.runtime.RunHistory.columns_now`): a cycle then
+        costs no table built from the whole run.
     sensors : sequence of str
         The sensors the axis' models read.
     checks : InputChecks
@@ -157,14 +165,14 @@ def bad_inputs(
     dict of str to str
         Input (a sensor or ``rpm``) -> why it is bad; empty when all are good.
     """
-    last = history.iloc[-1]
     problems = {}
     for sensor in sensors:
-        value = float(last[sensor]) if sensor in last.index else float("nan")
+        value = float(_column(history, sensor)[-1]) if sensor in history else float("nan")
         why = reading_problem(value, checks)
         if why:
             problems[sensor] = why
-    if needs_speed and not np.isfinite(float(last.get(RPM, np.nan))):
+    speed = _column(history, RPM)[-1] if RPM in history else np.nan
+    if needs_speed and not np.isfinite(float(speed)):
         problems[RPM] = "spindle speed missing"
     good = [s for s in sensors if s not in problems]
     problems |= stuck_sensors(history, good, checks)

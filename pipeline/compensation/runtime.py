@@ -164,6 +164,10 @@ class RunHistory:
         for name in names:
             self._bad[axis][self.n - 1, self.columns.index(name)] = True
 
+    def columns_now(self) -> dict[str, np.ndarray]:
+        """Return the run's readings as read, one array (a view, not a copy) per column."""
+        return {name: self._values[: self.n, j] for j, name in enumerate(self.columns)}
+
     def raw(self) -> pd.DataFrame:
         """Return the run's readings as read."""
         return pd.DataFrame(self._values[: self.n], columns=self.columns)
@@ -313,11 +317,11 @@ class CompensationRuntime:
                 self.log.record("new_run", reading.t_s, run=reading.run, previous=history.run)
             history.reset(reading.run, reading.t_s)
         history.append(reading)
-        frame = history.raw()
+        columns = history.columns_now()
         for axis, bundle in self.bundles.items():
             spec = bundle.champion.spec
             bad = bad_inputs(
-                frame,
+                columns,
                 bundle.sensors,
                 bundle.checks,
                 ranges=bundle.input_ranges,

@@ -41,6 +41,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
+from scipy.signal import lfilter
 
 COLD_REFERENCES = ("first_sample", "mean_first_n")
 FEATURE_KINDS = ("temperature_rise", "absolute")
@@ -209,11 +210,35 @@ def speed_responses(t_s: np.ndarray, rpm: np.ndarray, spec: SpeedResponses) -> p
         ]
     )
     taus = np.tile(np.asarray(spec.time_constants_min, dtype=float) * 60.0, len(spec.exponents))
-    out = np.zeros((t.size, len(names)))
-    decay = np.exp(-np.diff(t)[:, None] / taus[None, :])
-    for k in range(t.size - 1):
+    return pd.DataFrame(first_order_lag(np.diff(t), drive, taus), columns=names)
+
+
+def first_order_lag(steps_s: np.ndarray, drive: np.ndarray, taus_s: np.ndarray) -> np.ndarray:
+    """First-order lags of ``drive`` (held over each step), from rest at the first sample.
+
+    ``out[k + 1] = out[k] d_k + drive[k] (1 - d_k)`` with ``d_k = exp(-steps_s[k] / tau)``: the
+    exact response of ``tau y' + y = u`` to a zero-order hold. Steps all equal (resampled
+    windows): one linear filter per column (:func:`scipy.signal.lfilter`); else step by step.
+
+    Parameters
+    ----------
+    steps_s : ndarray of shape (n - 1,), s
+    drive : ndarray of shape (n, m)
+    taus_s : ndarray of shape (m,), s
+
+    Returns
+    -------
+    ndarray of shape (n, m)
+    """
+    out = np.zeros(drive.shape)
+    if steps_s.size and np.all(steps_s == steps_s[0]):
+        for j, decay in enumerate(np.exp(-steps_s[0] / taus_s)):
+            out[:, j] = lfilter([0.0, 1.0 - decay], [1.0, -decay], drive[:, j])
+        return out
+    decay = np.exp(-steps_s[:, None] / taus_s[None, :])
+    for k in range(steps_s.size):
         out[k + 1] = out[k] * decay[k] + drive[k] * (1.0 - decay[k])
-    return pd.DataFrame(out, columns=names)
+    return out
 
 
 def run_inputs(
