@@ -25,6 +25,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.colors import Normalize
 from matplotlib.figure import Figure
 from matplotlib.font_manager import FontProperties
+from matplotlib.image import imsave
 from matplotlib.patches import Rectangle
 from matplotlib.text import Text
 
@@ -55,7 +56,10 @@ def new_figure(width_in: float, height_in: float) -> Figure:
 
 
 def save_figure(fig: Figure, out: Path) -> None:
-    """Draw a figure, warn about any text outside it, and write it as a PNG at :data:`DPI`.
+    """Draw a figure once, warn about any text outside it, and write that picture as a PNG.
+
+    The picture checked is the one written: the drawn canvas is saved as it is, at :data:`DPI`
+    (``savefig`` would lay out and draw the figure again).
 
     Parameters
     ----------
@@ -65,24 +69,29 @@ def save_figure(fig: Figure, out: Path) -> None:
         PNG path; parent folders are created.
     """
     fig.canvas.draw()
-    outside = text_outside_figure(fig)
+    outside = text_outside_figure(fig, drawn=True)
     if outside:
         LOGGER.warning("%s: text outside the figure: %s", out, "; ".join(outside))
     out.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(out, dpi=fig.dpi)
+    imsave(out, np.asarray(fig.canvas.buffer_rgba()), format="png", dpi=fig.dpi)
 
 
-def text_outside_figure(fig: Figure, tolerance_px: float = 1.0) -> list[str]:
+def text_outside_figure(
+    fig: Figure, tolerance_px: float = 1.0, *, drawn: bool = False
+) -> list[str]:
     """Describe every drawn text whose extent leaves the figure (the text is clipped there).
 
     Checks titles, suptitle, axis labels, drawn tick labels, colour-bar labels, legends and
-    annotations of visible axes. The figure is drawn first, so that the layout is final.
+    annotations of visible axes. The figure is drawn first, so that the layout is final, unless
+    ``drawn`` says it just was.
 
     Parameters
     ----------
     fig : Figure
     tolerance_px : float
         Overhang allowed at each edge, px.
+    drawn : bool
+        The figure was drawn (``fig.canvas.draw()``) since its last change.
 
     Returns
     -------
@@ -90,7 +99,8 @@ def text_outside_figure(fig: Figure, tolerance_px: float = 1.0) -> list[str]:
         One ``'<text>' at x0..x1, y0..y1 px`` entry per text outside the figure's
         ``0..width, 0..height`` px box; empty when everything fits.
     """
-    fig.canvas.draw()
+    if not drawn:
+        fig.canvas.draw()
     renderer = fig.canvas.get_renderer()
     width, height = fig.bbox.width, fig.bbox.height
     problems = []
