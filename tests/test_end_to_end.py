@@ -1,8 +1,9 @@
 """End-to-end: the real `dvc repro` on a copy of the repository (demo campaigns), real MLflow.
 
 The demo pipeline runs once, in full, against a real ``mlflow server`` (:func:`demo`); the tests
-that add a campaign continue from a copy of that finished run, as a user's next ``dvc repro``
-does, so that only the stages their change reaches run again.
+of the next campaigns, a new one and a malformed one, share one continuation of a copy of that
+finished run (:func:`next_run`), as a user's next ``dvc repro`` does, so that only the stages the
+change reaches run again.
 """
 
 from __future__ import annotations
@@ -104,22 +105,59 @@ def _fewer_candidates(work: Path, candidates: dict[str, str | list[str]]) -> Non
     (work / "params.yaml").write_text(yaml.safe_dump(params, sort_keys=False))
 
 
-def test_new_campaign_is_scored_old_scores_kept_unrelated_stages_skipped(demo, tmp_path):
-    work = _continue_from(demo, tmp_path / "repo")
-    candidates = {"none": "none", "mlr": "best_subset", "dl": "fc_grd", "arma": "none"}
+NEXT_CANDIDATES = {"none": "none", "mlr": "best_subset", "dl": "fc_grd", "arma": "none"}
+
+
+@dataclass(frozen=True)
+class NextRun:
+    """The demo run continued with a new campaign (K13) and a malformed one (K99) in ``data/raw``.
+
+    ``before``: the demo's scores of :data:`NEXT_CANDIDATES`; ``output`` and ``again``: the
+    continued ``dvc repro`` and one more on unchanged inputs; ``raw_bytes``: K99's files as
+    written.
+    """
+
+    work: Path
+    before: pd.DataFrame
+    output: str
+    again: str
+    raw_bytes: dict[Path, bytes]
+
+
+def _add_malformed_campaign(raw: Path) -> dict[Path, bytes]:
+    """K99, a copy of K01 with the DS18B20 power-on value in data row 1 of T3; its bytes."""
+    bad = raw / "K99"
+    shutil.copytree(raw / "K01", bad)
+    meta = yaml.safe_load((bad / "campaign.yaml").read_text())
+    meta["campaign_id"] = "K99"
+    (bad / "campaign.yaml").write_text(yaml.safe_dump(meta, sort_keys=False))
+    temperature = pd.read_csv(bad / "temperature.csv", dtype=str)
+    temperature.loc[0, "T3"] = "85.0"
+    temperature.to_csv(bad / "temperature.csv", index=False)
+    return {path: path.read_bytes() for path in bad.iterdir()}
+
+
+@pytest.fixture(scope="module")
+def next_run(demo, tmp_path_factory) -> NextRun:
+    """One continued run for the new-campaign and the malformed-campaign tests."""
+    work = _continue_from(demo, tmp_path_factory.mktemp("next") / "repo")
     before = _scores(work)
     pairs = before[["model", "selection"]].apply(tuple, axis=1)
-    before = before[pairs.isin(candidates.items())].reset_index(drop=True)
-    assert "K13" not in set(before["test_campaign"])
-    _fewer_candidates(work, candidates)
+    before = before[pairs.isin(NEXT_CANDIDATES.items())].reset_index(drop=True)
+    _fewer_candidates(work, NEXT_CANDIDATES)
     env = _env(f"sqlite:///{work / 'mlflow.db'}")
-
     simulate = (
         "simulate --preset single --id K13 --season summer --rpm 4000 --seed 13 --out data/raw"
     )
     _run([str(BIN / "thermal"), *simulate.split()], work, env)
+    raw_bytes = _add_malformed_campaign(work / "data" / "raw")
     output = _repro(work, env)
+    return NextRun(work, before, output, _repro(work, env), raw_bytes)
 
+
+def test_new_campaign_is_scored_old_scores_kept_unrelated_stages_skipped(next_run):
+    work, before, output = next_run.work, next_run.before, next_run.output
+    assert "K13" not in set(before["test_campaign"])
     assert "Stage 'separate_axis' didn't change, skipping" in output
     for stage in ("ingest", "validate", "separate_spindle", "select", "evaluate", "discrepancy"):
         assert f"Running stage '{stage}'" in output
@@ -138,25 +176,11 @@ def test_new_campaign_is_scored_old_scores_kept_unrelated_stages_skipped(demo, t
         pd.testing.assert_series_equal(
             merged[f"{score}_before"], merged[f"{score}_after"], check_names=False
         )
-    output = _repro(work, env)
-    assert "Running stage 'evaluate'" not in output
+    assert "Running stage 'evaluate'" not in next_run.again
 
 
-def test_malformed_campaign_is_quarantined_while_the_others_are_scored(demo, tmp_path):
-    work = _continue_from(demo, tmp_path / "repo")
-    raw = work / "data" / "raw"
-    bad = raw / "K99"
-    shutil.copytree(raw / "K01", bad)
-    meta = yaml.safe_load((bad / "campaign.yaml").read_text())
-    meta["campaign_id"] = "K99"
-    (bad / "campaign.yaml").write_text(yaml.safe_dump(meta, sort_keys=False))
-    temperature = pd.read_csv(bad / "temperature.csv", dtype=str)
-    temperature.loc[0, "T3"] = "85.0"  # DS18B20 power-on value in data row 1
-    temperature.to_csv(bad / "temperature.csv", index=False)
-    raw_bytes = {p: p.read_bytes() for p in bad.iterdir()}
-
-    _repro(work, _env(f"sqlite:///{work / 'mlflow.db'}"))
-
+def test_malformed_campaign_is_quarantined_while_the_others_are_scored(next_run):
+    work = next_run.work
     report = json.loads((work / "reports" / "validation.json").read_text())
     assert report["summary"]["quarantined"] == ["K99"]
     problems = [p for p in report["problems"] if p["campaign"] == "K99"]
@@ -166,8 +190,8 @@ def test_malformed_campaign_is_quarantined_while_the_others_are_scored(demo, tmp
     assert all(p["action"] for p in problems)
     scores = _scores(work)
     assert "K99" not in set(scores["test_campaign"])
-    assert {f"K{i:02d}" for i in range(1, 13)} <= set(scores["train_unit"])
-    assert {p: p.read_bytes() for p in bad.iterdir()} == raw_bytes
+    assert {f"K{i:02d}" for i in range(1, 14)} <= set(scores["train_unit"])
+    assert {path: path.read_bytes() for path in next_run.raw_bytes} == next_run.raw_bytes
     disc = json.loads((work / "reports" / "discrepancy" / "discrepancy.json").read_text())
     assert "K99" not in disc["campaigns"] and "K01" in disc["campaigns"]
 
