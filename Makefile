@@ -34,7 +34,8 @@ bench: install
 	PATH="$(CURDIR)/$(BIN):$$PATH" $(BIN)/python -m benchmarks.bench
 
 # Every hidden-effect case over seeds 1-5 (8 campaigns each), then the trial tests (seed 1, every
-# case, the proposed tests run; `make test` runs one case); trials-quick: 4 campaigns, 2 folds.
+# case, the proposed tests run; `make test` runs the smoke case only); trials-quick: 4 campaigns,
+# 2 folds.
 trials: install
 	$(BIN)/python -m benchmarks.discrepancy_trials --seeds 1 2 3 4 5 --out reports/discrepancy_trials
 	PATH="$(CURDIR)/$(BIN):$$PATH" $(BIN)/python -m pytest -n 2 --dist loadscope -m trials

@@ -300,19 +300,9 @@ INVISIBLE = {
 """Effects the trial campaigns cannot show: classed not identifiable, not named."""
 
 
-IN_MAKE_TEST = frozenset({"motor_heat"})
-"""The one case ``make test`` runs; ``make trials`` runs every case (marker ``trials``)."""
-
-
 @pytest.mark.slow
-@pytest.mark.parametrize(
-    "hidden",
-    [
-        pytest.param(c, marks=() if c == IN_MAKE_TEST else pytest.mark.trials)
-        for c in map(frozenset, CASES)
-    ],
-    ids=case_name,
-)
+@pytest.mark.trials
+@pytest.mark.parametrize("hidden", list(map(frozenset, CASES)), ids=case_name)
 def test_the_hidden_effects_are_named_and_the_gap_halves(tmp_path, hidden):
     """Seed 1: exactly the hidden effects are named and the held-out gap (displacement, or
     temperatures for an effect that shows there, such as ``motor_heat``) at least halves;

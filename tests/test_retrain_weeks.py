@@ -4,7 +4,7 @@ A shop's lab clone keeps its campaigns under DVC with an S3 remote (``moto_serve
 127.0.0.1), set up and fed with the README's own lines; a second clone, the scheduled job, runs
 the README's ``git pull -q && .venv/bin/thermal retrain`` against a real ``mlflow server``. The
 campaigns come from the workshop twin (one record per week, another seed each week, a week
-later each time):
+later each time, sampled every minute):
 
 - week 1: a single campaign. No held-out score exists, the champion is ``none`` (do not
   compensate), and as the first champion it is promoted: version 1;
@@ -46,6 +46,9 @@ README_REMOTE = ("s3://thermal-campaigns/shop1", "http://minio.example:9000")
 AXES = ("X", "Y", "Z")
 WEEKS = {1: ("A", 1), 2: ("B", 4), 3: ("C", 3)}
 """Week -> (campaign id letter, campaigns kept of the workshop record)."""
+INTERVAL_S = 60.0
+"""The shop's logger samples every minute, the models' window: a third of the workshop preset's
+rows, the same campaigns."""
 SHOP_PARAMS = {
     "candidates": {"none": "none", "mlr": "all", "ridge": "all_speed"},
     "methods": ("all", "all_speed"),
@@ -81,7 +84,7 @@ def write_week(week: int, raw: Path, scratch: Path, env: dict[str, str]) -> list
     out = scratch / f"week{week}"
     subprocess.run(
         [str(VENV / "bin" / "thermal"), "simulate", "--preset", "workshop", "--out", str(out)]
-        + ["--seed", str(week)],
+        + ["--seed", str(week), "--interval-s", str(INTERVAL_S)],
         check=True,
         env=env,
         capture_output=True,

@@ -356,6 +356,18 @@ def test_plan_interval_is_a_parameter():
     assert np.all(np.diff(run.campaigns[0].temperature["elapsed_s"]) == 60.0)
 
 
+def test_the_command_takes_the_sampling_interval_and_refuses_one_that_does_not_divide(
+    tmp_path, capsys
+):
+    assert cli.main(["--preset", "workshop", "--interval-s", "60", "--out", str(tmp_path)]) == 0
+    temperature = pd.read_csv(tmp_path / "W01" / "temperature.csv")
+    assert len(temperature) == 480 and np.all(np.diff(temperature["elapsed_s"]) == 60.0)
+    assert cli.main(["--preset", "workshop", "--interval-s", "7", "--out", str(tmp_path)]) == 2
+    assert "not a whole number of 7.0 s intervals" in capsys.readouterr().err
+    assert cli.main(["--preset", "demo", "--interval-s", "60", "--out", str(tmp_path)]) == 2
+    assert "--interval-s need --preset workshop" in capsys.readouterr().err
+
+
 def test_logger_table_holds_the_campaigns_readings_on_one_time_base(tmp_path, raw):
     path = tmp_path / "logger.csv"
     assert cli.main(["--preset", "workshop", "--logger-table", str(path), "--hours", "16"]) == 0

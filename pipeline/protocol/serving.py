@@ -47,26 +47,28 @@ def predict_table(estimator, table: pd.DataFrame, spec: InputSpec) -> np.ndarray
     """
     frame = table.reset_index(drop=True)
     runs = _runs(frame)
-    windows = []
-    for run in pd.unique(runs):
-        rows = frame[runs == run].assign(campaign_id=run)
-        windows.append(resample(rows, spec.resample_s))
-    resampled = pd.concat(windows, ignore_index=True)
+    names = pd.unique(runs)
+    windows = [
+        resample(
+            (frame if len(names) == 1 else frame[runs == run]).assign(campaign_id=run),
+            spec.resample_s,
+        )
+        for run in names
+    ]
+    resampled = windows[0] if len(windows) == 1 else pd.concat(windows, ignore_index=True)
     X = model_inputs(resampled, spec)
-    complete = X.notna().all(axis=1).to_numpy()
+    complete = ~np.isnan(X.to_numpy()).any(axis=1)
     predicted = np.full(len(X), np.nan)
     if complete.any():
         predicted[complete] = estimator.predict(X[complete])
     if len(resampled) == len(frame):
         return predicted
     out = np.full(len(frame), np.nan)
+    elapsed = frame["elapsed_s"].to_numpy(dtype=float)
+    window_elapsed = resampled["elapsed_s"].to_numpy(dtype=float)
     window_runs = resampled["campaign_id"].to_numpy()
-    for run in pd.unique(runs):
+    for run in names:
         mine, theirs = runs == run, (window_runs == run) & np.isfinite(predicted)
         if theirs.any():
-            out[mine] = np.interp(
-                frame.loc[mine, "elapsed_s"].to_numpy(dtype=float),
-                resampled.loc[theirs, "elapsed_s"].to_numpy(dtype=float),
-                predicted[theirs],
-            )
+            out[mine] = np.interp(elapsed[mine], window_elapsed[theirs], predicted[theirs])
     return out

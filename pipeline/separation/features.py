@@ -178,6 +178,14 @@ def known_speed(rpm: np.ndarray) -> np.ndarray:
 def speed_responses(t_s: np.ndarray, rpm: np.ndarray, spec: SpeedResponses) -> pd.DataFrame:
     """First-order responses to the spindle speed, from rest at the first sample.
 
+    The table of :func:`speed_response_values`, columns :meth:`SpeedResponses.names`.
+    """
+    return pd.DataFrame(speed_response_values(t_s, rpm, spec), columns=spec.names())
+
+
+def speed_response_values(t_s: np.ndarray, rpm: np.ndarray, spec: SpeedResponses) -> np.ndarray:
+    """First-order responses to the spindle speed, from rest at the first sample.
+
     Parameters
     ----------
     t_s : ndarray of shape (n,), s
@@ -190,14 +198,14 @@ def speed_responses(t_s: np.ndarray, rpm: np.ndarray, spec: SpeedResponses) -> p
 
     Returns
     -------
-    DataFrame of shape (n, len(spec.names()))
-        Columns :meth:`SpeedResponses.names`, in (krpm)^a; the first row is 0.
+    ndarray of shape (n, len(spec.names()))
+        In the order of :meth:`SpeedResponses.names`, in (krpm)^a; the first row is 0.
     """
     t = np.asarray(t_s, dtype=float)
     speed = known_speed(rpm)
-    names = spec.names()
+    n_names = len(spec.exponents) * len(spec.time_constants_min)
     if t.size == 0 or not np.isfinite(speed).any():
-        return pd.DataFrame(np.full((t.size, len(names)), np.nan), columns=names)
+        return np.full((t.size, n_names), np.nan)
     steps = np.diff(t)
     if steps.size:
         speed[:-1] = np.where(steps > MAX_HOLD_INTERVALS * np.median(steps), 0.0, speed[:-1])
@@ -210,7 +218,7 @@ def speed_responses(t_s: np.ndarray, rpm: np.ndarray, spec: SpeedResponses) -> p
         ]
     )
     taus = np.tile(np.asarray(spec.time_constants_min, dtype=float) * 60.0, len(spec.exponents))
-    return pd.DataFrame(first_order_lag(np.diff(t), drive, taus), columns=names)
+    return first_order_lag(np.diff(t), drive, taus)
 
 
 def first_order_lag(steps_s: np.ndarray, drive: np.ndarray, taus_s: np.ndarray) -> np.ndarray:
@@ -272,25 +280,63 @@ def run_inputs(
     Returns
     -------
     DataFrame of shape (n_samples, m + k)
-        Temperature inputs then speed responses, on ``temperatures``' row positions.
+        Temperature inputs then speed responses (:func:`run_input_values`), numbered from 0.
 
     Raises
     ------
     ValueError
         For an unknown ``features`` or ``reference``.
     """
+    values = run_input_values(
+        t_s,
+        temperatures.to_numpy(dtype=float, na_value=np.nan),
+        rpm,
+        features=features,
+        reference=reference,
+        n=n,
+        speed=speed,
+    )
+    names = [input_column(str(sensor), features) for sensor in temperatures.columns]
+    return pd.DataFrame(values, columns=names + ([] if speed is None else speed.names()))
+
+
+def run_input_values(
+    t_s: np.ndarray,
+    temperatures: np.ndarray,
+    rpm: np.ndarray,
+    *,
+    features: str,
+    reference: str,
+    n: int,
+    speed: SpeedResponses | None,
+) -> np.ndarray:
+    """Return the values of :func:`run_inputs`: temperature inputs, then speed responses.
+
+    Parameters
+    ----------
+    t_s : ndarray of shape (n_samples,), s
+    temperatures : ndarray of shape (n_samples, m), degC
+        One column per sensor; NaN is a missing reading.
+    rpm : ndarray of shape (n_samples,), rpm
+    features, reference, n, speed
+        As for :func:`run_inputs`.
+
+    Returns
+    -------
+    ndarray of shape (n_samples, m + k)
+        Rises (K) or readings (degC) of each sensor, then the speed responses in the order of
+        :meth:`SpeedResponses.names`.
+    """
     check_feature_kind(features)
-    values = temperatures.astype(float)
+    values = np.array(temperatures, dtype=float, ndmin=2)
     if features == "temperature_rise":
-        cold = {c: reference_value(values[c].to_numpy(), reference, n) for c in values.columns}
-        inputs = (values - pd.Series(cold)).add_prefix("rise_")
+        cold = [reference_value(values[:, j], reference, n) for j in range(values.shape[1])]
+        values = values - np.asarray(cold, dtype=float)
     else:
         reference_value(np.array([]), reference, n)  # the reference must still be valid
-        inputs = values.copy()
-    inputs = inputs.reset_index(drop=True)
-    if speed is not None:
-        inputs = pd.concat([inputs, speed_responses(t_s, rpm, speed)], axis=1)
-    return inputs
+    if speed is None:
+        return values
+    return np.hstack([values, speed_response_values(t_s, rpm, speed)])
 
 
 def resample(rows: pd.DataFrame, window_s: float | None) -> pd.DataFrame:
@@ -319,14 +365,22 @@ def resample(rows: pd.DataFrame, window_s: float | None) -> pd.DataFrame:
     window = np.floor((t - t[0]) / window_s).astype(np.int64)
     numeric = [
         c
-        for c in rows.columns
-        if c not in ("campaign_id", "source_row") and pd.api.types.is_numeric_dtype(rows[c])
+        for c, dtype in rows.dtypes.items()
+        if c not in ("campaign_id", "source_row") and pd.api.types.is_numeric_dtype(dtype)
     ]
-    out = rows[numeric].astype(float).groupby(window, sort=True).mean()
+    order = np.argsort(window, kind="stable")
+    ordered = window[order]
+    starts = np.flatnonzero(np.r_[True, ordered[1:] != ordered[:-1]])
+    values = rows[numeric].to_numpy(dtype=float, na_value=np.nan)[order]
+    missing = np.isnan(values)
+    sums = np.add.reduceat(np.where(missing, 0.0, values), starts, axis=0)
+    counts = np.add.reduceat((~missing).astype(float), starts, axis=0)
+    with np.errstate(invalid="ignore"):
+        out = pd.DataFrame(sums / counts, columns=numeric)
     for column in ("source_row", "campaign_id"):
         if column in rows:
-            out.insert(0, column, rows[column].groupby(window, sort=True).first().to_numpy())
-    return out.reset_index(drop=True)
+            out.insert(0, column, rows[column].to_numpy()[order][starts])
+    return out
 
 
 def input_column(name: str, features: str) -> str:
@@ -440,20 +494,24 @@ def model_inputs(table: pd.DataFrame, spec: InputSpec) -> pd.DataFrame:
         else np.arange(len(table), dtype=float)
     )
     rpm = table["rpm"].to_numpy(dtype=float) if "rpm" in table else np.full(len(table), np.nan)
-    columns = [input_column(name, spec.features) for name in spec.inputs]
-    values = np.full((len(table), len(columns)), np.nan)
+    speed = spec.speed if spec.needs_speed else None
+    produced = [input_column(name, spec.features) for name in spec.sensors]
+    produced += [] if speed is None else speed.names()
+    take = [produced.index(input_column(name, spec.features)) for name in spec.inputs]
+    temperatures = table[spec.sensors].to_numpy(dtype=float, na_value=np.nan)
+    values = np.full((len(table), len(take)), np.nan)
     for run in pd.unique(runs):
         rows = np.flatnonzero(runs == run)
-        inputs = run_inputs(
+        inputs = run_input_values(
             elapsed[rows],
-            table.iloc[rows][spec.sensors].reset_index(drop=True),
+            temperatures[rows],
             rpm[rows],
             features=spec.features,
             reference=spec.reference,
             n=spec.reference_n,
-            speed=spec.speed if spec.needs_speed else None,
+            speed=speed,
         )
-        values[rows] = inputs[columns].to_numpy(dtype=float)
+        values[rows] = inputs[:, take]
     index = pd.MultiIndex.from_arrays([runs, elapsed], names=["campaign_id", "elapsed_s"])
     return pd.DataFrame(values, index=index, columns=list(spec.inputs))
 

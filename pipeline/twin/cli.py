@@ -10,6 +10,8 @@ Examples
 ``thermal simulate --preset workshop --out DIR --seed 2046``
     one continuous two-day run of a machine cut into six back-to-back campaigns W01-W06
     (16 unnamed sensors, X/Y/Z probes, speed log; :mod:`pipeline.twin.workshop`);
+``thermal simulate --preset workshop --out DIR --interval-s 60``
+    the same run sampled every 60 s instead of 20 s (a logger set to a longer interval);
 ``thermal simulate --preset workshop --logger-table logger.csv [--hours 24]``
     the same run as one data logger's wide table (:mod:`pipeline.twin.logger_export`), for
     ``thermal import logger``;
@@ -39,7 +41,12 @@ from pipeline.twin.campaigns import (
 from pipeline.twin.conditions import DEMO_SCATTER
 from pipeline.twin.effects import DEMO_EFFECTS
 from pipeline.twin.logger_export import logger_table, write_logger_table
-from pipeline.twin.workshop import WORKSHOP_EFFECTS, simulate_workshop, workshop_plan
+from pipeline.twin.workshop import (
+    WORKSHOP_EFFECTS,
+    WorkshopPlan,
+    simulate_workshop,
+    workshop_plan,
+)
 from pipeline.twin.writer import write_campaign
 
 logger = logging.getLogger(__name__)
@@ -78,6 +85,12 @@ def _parser() -> argparse.ArgumentParser:
     )
     workshop.add_argument(
         "--hours", type=float, default=None, help="--logger-table: only the first HOURS hours"
+    )
+    workshop.add_argument(
+        "--interval-s",
+        type=float,
+        default=None,
+        help="sampling interval of the run, s (default 20; must divide every campaign)",
     )
     single = p.add_argument_group("single spindle campaign (--preset single)")
     single.add_argument("--id", dest="campaign_id", default="K13")
@@ -139,11 +152,11 @@ def _plans(args: argparse.Namespace) -> tuple[SpindlePlan | AxisPlan, ...]:
     return tuple(p for p in plans if p.campaign_id in wanted)
 
 
-def _write_workshop(args: argparse.Namespace, effects: frozenset[str]) -> int:
+def _write_workshop(args: argparse.Namespace, plan: WorkshopPlan, effects: frozenset[str]) -> int:
     """Simulate the workshop run; write its campaigns (or its logger table); return 0."""
     t0 = time.perf_counter()
     seed = WORKSHOP_SEED if args.seed is None else args.seed
-    run = simulate_workshop(workshop_plan(), seed=seed, effects=effects)
+    run = simulate_workshop(plan, seed=seed, effects=effects)
     if args.logger_table is not None:
         table = logger_table(run, args.hours)
         write_logger_table(table, Path(args.logger_table))
@@ -174,13 +187,18 @@ def main(argv: list[str] | None = None) -> int:
     try:
         effects = _effects(args.effects, args.preset)
         plans = () if args.preset == "workshop" else _plans(args)
+        workshop = None
+        if args.preset == "workshop":
+            workshop = workshop_plan(*([] if args.interval_s is None else [args.interval_s]))
     except (KeyError, ValueError) as err:
         sys.stderr.write(f"thermal simulate: {err.args[0] if err.args else err}\n")
         return 2
-    if args.preset == "workshop":
-        return _write_workshop(args, effects)
-    if args.logger_table is not None or args.hours is not None:
-        sys.stderr.write("thermal simulate: --logger-table and --hours need --preset workshop\n")
+    if workshop is not None:
+        return _write_workshop(args, workshop, effects)
+    if any(v is not None for v in (args.logger_table, args.hours, args.interval_s)):
+        sys.stderr.write(
+            "thermal simulate: --logger-table, --hours and --interval-s need --preset workshop\n"
+        )
         return 2
     seed = DEFAULT_SEED if args.seed is None else args.seed
     t0 = time.perf_counter()
