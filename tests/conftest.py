@@ -16,7 +16,6 @@ PIPELINE_MODULES = (
     "tests.test_workshop_end_to_end",
     "tests.test_readme_commands",
     "tests.test_retrain_weeks",
-    "tests.test_tracking_offline",
     "tests.test_dvc_remote",
 )
 """Modules whose tests run ``dvc repro`` on a copy of the repository, longest first."""

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import logging
 import re
 import shutil
 
@@ -12,6 +13,7 @@ from benchmarks.discrepancy_trials import write_hidden_campaigns
 from pipeline.config import load_section
 from pipeline.discrepancy.workflow import STRUCTURE_ROLES
 from pipeline.stages.discrepancy import main
+from tests.helpers.processes import free_port
 
 
 def _params(tmp_path):
@@ -62,3 +64,25 @@ def test_a_single_campaign_is_untestable_and_says_how_many_are_needed(tmp_path):
     assert doc["status"] == "untestable"
     assert doc["campaigns"] == ["H01"]
     assert "at least 2" in doc["reason"] and "at least 2" in md
+
+
+def test_an_unreachable_tracking_server_leaves_the_report_and_exits_0(
+    tmp_path, monkeypatch, caplog
+):
+    write_hidden_campaigns(tmp_path / "raw", frozenset(), seed=5, n=2)
+    shutil.rmtree(tmp_path / "raw" / "H02")
+    monkeypatch.setenv("MLFLOW_TRACKING_URI", f"http://127.0.0.1:{free_port()}")
+    monkeypatch.setenv("MLFLOW_HTTP_REQUEST_MAX_RETRIES", "0")
+    argv = ["--raw", str(tmp_path / "raw"), "--out", str(tmp_path / "out")]
+    record = tmp_path / "out" / "run.json"
+    params = _params(tmp_path)
+    sections = yaml.safe_load(params.read_text(encoding="utf-8"))
+    params.write_text(yaml.safe_dump({**sections, "tracking": load_section("tracking")}))
+    with caplog.at_level(logging.WARNING, logger="pipeline.stages.discrepancy"):
+        code = main([*argv, "--params", str(params), "--run-record", str(record)])
+
+    assert code == 0
+    assert "MLflow logging failed" in caplog.text and "the report files are written" in caplog.text
+    doc = json.loads((tmp_path / "out" / "discrepancy.json").read_text(encoding="utf-8"))
+    assert doc["status"] == "untestable" and "mlflow_run_id" not in doc
+    assert json.loads(record.read_text(encoding="utf-8")) == {"run_id": None}

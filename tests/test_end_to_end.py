@@ -3,7 +3,11 @@
 The demo pipeline runs once, in full, against a real ``mlflow server`` (:func:`demo`); the tests
 of the next campaigns, a new one and a malformed one, share one continuation of a copy of that
 finished run (:func:`next_run`), as a user's next ``dvc repro`` does, so that only the stages the
-change reaches run again.
+change reaches run again. That continuation runs while its MLflow server is stopped: nothing may
+be lost (the stages' outputs stay, the message says how to log later, no traceback); then the
+server is restarted on the same backend store and the execution is logged once, by ``dvc repro``
+(which reruns only ``track``) and by ``thermal track`` (which reuses the logged run); an
+incomplete attempt left by a connection lost mid-way is deleted, not duplicated.
 """
 
 from __future__ import annotations
@@ -20,8 +24,10 @@ import numpy as np
 import pandas as pd
 import pytest
 import yaml
+from mlflow.entities import RunStatus
 from mlflow.tracking import MlflowClient
 
+from pipeline.tracking import records, store
 from tests.helpers.mlflow_server import running_mlflow_server
 from tests.helpers.repository import copy_repository
 
@@ -108,19 +114,40 @@ def _fewer_candidates(work: Path, candidates: dict[str, str | list[str]]) -> Non
 NEXT_CANDIDATES = {"none": "none", "mlr": "best_subset", "dl": "fc_grd", "arma": "none"}
 
 
+OUTPUTS = (
+    "reports/cross_season_scores.csv",
+    "metrics/cross_season.json",
+    "reports/model_comparison.md",
+    "data/models/champion",
+)
+"""Outputs that must stay when ``track`` cannot reach the server."""
+
+
 @dataclass(frozen=True)
 class NextRun:
     """The demo run continued with a new campaign (K13) and a malformed one (K99) in ``data/raw``.
 
-    ``before``: the demo's scores of :data:`NEXT_CANDIDATES`; ``output`` and ``again``: the
-    continued ``dvc repro`` and one more on unchanged inputs; ``raw_bytes``: K99's files as
-    written.
+    ``before``: the demo's scores of :data:`NEXT_CANDIDATES`; ``offline``: the continued ``dvc
+    repro`` against the stopped server, ``output`` its printout, ``status`` the ``dvc status``
+    after it, ``scores`` the scores file it wrote; ``again``: one more ``dvc repro`` on unchanged
+    inputs, the server restarted, after an incomplete attempt (``partial``, a run id) of the
+    same execution (``identity``) was left in the store; ``logged`` and ``reused``: the run
+    records of that repro and of a ``thermal track`` after it; ``client``: the restarted
+    server's; ``raw_bytes``: K99's files as written.
     """
 
     work: Path
     before: pd.DataFrame
+    offline: subprocess.CompletedProcess
     output: str
+    status: str
+    scores: bytes
     again: str
+    identity: str
+    partial: str
+    logged: dict
+    reused: dict
+    client: MlflowClient
     raw_bytes: dict[Path, bytes]
 
 
@@ -139,20 +166,68 @@ def _add_malformed_campaign(raw: Path) -> dict[Path, bytes]:
 
 @pytest.fixture(scope="module")
 def next_run(demo, tmp_path_factory) -> NextRun:
-    """One continued run for the new-campaign and the malformed-campaign tests."""
-    work = _continue_from(demo, tmp_path_factory.mktemp("next") / "repo")
+    """One continued run for the new-campaign, malformed-campaign and stopped-server tests."""
+    tmp = tmp_path_factory.mktemp("next")
+    work = _continue_from(demo, tmp / "repo")
     before = _scores(work)
     pairs = before[["model", "selection"]].apply(tuple, axis=1)
     before = before[pairs.isin(NEXT_CANDIDATES.items())].reset_index(drop=True)
     _fewer_candidates(work, NEXT_CANDIDATES)
-    env = _env(f"sqlite:///{work / 'mlflow.db'}")
+    with running_mlflow_server(tmp) as stopped_uri:
+        assert MlflowClient(tracking_uri=stopped_uri).search_experiments()  # up, store made
+    # ... and stopped now: the continued pipeline runs against an unreachable server
+    env = _env(stopped_uri)
     simulate = (
         "simulate --preset single --id K13 --season summer --rpm 4000 --seed 13 --out data/raw"
     )
     _run([str(BIN / "thermal"), *simulate.split()], work, env)
     raw_bytes = _add_malformed_campaign(work / "data" / "raw")
-    output = _repro(work, env)
-    return NextRun(work, before, output, _repro(work, env), raw_bytes)
+    offline = subprocess.run(
+        [str(BIN / "dvc"), "repro"], cwd=work, env=env, capture_output=True, text=True
+    )
+    status = _run([str(BIN / "dvc"), "status"], work, env)
+    scores = (work / OUTPUTS[0]).read_bytes()
+    with running_mlflow_server(tmp) as uri:
+        client = MlflowClient(tracking_uri=uri)
+        identity = _identity(work, uri)
+        partial = _incomplete_attempt(client, identity)
+        again = _repro(work, _env(uri))
+        logged = json.loads((work / "reports" / "mlflow_run.json").read_text())
+        _run([str(BIN / "thermal"), "track"], work, _env(uri))
+        reused = json.loads((work / "reports" / "mlflow_run.json").read_text())
+        yield NextRun(
+            work,
+            before,
+            offline,
+            offline.stdout + offline.stderr,
+            status,
+            scores,
+            again,
+            identity,
+            partial,
+            logged,
+            reused,
+            client,
+            raw_bytes,
+        )
+
+
+def _identity(work: Path, uri: str) -> str:
+    """The run identity ``thermal track`` computes for the outputs in ``work``."""
+    code = (
+        "import pathlib, pipeline.tracking.pipeline_run as t; "
+        "print(t.prepare(pathlib.Path('params.yaml')).identity.value)"
+    )
+    return _run([sys.executable, "-c", code], work, _env(uri)).strip().splitlines()[-1]
+
+
+def _incomplete_attempt(client: MlflowClient, identity: str) -> str:
+    """Leave what a connection lost mid-way leaves: a FAILED parent with a child; its run id."""
+    experiment_id = store.ensure_experiment(client, _experiment(), None)
+    partial = client.create_run(experiment_id, tags={records.IDENTITY_TAG: identity})
+    client.create_run(experiment_id, tags={records.PARENT_RUN_TAG: partial.info.run_id})
+    client.set_terminated(partial.info.run_id, RunStatus.to_string(RunStatus.FAILED))
+    return partial.info.run_id
 
 
 def test_new_campaign_is_scored_old_scores_kept_unrelated_stages_skipped(next_run):
@@ -177,6 +252,39 @@ def test_new_campaign_is_scored_old_scores_kept_unrelated_stages_skipped(next_ru
             merged[f"{score}_before"], merged[f"{score}_after"], check_names=False
         )
     assert "Running stage 'evaluate'" not in next_run.again
+
+
+def test_a_stopped_server_keeps_the_outputs_and_a_later_track_logs_them_once(next_run):
+    offline, work = next_run.offline, next_run.work
+    assert offline.returncode != 0
+    assert "Traceback" not in next_run.output
+    assert "Nothing is lost" in next_run.output and "thermal track" in next_run.output
+    assert "MLflow logging failed" in next_run.output  # the discrepancy report stands without it
+    for name in OUTPUTS:
+        assert (work / name).exists(), name
+    lock = yaml.safe_load((work / "dvc.lock").read_text())["stages"]
+    assert lock["evaluate"]["cmd"] == "bin/thermal evaluate"
+    assert "evaluate" not in next_run.status and "track" in next_run.status
+
+    assert "Running stage 'track'" in next_run.again
+    logged, client = next_run.logged, next_run.client
+    assert logged["reused"] is False and logged["run_identity"] == next_run.identity
+    assert next_run.reused["reused"] is True
+    assert next_run.reused["parent_run_id"] == logged["parent_run_id"]
+    experiment = client.get_experiment_by_name(_experiment())
+    runs = client.search_runs(
+        [experiment.experiment_id],
+        filter_string=f"tags.{records.IDENTITY_TAG} = '{next_run.identity}'",
+    )
+    parents = [r for r in runs if records.PARENT_RUN_TAG not in r.data.tags]
+    assert [p.info.run_id for p in parents] == [logged["parent_run_id"]]
+    assert client.get_run(next_run.partial).info.lifecycle_stage == "deleted"
+    children = client.search_runs(
+        [experiment.experiment_id],
+        filter_string=f"tags.{records.PARENT_RUN_TAG} = '{logged['parent_run_id']}'",
+    )
+    assert {r.data.params["model"] for r in children} == set(NEXT_CANDIDATES)
+    assert (work / OUTPUTS[0]).read_bytes() == next_run.scores
 
 
 def test_malformed_campaign_is_quarantined_while_the_others_are_scored(next_run):
