@@ -13,9 +13,9 @@ import pytest
 
 PIPELINE_MODULES = (
     "tests.test_end_to_end",
-    "tests.test_workshop_end_to_end",
-    "tests.test_readme_commands",
     "tests.test_retrain_weeks",
+    "tests.test_readme_commands",
+    "tests.test_workshop_end_to_end",
     "tests.test_dvc_remote",
 )
 """Modules whose tests run ``dvc repro`` on a copy of the repository, longest first."""
