@@ -2,11 +2,12 @@
 
 ``python -m benchmarks.bench`` prints the figures.
 It also times best-subset selection against a naive loop of least-squares fits
-(:mod:`benchmarks.selection_bench`). The repository (tracked files, the shipped demo campaigns) is
-copied to a temporary folder and ``dvc repro`` runs there from scratch against a fresh local
-MLflow store, so that the figures do not depend on caches. In a second fresh copy each stage's
-command (from ``dvc.yaml``) is run alone, in order, to time it. Machines are noisy: read the
-shares rather than absolute seconds.
+(:mod:`benchmarks.selection_bench`) and the compensation runtime's prediction of one cycle as
+the run grows (:mod:`benchmarks.runtime_bench`). The repository (tracked files, the shipped
+demo campaigns) is copied to a temporary folder and ``dvc repro`` runs there from scratch
+against a fresh local MLflow store, so that the figures do not depend on caches. In a second
+fresh copy each stage's command (from ``dvc.yaml``) is run alone, in order, to time it.
+Machines are noisy: read the shares rather than absolute seconds.
 """
 
 from __future__ import annotations
@@ -22,7 +23,7 @@ from pathlib import Path
 
 import yaml
 
-from benchmarks import selection_bench
+from benchmarks import runtime_bench, selection_bench
 from tests.helpers.repository import copy_repository
 
 TARGET_TOTAL_S = 180.0  # the whole default pipeline with all models, 2 cores
@@ -103,7 +104,10 @@ def main(argv: list[str] | None = None) -> int:
     sys.stdout.write("\n".join(report_lines(figures)) + "\n\n")
     figures["best_subset"] = selection_bench.compare()
     sys.stdout.write("best-subset selection, fast exhaustive search vs naive lstsq loop\n")
-    sys.stdout.write("\n".join(selection_bench.report_lines(figures["best_subset"])) + "\n")
+    sys.stdout.write("\n".join(selection_bench.report_lines(figures["best_subset"])) + "\n\n")
+    figures["runtime_cycle"] = runtime_bench.cycle_times()
+    sys.stdout.write("compensation runtime, one cycle's prediction (workshop run, 20-s samples)\n")
+    sys.stdout.write("\n".join(runtime_bench.report_lines(figures["runtime_cycle"])) + "\n")
     if args.json:
         args.json.write_text(json.dumps(figures, indent=2))
     return 0

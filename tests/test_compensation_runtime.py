@@ -319,3 +319,13 @@ def test_an_axis_without_held_out_campaigns_has_an_empty_proof_that_says_so(bund
     assert list(proof.traces.groupby("campaign_id")) == []
     record = summary_record(bundle, proof, {"linear": False}, {})
     assert record["headline"] == "dl/test/static: no held-out campaign to replay"
+
+
+def test_the_runtime_benchmark_times_a_cycle_after_each_run_length():
+    from benchmarks.runtime_bench import cycle_times, report_lines
+
+    times = cycle_times(samples=(30, 90), repeats=2)
+    assert [t["samples"] for t in times] == [30, 90]
+    assert [t["hours"] for t in times] == pytest.approx([30 * 20 / 3600, 90 * 20 / 3600])
+    assert all(t["ms_per_cycle"] > 0 for t in times)
+    assert len(report_lines(times)) == 3 and "0.5 h" in report_lines(times)[2]
