@@ -17,6 +17,7 @@ import os
 import shutil
 import subprocess
 import sys
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -165,7 +166,7 @@ def _add_malformed_campaign(raw: Path) -> dict[Path, bytes]:
 
 
 @pytest.fixture(scope="module")
-def next_run(demo, tmp_path_factory) -> NextRun:
+def next_run(demo, tmp_path_factory) -> Iterator[NextRun]:
     """One continued run for the new-campaign, malformed-campaign and stopped-server tests."""
     tmp = tmp_path_factory.mktemp("next")
     work = _continue_from(demo, tmp / "repo")
