@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import time
 
-import numpy as np
 from sklearn.linear_model import LinearRegression
 
 from pipeline.protocol.serving import predict_table
@@ -54,8 +53,8 @@ def cycle_times(samples: tuple[int, ...] = HISTORY_SAMPLES, repeats: int = 20) -
         for _ in range(repeats):
             predict_table(estimator, history, spec)
         elapsed = (time.perf_counter() - begin) / repeats
-        step = float(np.median(np.diff(history["elapsed_s"].to_numpy())))
-        times.append({"samples": n, "hours": n * step / 3600.0, "ms_per_cycle": 1e3 * elapsed})
+        hours = n * run.plan.interval_s / 3600.0
+        times.append({"samples": n, "hours": hours, "ms_per_cycle": 1e3 * elapsed})
     return times
 
 

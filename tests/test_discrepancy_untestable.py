@@ -16,11 +16,12 @@ from pipeline.stages.discrepancy import main
 from tests.helpers.processes import free_port
 
 
-def _params(tmp_path):
+def _params(tmp_path, *more: str):
     params = {
         "ingest": load_section("ingest"),
         "validate": load_section("validate"),
         "discrepancy": {"candidates": ["motor_heat"], "n_folds": 2, "n_jobs": 1},
+        **{name: load_section(name) for name in more},
     }
     path = tmp_path / "params.yaml"
     path.write_text(yaml.safe_dump(params), encoding="utf-8")
@@ -75,9 +76,7 @@ def test_an_unreachable_tracking_server_leaves_the_report_and_exits_0(
     monkeypatch.setenv("MLFLOW_HTTP_REQUEST_MAX_RETRIES", "0")
     argv = ["--raw", str(tmp_path / "raw"), "--out", str(tmp_path / "out")]
     record = tmp_path / "out" / "run.json"
-    params = _params(tmp_path)
-    sections = yaml.safe_load(params.read_text(encoding="utf-8"))
-    params.write_text(yaml.safe_dump({**sections, "tracking": load_section("tracking")}))
+    params = _params(tmp_path, "tracking")
     with caplog.at_level(logging.WARNING, logger="pipeline.stages.discrepancy"):
         code = main([*argv, "--params", str(params), "--run-record", str(record)])
 

@@ -188,8 +188,10 @@ def main(argv: list[str] | None = None) -> int:
         effects = _effects(args.effects, args.preset)
         plans = () if args.preset == "workshop" else _plans(args)
         workshop = None
-        if args.preset == "workshop":
-            workshop = workshop_plan(*([] if args.interval_s is None else [args.interval_s]))
+        if args.preset == "workshop" and args.interval_s is None:
+            workshop = workshop_plan()
+        elif args.preset == "workshop":
+            workshop = workshop_plan(args.interval_s)
     except (KeyError, ValueError) as err:
         sys.stderr.write(f"thermal simulate: {err.args[0] if err.args else err}\n")
         return 2
