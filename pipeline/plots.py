@@ -324,6 +324,12 @@ def score_heatmap_figure(
             (ax, matrix.shape, _draw_heatmap(fig, ax, name, matrix, seasons, validation, mask))
         )
     fig.suptitle(wrap_text(fig, title, TITLE_FONTSIZE), fontsize=TITLE_FONTSIZE)
+    # The cell values sit inside their axes and are sized to the cells once the layout is
+    # known: left out of the layout and of this measuring draw, which they would only slow.
+    for _, _, texts in cells:
+        for text in texts:
+            text.set_in_layout(False)
+            text.set_visible(False)
     fig.canvas.draw()
     for ax, (rows, columns), texts in cells:
         cell_w = ax.bbox.width / max(columns, 1)
@@ -334,6 +340,7 @@ def score_heatmap_figure(
         size = min(9.0, 0.55 * cell_h / px_per_pt, 0.9 * cell_w / (0.64 * chars * px_per_pt))
         for text in texts:
             text.set_fontsize(max(size, 5.0))
+            text.set_visible(True)
     return fig
 
 

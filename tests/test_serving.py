@@ -7,7 +7,8 @@ import numpy as np
 import pandas as pd
 from sklearn.linear_model import LinearRegression
 
-from pipeline.protocol.serving import predict_table
+from pipeline.models import make_model
+from pipeline.protocol.serving import predict_run, predict_table
 from pipeline.separation.features import InputSpec, SpeedResponses
 from pipeline.separation.spindle import SeparationSettings, spindle_thermal_error
 
@@ -76,3 +77,39 @@ def test_rows_with_a_missing_input_get_no_prediction_the_others_do():
     assert np.isnan(served[3]) and np.isfinite(np.delete(served, 3)).all()
     rows = [0, 19]
     np.testing.assert_allclose(served[rows], 2.0 * (table["T1"].iloc[rows] - 20.0), atol=1e-9)
+
+
+def test_the_runtime_s_array_path_predicts_what_a_table_of_several_runs_gets():
+    """Two runs in one table (the general path) against each run alone as arrays (the runtime's
+    path), through windows, a missing reading and a lagged model."""
+    first = _logger_table()
+    second = _logger_table(n=300).assign(campaign_id="R2", T1=lambda t: t["T1"] + 0.4)
+    second.loc[50, "T2"] = np.nan
+    table = pd.concat([first, second], ignore_index=True).drop(columns=["disp_Z", "source_row"])
+    spec = InputSpec(
+        ("T1", "T2", "speed_lag_30min"), "temperature_rise", "first_sample", 1, SPEED, 60.0
+    )
+    walk = np.cumsum(np.random.default_rng(3).normal(size=(40, 3)), axis=0)
+    X = pd.DataFrame(
+        walk,
+        columns=list(spec.inputs),
+        index=pd.MultiIndex.from_arrays(
+            [["A"] * 40, np.arange(40) * 60.0], names=["campaign_id", "elapsed_s"]
+        ),
+    )
+    model = make_model("dl").fit(X, 2.0 * X["T1"] - X["T2"] + 0.5 * X["speed_lag_30min"])
+
+    served = predict_table(model, table, spec)
+
+    for run in ("R1", "R2"):
+        rows = table["campaign_id"] == run
+        part = table[rows]
+        alone = predict_run(
+            model,
+            part["elapsed_s"].to_numpy(),
+            part[["T1", "T2"]].to_numpy(),
+            part["rpm"].to_numpy(),
+            spec,
+        )
+        np.testing.assert_allclose(alone, served[rows.to_numpy()], rtol=0, atol=1e-9)
+        assert np.isfinite(alone).all()

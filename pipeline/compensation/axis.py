@@ -14,11 +14,12 @@ offset is then bounded: at most ``max_offset_um`` in magnitude and a change of a
 ``max_rate_um_per_s`` per second of machine time since the last write (the controller's own
 limits, e.g. SINUMERIK MD32760, stay a second line).
 
-Predictions are :func:`pipeline.protocol.serving.predict_table` on the run so far -- the code
-the registered model and the training scores use (windows of the training's ``resample_s``,
-rises from the run's reference, speed responses from rest at its start) -- read at the newest
-sample: the inputs are causal, so the newest value is what the whole-run prediction gives at
-that instant. The cost of a cycle grows with the length of the run (one pass over it).
+Predictions are :func:`pipeline.protocol.serving.predict_run` on the run so far -- the code
+the registered model (:func:`pipeline.protocol.serving.predict_table`) and the training scores
+use (windows of the training's ``resample_s``, rises from the run's reference, speed responses
+from rest at its start) -- read at the newest sample: the inputs are causal, so the newest value
+is what the whole-run prediction gives at that instant. The cost of a cycle grows with the
+length of the run (one pass over it).
 """
 
 from __future__ import annotations
@@ -28,11 +29,10 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
-import pandas as pd
 
 from pipeline.compensation.bundle import AxisBundle, ModelEntry
 from pipeline.compensation.guard import RPM
-from pipeline.protocol.serving import predict_table
+from pipeline.protocol.serving import predict_run
 from pipeline.settings.compensation import AxisLimits, CompensationSettings
 
 CHAMPION, FALLBACK, HOLD, DECAY, OFF = "champion", "fallback", "hold", "decay", "off"
@@ -97,11 +97,20 @@ def bound(previous: float, target: float, dt_s: float, limits: AxisLimits) -> fl
     return float(np.clip(wanted, previous - step, previous + step))
 
 
-def predict_latest(entry: ModelEntry, history: pd.DataFrame) -> float:
-    """Return the thermal error (um) the model predicts at the run's newest sample (NaN: none)."""
-    columns = ["elapsed_s", *([RPM] if entry.spec.needs_speed else []), *entry.spec.sensors]
-    predicted = predict_table(entry.estimator, history[columns], entry.spec)
-    return float(predicted[-1]) if len(predicted) else float("nan")
+def predict_latest(entry: ModelEntry, history: Mapping[str, np.ndarray]) -> float:
+    """Return the thermal error (um) the model predicts at the run's newest sample (NaN: none).
+
+    ``history``: the run so far, one array per column (``elapsed_s``, ``rpm``, the sensors).
+    """
+    t_s = history["elapsed_s"]
+    if not len(t_s):
+        return float("nan")
+    sensors = entry.spec.sensors
+    temperatures = np.column_stack([history[name] for name in sensors]) if sensors else None
+    if temperatures is None:
+        temperatures = np.empty((len(t_s), 0))
+    rpm = history[RPM] if entry.spec.needs_speed else np.full(len(t_s), np.nan)
+    return float(predict_run(entry.estimator, t_s, temperatures, rpm, entry.spec)[-1])
 
 
 def usable(entry: ModelEntry, bad: Mapping[str, str]) -> bool:
@@ -132,8 +141,14 @@ class AxisCompensator:
         self.faulted = False
         self._written: tuple[float, float | None] = (0.0, None)
 
-    def step(self, history: pd.DataFrame, bad: Mapping[str, str], t_s: float) -> AxisStep:
-        """Offset of this cycle from the run so far (newest reading last) and its bad inputs."""
+    def step(
+        self, history: Mapping[str, np.ndarray], bad: Mapping[str, str], t_s: float
+    ) -> AxisStep:
+        """Offset of this cycle from the run so far and its bad inputs.
+
+        ``history``: one array per column (``elapsed_s``, ``rpm``, the sensors), the newest
+        reading last, bad cells NaN.
+        """
         if not self.bundle.compensate:
             return self._write(t_s, OFF, "-", float("nan"), 0.0, "champion is none")
         entry, why = self._choose(bad)

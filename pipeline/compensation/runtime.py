@@ -28,7 +28,6 @@ from pathlib import Path
 from typing import Protocol
 
 import numpy as np
-import pandas as pd
 
 from pipeline.compensation.axis import AxisCompensator, AxisStep
 from pipeline.compensation.bundle import AxisBundle
@@ -168,16 +167,13 @@ class RunHistory:
         """Return the run's readings as read, one array (a view, not a copy) per column."""
         return {name: self._values[: self.n, j] for j, name in enumerate(self.columns)}
 
-    def raw(self) -> pd.DataFrame:
-        """Return the run's readings as read."""
-        return pd.DataFrame(self._values[: self.n], columns=self.columns)
-
-    def clean(self, axis: str, raw: pd.DataFrame) -> pd.DataFrame:
-        """Return the run's readings with every cell found bad for ``axis`` set to NaN."""
+    def clean(self, axis: str) -> dict[str, np.ndarray]:
+        """Return the run's readings, one array per column, every cell bad for ``axis`` NaN."""
+        values = self._values[: self.n]
         bad = self._bad[axis][: self.n]
-        if not bad.any():
-            return raw
-        return pd.DataFrame(np.where(bad, np.nan, raw.to_numpy()), columns=self.columns)
+        if bad.any():
+            values = np.where(bad, np.nan, values)
+        return {name: values[:, j] for j, name in enumerate(self.columns)}
 
 
 def _number(value) -> float:
@@ -286,10 +282,9 @@ class CompensationRuntime:
         for reading in readings:
             self._take(reading)
         self._last_reading_wall = self.clock()
-        raw = self.history.raw()
         t_s = self._last_reading_t_s = readings[-1].t_s
         steps = [
-            compensator.step(self.history.clean(axis, raw), self._bad[axis], t_s)
+            compensator.step(self.history.clean(axis), self._bad[axis], t_s)
             for axis, compensator in self.axes.items()
         ]
         return self._write(t_s, steps)

@@ -39,7 +39,7 @@ import statsmodels.api as sm
 from pipeline.models.base import FeedbackModel
 from pipeline.models.feedback import linear_feedback_predict
 from pipeline.models.identification import check_criterion
-from pipeline.models.series import history, lagged, segments
+from pipeline.models.series import history, lagged, lagged_values, segments
 
 logger = logging.getLogger(__name__)
 
@@ -136,7 +136,7 @@ class AutoregressiveDistributedLag(FeedbackModel):
 
     def _predict(self, X: pd.DataFrame, measured: np.ndarray | None) -> np.ndarray:
         """Predict c plus the lagged temperature terms plus the AR terms on the error, um."""
-        base = self.intercept_ + lagged(X, self.dl_order_).to_numpy() @ self.dl_.ravel()
+        base = self.intercept_ + lagged_values(X, self.dl_order_) @ self.dl_.ravel()
         return linear_feedback_predict(base, self.ar_, segments(X), measured)
 
     def _design(

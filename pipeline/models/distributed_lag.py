@@ -22,7 +22,7 @@ import pandas as pd
 import statsmodels.api as sm
 
 from pipeline.models.base import TemperatureModel
-from pipeline.models.series import lagged
+from pipeline.models.series import lagged_values
 
 logger = logging.getLogger(__name__)
 
@@ -161,7 +161,7 @@ def expedient_lag_order(
             len(sensors),
         )
     for n in range(1, top + 1):
-        result = ols_fit(lagged(X, n).to_numpy(), y)
+        result = ols_fit(lagged_values(X, n), y)
         coef = np.asarray(result.params)[1:].reshape(len(sensors), n + 1)
         pvalues = np.asarray(result.pvalues)[1:].reshape(len(sensors), n + 1)
         reason = lag_stop_reason(sensors, coef, pvalues[:, n], alpha)
@@ -224,7 +224,7 @@ class LaggedLinearModel(TemperatureModel):
 
     def _predict(self, frame: pd.DataFrame) -> np.ndarray:
         """Apply the coefficients to the per-campaign lagged design, um."""
-        design = lagged(frame, self.lag_order_).to_numpy()
+        design = lagged_values(frame, self.lag_order_)
         return design @ self.coef_.to_numpy().ravel() + self.intercept_
 
 
@@ -270,7 +270,7 @@ class DistributedLagRegressor(LaggedLinearModel):
         """
         lag, rule = lag_order(frame, target, self.lag, self.max_lag, self.alpha_significance)
         check_lag_feasible(len(target), frame.shape[1], lag)
-        result = ols_fit(lagged(frame, lag).to_numpy(), target)
+        result = ols_fit(lagged_values(frame, lag), target)
         params = np.asarray(result.params)
         sensors = list(frame.columns)
         self._set_coefficients(sensors, params[1:], params[0])

@@ -23,7 +23,7 @@ import numpy as np
 import pandas as pd
 
 from pipeline.models.distributed_lag import LaggedLinearModel, lag_order
-from pipeline.models.series import lagged
+from pipeline.models.series import lagged_values
 
 logger = logging.getLogger(__name__)
 
@@ -118,7 +118,7 @@ class PrincipalComponentDistributedLag(LaggedLinearModel):
                 "it needs at least 3"
             )
         lag, rule = lag_order(frame, target, self.lag, self.max_lag, self.alpha_significance)
-        design = lagged(frame, lag).to_numpy()
+        design = lagged_values(frame, lag)
         mean = design.mean(axis=0)
         scale = design.std(axis=0, ddof=1)
         varying = scale > _ZERO_VARIANCE * np.maximum(1.0, np.abs(mean))

@@ -30,7 +30,7 @@ import pandas as pd
 from sklearn.cross_decomposition import PLSRegression
 
 from pipeline.models.distributed_lag import LaggedLinearModel
-from pipeline.models.series import lagged, segments
+from pipeline.models.series import lagged_values, segments
 
 logger = logging.getLogger(__name__)
 
@@ -181,7 +181,7 @@ class RidgeDistributedLag(LaggedLinearModel):
     def _fit(self, frame: pd.DataFrame, target: np.ndarray) -> None:
         """Choose alpha by campaign-wise CV (:func:`cv_folds`), then fit on all rows."""
         alphas = np.asarray(self.alphas, dtype=float)
-        design = lagged(frame, int(self.lag)).to_numpy()
+        design = lagged_values(frame, int(self.lag))
         folds, scheme = cv_folds(frame)
         mse = _held_out_mse(design, target, folds, partial(ridge_path, alphas=alphas))
         best = int(np.argmin(mse))
@@ -254,7 +254,7 @@ class PLSDistributedLag(LaggedLinearModel):
 
     def _fit(self, frame: pd.DataFrame, target: np.ndarray) -> None:
         """Choose the components by campaign-wise CV (:func:`cv_folds`), then fit on all rows."""
-        design = lagged(frame, int(self.lag)).to_numpy()
+        design = lagged_values(frame, int(self.lag))
         folds, scheme = cv_folds(frame)
         smallest_train = min(len(train) for train, _ in folds)
         candidates = np.arange(1, min(self.max_components, design.shape[1], smallest_train - 1) + 1)

@@ -74,7 +74,8 @@ def check_features(
     Returns
     -------
     pandas.DataFrame, shape (n, len(columns) or m)
-        A new float DataFrame with X's index.
+        X's (selected) columns as floats, with X's index: X itself when it already is exactly
+        that (callers do not modify it).
 
     Raises
     ------
@@ -94,12 +95,13 @@ def check_features(
                 f"X lacks the sensor columns {missing} the model was fitted on; "
                 "pass the same sensors as in fit"
             )
-        X = X.loc[:, list(columns)]
+        if list(X.columns) != list(columns):
+            X = X.loc[:, list(columns)]
     if X.shape[0] == 0 or X.shape[1] < min_columns:
         raise ValueError(
             f"X has shape {X.shape}; it needs at least one row and {min_columns} sensor column(s)"
         )
-    frame = X.astype(float)
+    frame = X if (X.dtypes == np.float64).all() else X.astype(float)
     if not np.isfinite(frame.to_numpy()).all():
         raise ValueError("X holds NaN or infinite temperatures; drop or repair those rows first")
     return frame
@@ -131,11 +133,16 @@ def segments(X: pd.DataFrame) -> list[np.ndarray]:
         return []
     if CAMPAIGN_LEVEL not in (X.index.names or []):
         return [np.arange(n, dtype=np.int64)]
-    ids = X.index.get_level_values(CAMPAIGN_LEVEL)
-    codes, _ = pd.factorize(ids, use_na_sentinel=False)
+    index = X.index
+    level = index.names.index(CAMPAIGN_LEVEL)
+    if isinstance(index, pd.MultiIndex) and not (index.codes[level] < 0).any():
+        codes = np.asarray(index.codes[level])  # already factorised; -1 would be a missing id
+    else:
+        codes, _ = pd.factorize(index.get_level_values(level), use_na_sentinel=False)
     starts = np.flatnonzero(np.r_[True, codes[1:] != codes[:-1]])
     block_codes = codes[starts]
     if len(np.unique(block_codes)) != len(block_codes):
+        ids = index.get_level_values(level)
         repeated = pd.Index(ids[starts]).value_counts()
         raise ValueError(
             "rows of a campaign are not contiguous in X (campaign ids appearing in several "
@@ -179,6 +186,18 @@ def lagged(X: pd.DataFrame, n_lags: int) -> pd.DataFrame:
     ValueError
         If ``n_lags`` is negative or not an integer.
     """
+    columns = [f"{sensor}_lag{i}" for sensor in X.columns for i in range(n_lags + 1)]
+    return pd.DataFrame(lagged_values(X, n_lags), index=X.index, columns=columns)
+
+
+def lagged_values(X: pd.DataFrame, n_lags: int) -> np.ndarray:
+    """Return the values of :func:`lagged`, shape (n, m * (n_lags + 1)), without the table.
+
+    Raises
+    ------
+    ValueError
+        If ``n_lags`` is negative or not an integer.
+    """
     if isinstance(n_lags, bool) or not isinstance(n_lags, int | np.integer) or n_lags < 0:
         raise ValueError(f"n_lags must be a non-negative integer, got {n_lags!r}")
     values = X.to_numpy(dtype=float)
@@ -188,8 +207,7 @@ def lagged(X: pd.DataFrame, n_lags: int) -> pd.DataFrame:
         block = values[rows]
         for i in range(n_lags + 1):
             out[rows[:, None], np.arange(m) * (n_lags + 1) + i] = _shift_padded(block, i, block[0])
-    columns = [f"{sensor}_lag{i}" for sensor in X.columns for i in range(n_lags + 1)]
-    return pd.DataFrame(out, index=X.index, columns=columns)
+    return out
 
 
 def history(

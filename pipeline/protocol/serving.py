@@ -19,7 +19,16 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from pipeline.separation.features import InputSpec, model_inputs, resample
+from pipeline.separation.features import (
+    InputSpec,
+    check_input_columns,
+    model_inputs,
+    needs_windows,
+    resample,
+    run_time_index,
+    spec_input_values,
+    window_means,
+)
 
 
 def _runs(table: pd.DataFrame) -> np.ndarray:
@@ -48,6 +57,16 @@ def predict_table(estimator, table: pd.DataFrame, spec: InputSpec) -> np.ndarray
     frame = table.reset_index(drop=True)
     runs = _runs(frame)
     names = pd.unique(runs)
+    if len(names) == 1 and "elapsed_s" in frame:
+        check_input_columns(frame.columns, spec)
+        rpm = frame["rpm"] if "rpm" in frame else np.full(len(frame), np.nan)
+        return predict_run(
+            estimator,
+            frame["elapsed_s"].to_numpy(dtype=float),
+            frame[spec.sensors].to_numpy(dtype=float, na_value=np.nan),
+            np.asarray(rpm, dtype=float),
+            spec,
+        )
     windows = [
         resample(
             (frame if len(names) == 1 else frame[runs == run]).assign(campaign_id=run),
@@ -72,3 +91,50 @@ def predict_table(estimator, table: pd.DataFrame, spec: InputSpec) -> np.ndarray
         if theirs.any():
             out[mine] = np.interp(elapsed[mine], window_elapsed[theirs], predicted[theirs])
     return out
+
+
+def predict_run(
+    estimator, t_s: np.ndarray, temperatures: np.ndarray, rpm: np.ndarray, spec: InputSpec
+) -> np.ndarray:
+    """Predicted thermal error (um) at every sample of one run given as arrays.
+
+    What :func:`predict_table` does with a one-run table, without building the table: the
+    compensation runtime calls it every cycle on the run so far.
+
+    Parameters
+    ----------
+    estimator : fitted estimator
+    t_s : ndarray of shape (n,), s
+        Time of each sample since the run's start, increasing.
+    temperatures : ndarray of shape (n, len(spec.sensors)), degC
+        The readings of ``spec.sensors`` in that order; NaN is a missing (or bad) reading.
+    rpm : ndarray of shape (n,), rpm
+        Spindle speed (read only when ``spec.needs_speed``).
+    spec : InputSpec
+
+    Returns
+    -------
+    ndarray of shape (n,), um
+        NaN where an input is missing.
+    """
+    t_s = np.asarray(t_s, dtype=float)
+    windows = needs_windows(t_s, spec.resample_s)
+    if windows:
+        columns = np.column_stack([t_s, rpm, temperatures])
+        _, means = window_means(t_s, columns, float(spec.resample_s))
+        window_t, window_rpm, window_temperatures = means[:, 0], means[:, 1], means[:, 2:]
+    else:
+        window_t, window_rpm, window_temperatures = t_s, rpm, temperatures
+    inputs = spec_input_values(spec, window_t, window_temperatures, window_rpm)
+    complete = ~np.isnan(inputs).any(axis=1)
+    predicted = np.full(len(inputs), np.nan)
+    if complete.any():
+        index = run_time_index(np.zeros(int(complete.sum()), dtype=int), window_t[complete])
+        X = pd.DataFrame(inputs[complete], index=index, columns=list(spec.inputs))
+        predicted[complete] = estimator.predict(X)
+    if not windows:
+        return predicted
+    finite = np.isfinite(predicted)
+    if not finite.any():
+        return np.full(len(t_s), np.nan)
+    return np.interp(t_s, window_t[finite], predicted[finite])

@@ -360,27 +360,61 @@ def resample(rows: pd.DataFrame, window_s: float | None) -> pd.DataFrame:
     if window_s is None or len(rows) < 2 or "elapsed_s" not in rows:
         return rows
     t = rows["elapsed_s"].to_numpy(dtype=float)
-    if np.median(np.diff(t)) >= window_s * 0.999:
+    if not needs_windows(t, window_s):
         return rows
-    window = np.floor((t - t[0]) / window_s).astype(np.int64)
     numeric = [
         c
         for c, dtype in rows.dtypes.items()
         if c not in ("campaign_id", "source_row") and pd.api.types.is_numeric_dtype(dtype)
     ]
+    firsts, means = window_means(t, rows[numeric].to_numpy(dtype=float, na_value=np.nan), window_s)
+    out = pd.DataFrame(means, columns=numeric)
+    for column in ("source_row", "campaign_id"):
+        if column in rows:
+            out.insert(0, column, rows[column].to_numpy()[firsts])
+    return out
+
+
+def needs_windows(t_s: np.ndarray, window_s: float | None) -> bool:
+    """Whether samples at times ``t_s`` (s) are averaged into windows of ``window_s`` (s).
+
+    True when there is a window, two samples or more, and a median interval below it.
+    """
+    return window_s is not None and len(t_s) > 1 and np.median(np.diff(t_s)) < window_s * 0.999
+
+
+def window_means(
+    t_s: np.ndarray, values: np.ndarray, window_s: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """Average samples into windows ``[t0 + k w, t0 + (k + 1) w)``, missing readings left out.
+
+    The array core of :func:`resample`.
+
+    Parameters
+    ----------
+    t_s : ndarray of shape (n,), s
+        Sample times; ``t_s[0]`` starts the first window.
+    values : ndarray of shape (n, m)
+        Float columns; NaN is a missing reading.
+    window_s : float, s
+
+    Returns
+    -------
+    firsts : ndarray of int
+        Row of each window's first sample (in ``t_s``' order).
+    means : ndarray of shape (n_windows, m)
+        Mean of each column in each window (NaN where a window has no reading of it).
+    """
+    window = np.floor((t_s - t_s[0]) / window_s).astype(np.int64)
     order = np.argsort(window, kind="stable")
     ordered = window[order]
     starts = np.flatnonzero(np.r_[True, ordered[1:] != ordered[:-1]])
-    values = rows[numeric].to_numpy(dtype=float, na_value=np.nan)[order]
+    values = values[order]
     missing = np.isnan(values)
     sums = np.add.reduceat(np.where(missing, 0.0, values), starts, axis=0)
     counts = np.add.reduceat((~missing).astype(float), starts, axis=0)
     with np.errstate(invalid="ignore"):
-        out = pd.DataFrame(sums / counts, columns=numeric)
-    for column in ("source_row", "campaign_id"):
-        if column in rows:
-            out.insert(0, column, rows[column].to_numpy()[order][starts])
-    return out
+        return order[starts], sums / counts
 
 
 def input_column(name: str, features: str) -> str:
@@ -475,14 +509,7 @@ def model_inputs(table: pd.DataFrame, spec: InputSpec) -> pd.DataFrame:
     ValueError
         If a column the model needs is missing, naming it and the columns found.
     """
-    needed = list(spec.sensors) + (["rpm", "elapsed_s"] if spec.needs_speed else [])
-    missing = [c for c in needed if c not in table.columns]
-    if missing:
-        raise ValueError(
-            f"the table lacks column(s) {missing} (found {list(table.columns)}); this model needs "
-            f"{needed}: temperatures in degC"
-            + (", the spindle speed rpm and elapsed_s in s" if spec.needs_speed else "")
-        )
+    check_input_columns(table.columns, spec)
     runs = (
         table["campaign_id"].astype(str).to_numpy()
         if "campaign_id" in table
@@ -494,33 +521,76 @@ def model_inputs(table: pd.DataFrame, spec: InputSpec) -> pd.DataFrame:
         else np.arange(len(table), dtype=float)
     )
     rpm = table["rpm"].to_numpy(dtype=float) if "rpm" in table else np.full(len(table), np.nan)
+    temperatures = table[spec.sensors].to_numpy(dtype=float, na_value=np.nan)
+    values = np.full((len(table), len(spec.inputs)), np.nan)
+    for run in pd.unique(runs):
+        rows = np.flatnonzero(runs == run)
+        values[rows] = spec_input_values(spec, elapsed[rows], temperatures[rows], rpm[rows])
+    return pd.DataFrame(values, index=run_time_index(runs, elapsed), columns=list(spec.inputs))
+
+
+def check_input_columns(columns: Sequence[str], spec: InputSpec) -> None:
+    """Raise ValueError, naming them, if columns that ``spec`` reads are not in ``columns``."""
+    needed = list(spec.sensors) + (["rpm", "elapsed_s"] if spec.needs_speed else [])
+    missing = [c for c in needed if c not in columns]
+    if missing:
+        raise ValueError(
+            f"the table lacks column(s) {missing} (found {list(columns)}); this model needs "
+            f"{needed}: temperatures in degC"
+            + (", the spindle speed rpm and elapsed_s in s" if spec.needs_speed else "")
+        )
+
+
+def spec_input_values(
+    spec: InputSpec, t_s: np.ndarray, temperatures: np.ndarray, rpm: np.ndarray
+) -> np.ndarray:
+    """Return one run's model inputs as :func:`model_inputs` computes them, as an array.
+
+    Parameters
+    ----------
+    spec : InputSpec
+    t_s : ndarray of shape (n,), s
+        Time of each sample since the run's start.
+    temperatures : ndarray of shape (n, len(spec.sensors)), degC
+        The readings of ``spec.sensors``, in that order (NaN: missing).
+    rpm : ndarray of shape (n,), rpm
+        Spindle speed (read only when ``spec.needs_speed``).
+
+    Returns
+    -------
+    ndarray of shape (n, len(spec.inputs))
+        Columns in the order of ``spec.inputs``.
+    """
     speed = spec.speed if spec.needs_speed else None
     produced = [input_column(name, spec.features) for name in spec.sensors]
     produced += [] if speed is None else speed.names()
     take = [produced.index(input_column(name, spec.features)) for name in spec.inputs]
-    temperatures = table[spec.sensors].to_numpy(dtype=float, na_value=np.nan)
-    values = np.full((len(table), len(take)), np.nan)
-    for run in pd.unique(runs):
-        rows = np.flatnonzero(runs == run)
-        inputs = run_input_values(
-            elapsed[rows],
-            temperatures[rows],
-            rpm[rows],
-            features=spec.features,
-            reference=spec.reference,
-            n=spec.reference_n,
-            speed=speed,
-        )
-        values[rows] = inputs[:, take]
-    return pd.DataFrame(values, index=run_time_index(runs, elapsed), columns=list(spec.inputs))
+    inputs = run_input_values(
+        t_s,
+        temperatures,
+        rpm,
+        features=spec.features,
+        reference=spec.reference,
+        n=spec.reference_n,
+        speed=speed,
+    )
+    return inputs[:, take]
 
 
 def run_time_index(runs: np.ndarray, elapsed_s: np.ndarray) -> pd.MultiIndex:
     """Return the (``campaign_id``, ``elapsed_s``) index of a table of runs.
 
     What ``pd.MultiIndex.from_arrays`` builds, from codes (a quarter of its time: the runtime
-    builds one per cycle).
+    builds one per cycle; for one run in time order, without sorting anything).
     """
+    n = len(runs)
+    if n and (runs == runs[0]).all() and (np.diff(elapsed_s) > 0).all():
+        return pd.MultiIndex(
+            levels=[pd.Index(runs[:1]), pd.Index(elapsed_s)],
+            codes=[np.zeros(n, dtype=np.int8), np.arange(n)],
+            names=["campaign_id", "elapsed_s"],
+            verify_integrity=False,
+        )
     run_codes, run_names = pd.factorize(runs, sort=True)
     time_codes, times = pd.factorize(elapsed_s, sort=True)
     return pd.MultiIndex(
