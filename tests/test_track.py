@@ -636,6 +636,13 @@ def test_child_params_hold_the_registered_fit_and_the_fits_table_every_unit(
             entry = outputs.fitted[f"{axis}/{model}/{selection}/{unit}"]
             assert fits.loc[unit, "inputs"] == (",".join(entry["inputs"]) or "-")
             assert json.loads(fits.loc[unit, "chosen_params"]) == entry["chosen_params"]
+    # MLflow finds the tables as its own log_table leaves them (the loggedArtifacts tag)
+    ids = [run.info.run_id for run in children]
+    experiment = children[0].info.experiment_id
+    loaded = client.load_table(
+        experiment, records.FITS_TABLE, run_ids=ids, extra_columns=["run_id"]
+    )
+    assert set(loaded["run_id"]) == set(ids) and len(loaded) == len(ids) * len(UNITS)
     assert by_key[("Z", "mlr", "pair", "static")].data.params["inputs"] == "T2,T1"
     assert by_key[("X", "ridge", "all", "static")].data.params["chosen.alpha"] == "50.0"
     one_step = by_key[("Z", "ar1", "none", "one_step")].data.params

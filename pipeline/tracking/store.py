@@ -8,9 +8,9 @@ per run whatever the number of metrics.
 
 from __future__ import annotations
 
+import json
 import logging
 import os
-import posixpath
 import shutil
 import tempfile
 import time
@@ -23,6 +23,7 @@ import requests
 from mlflow.entities import Metric, Param, Run, RunStatus, RunTag
 from mlflow.exceptions import MlflowException
 from mlflow.tracking import MlflowClient
+from mlflow.utils.mlflow_tags import MLFLOW_LOGGED_ARTIFACTS
 
 from pipeline.errors import InputDataError
 from pipeline.tracking.records import IDENTITY_TAG, NOTE_TAG, PARENT_RUN_TAG, RunRecord
@@ -189,19 +190,37 @@ def _create_run(client: MlflowClient, experiment_id: str, record: RunRecord, ext
     return run.info.run_id
 
 
+def table_tag(record: RunRecord) -> dict[str, str]:
+    """Return the ``mlflow.loggedArtifacts`` tag listing a record's tables (none: no tag).
+
+    With it, MLflow's UI shows the table artifacts as tables and ``MlflowClient.load_table``
+    finds them, as after ``MlflowClient.log_table``.
+    """
+    if not record.tables:
+        return {}
+    listed = [{"path": artifact_file, "type": "table"} for artifact_file in record.tables]
+    return {MLFLOW_LOGGED_ARTIFACTS: json.dumps(listed)}
+
+
 def log_evidence(client: MlflowClient, run_id: str, record: RunRecord) -> None:
-    """Log a record's tables (MLflow table artifacts) and files under their artifact paths."""
-    for artifact_file, rows in record.tables.items():
-        client.log_table(run_id, pd.DataFrame(rows), artifact_file)
-    if not record.files:
+    """Log a record's tables and files under their artifact paths, in one upload.
+
+    A table is written as ``MlflowClient.log_table`` writes it (JSON, pandas' ``split``
+    orientation without the index), listed by :func:`table_tag` when the run is created;
+    ``log_table`` itself would list and read the run's artifacts and the run once per table.
+    """
+    if not record.tables and not record.files:
         return
     with tempfile.TemporaryDirectory() as folder:
+        for artifact_file, rows in record.tables.items():
+            target = Path(folder) / artifact_file
+            target.parent.mkdir(parents=True, exist_ok=True)
+            pd.DataFrame(rows).to_json(target, orient="split", index=False, date_format="iso")
         for artifact_path, local in record.files.items():
             target = Path(folder) / artifact_path
             target.parent.mkdir(parents=True, exist_ok=True)
             shutil.copyfile(local, target)
-            directory = posixpath.dirname(artifact_path)
-            client.log_artifact(run_id, str(target), artifact_path=directory or None)
+        client.log_artifacts(run_id, folder)
 
 
 def _log_one(
@@ -211,7 +230,7 @@ def _log_one(
     extra: dict,
     hook: Callable[[RunRecord, str], None] | None = None,
 ) -> str:
-    run_id = _create_run(client, experiment_id, record, extra)
+    run_id = _create_run(client, experiment_id, record, {**extra, **table_tag(record)})
     try:
         if hook is not None:
             hook(record, run_id)
