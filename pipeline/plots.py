@@ -330,7 +330,7 @@ def score_heatmap_figure(
         for text in texts:
             text.set_in_layout(False)
             text.set_visible(False)
-    fig.canvas.draw()
+    fig.draw_without_rendering()
     for ax, (rows, columns), texts in cells:
         cell_w = ax.bbox.width / max(columns, 1)
         cell_h = ax.bbox.height / max(rows, 1)
