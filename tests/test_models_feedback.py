@@ -237,6 +237,30 @@ def test_svr_cross_validates_by_whole_campaigns():
     assert model.chosen_params_["n_folds"] == 2
 
 
+def test_svr_predicts_what_scikit_learn_s_svr_predicts_one_step_and_in_free_run():
+    X, y = _warm_up("A", 3)
+    model = EmbeddedSVR(n_folds=2).fit(X, y)
+    m = model.embedding_
+    scale = model.difference_scale_
+
+    def by_sklearn(levels: np.ndarray) -> float:
+        scaled = model._standardise(levels[:m] - levels[1 : m + 1])[None, :]
+        return levels[0] + model.difference_mean_ + scale * model.svr_.predict(scaled)[0]
+
+    one_step = model.predict(X, y_history=y)
+    padded = np.r_[np.zeros(m + 1), y]
+    expected = [
+        by_sklearn(padded[t + m : t - 1 if t else None : -1][: m + 1]) for t in range(len(y))
+    ]
+    np.testing.assert_allclose(one_step, expected, rtol=0, atol=1e-9)
+    free = model.predict(X)
+    own = np.zeros(m + 1)
+    for t in range(len(y)):
+        value = by_sklearn(own)
+        assert free[t] == pytest.approx(value, abs=1e-9)
+        own = np.r_[value, own[:-1]]
+
+
 # --- ARDL -----------------------------------------------------------------------------------
 
 
