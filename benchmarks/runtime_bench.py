@@ -2,7 +2,7 @@
 
 Every cycle the runtime predicts the thermal error at the newest reading from the run so far
 (:func:`pipeline.compensation.axis.predict_latest`, which calls
-:func:`pipeline.protocol.serving.predict_table`: windows, model inputs, the estimator). The
+:func:`pipeline.protocol.serving.predict_run`: windows, model inputs, the estimator). The
 replay proof of the ``compensation`` stage runs one cycle per sample of every held-out campaign,
 so this time, times the samples, is most of that stage. Measured here on the workshop twin's
 46-h run (20-s samples, 16 sensors, the speed responses, 60-s windows) with a linear regression
@@ -15,7 +15,7 @@ import time
 
 from sklearn.linear_model import LinearRegression
 
-from pipeline.protocol.serving import predict_table
+from pipeline.protocol.serving import predict_run
 from pipeline.separation.features import InputSpec, SpeedResponses, model_inputs, resample
 from pipeline.twin.cli import WORKSHOP_SEED
 from pipeline.twin.workshop import WORKSHOP_SENSORS, simulate_workshop, workshop_plan
@@ -47,11 +47,15 @@ def cycle_times(samples: tuple[int, ...] = HISTORY_SAMPLES, repeats: int = 20) -
     inputs = model_inputs(resample(table.assign(campaign_id="run"), spec.resample_s), spec)
     estimator = LinearRegression().fit(inputs, inputs.to_numpy().sum(axis=1))
     times = []
+    t_s, rpm, temperatures = (
+        table["elapsed_s"].to_numpy(),
+        table["rpm"].to_numpy(),
+        table[sensors].to_numpy(),
+    )
     for n in samples:
-        history = table.iloc[:n]
         begin = time.perf_counter()
         for _ in range(repeats):
-            predict_table(estimator, history, spec)
+            predict_run(estimator, t_s[:n], temperatures[:n], rpm[:n], spec)
         elapsed = (time.perf_counter() - begin) / repeats
         hours = n * run.plan.interval_s / 3600.0
         times.append({"samples": n, "hours": hours, "ms_per_cycle": 1e3 * elapsed})

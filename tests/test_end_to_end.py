@@ -104,15 +104,22 @@ def _continue_from(demo: Demo, destination: Path) -> Path:
 
 
 def _fewer_candidates(work: Path, candidates: dict[str, str | list[str]]) -> None:
-    """Keep the copy's pipeline short: only these candidates, and two candidate effects in two
-    folds in the discrepancy search."""
+    """Keep the copy's pipeline short: only these candidates and the selections they read, and
+    two candidate effects in two folds in the discrepancy search."""
     params = yaml.safe_load((work / "params.yaml").read_text())
     params["evaluate"]["candidates"] = candidates
+    read = {
+        m
+        for chosen in candidates.values()
+        for m in ([chosen] if isinstance(chosen, str) else chosen)
+    }
+    methods = params["select"]["methods"]
+    params["select"]["methods"] = {name: spec for name, spec in methods.items() if name in read}
     params["discrepancy"].update(candidates=["motor_heat", "centrifugal_growth"], n_folds=2)
     (work / "params.yaml").write_text(yaml.safe_dump(params, sort_keys=False))
 
 
-NEXT_CANDIDATES = {"none": "none", "mlr": "best_subset", "dl": "fc_grd", "arma": "none"}
+NEXT_CANDIDATES = {"none": "none", "mlr": "all", "dl": "fc_grd", "arma": "none"}
 
 
 OUTPUTS = (
