@@ -106,9 +106,9 @@ def predict_latest(entry: ModelEntry, history: Mapping[str, np.ndarray]) -> floa
     if not len(t_s):
         return float("nan")
     sensors = entry.spec.sensors
-    temperatures = np.column_stack([history[name] for name in sensors]) if sensors else None
-    if temperatures is None:
-        temperatures = np.empty((len(t_s), 0))
+    temperatures = (
+        np.column_stack([history[name] for name in sensors]) if sensors else np.empty((len(t_s), 0))
+    )
     rpm = history[RPM] if entry.spec.needs_speed else np.full(len(t_s), np.nan)
     return float(predict_run(entry.estimator, t_s, temperatures, rpm, entry.spec)[-1])
 
