@@ -212,14 +212,14 @@ def log_evidence(client: MlflowClient, run_id: str, record: RunRecord) -> None:
     if not record.tables and not record.files:
         return
     with tempfile.TemporaryDirectory() as folder:
+        targets = {path: Path(folder) / path for path in [*record.tables, *record.files]}
+        for target in targets.values():
+            target.parent.mkdir(parents=True, exist_ok=True)
         for artifact_file, rows in record.tables.items():
-            target = Path(folder) / artifact_file
-            target.parent.mkdir(parents=True, exist_ok=True)
-            pd.DataFrame(rows).to_json(target, orient="split", index=False, date_format="iso")
+            frame = pd.DataFrame(rows)
+            frame.to_json(targets[artifact_file], orient="split", index=False, date_format="iso")
         for artifact_path, local in record.files.items():
-            target = Path(folder) / artifact_path
-            target.parent.mkdir(parents=True, exist_ok=True)
-            shutil.copyfile(local, target)
+            shutil.copyfile(local, targets[artifact_path])
         client.log_artifacts(run_id, folder)
 
 
