@@ -21,9 +21,9 @@ from pipeline.compensation.exports import (
     spindle_k0_mapping,
     tempcomp_formula,
 )
-from pipeline.models import MODELS, make_model
 from pipeline.models.axis_composite import pass_features
 from pipeline.models.axis_fit import build
+from pipeline.models.registry import MODELS, make_model
 from pipeline.separation.axis import separate_axis
 from pipeline.separation.features import InputSpec, SpeedResponses, speed_responses
 from pipeline.settings.model_axis import ModelAxisSettings

@@ -6,7 +6,7 @@ import pytest
 from sklearn.base import clone
 from sklearn.exceptions import NotFittedError
 
-from pipeline.models import MODELS, make_model
+from pipeline.models.registry import MODELS, make_model
 
 SENSORS = ["T1", "T2", "T3"]
 

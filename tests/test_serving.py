@@ -7,7 +7,7 @@ import numpy as np
 import pandas as pd
 from sklearn.linear_model import LinearRegression
 
-from pipeline.models import make_model
+from pipeline.models.registry import make_model
 from pipeline.protocol.serving import predict_run, predict_table
 from pipeline.separation.features import InputSpec, SpeedResponses
 from pipeline.separation.spindle import SeparationSettings, spindle_thermal_error

@@ -16,7 +16,7 @@ import statsmodels.api as sm
 from joblib import delayed
 
 from pipeline.cli import COMMANDS
-from pipeline.models import make_model
+from pipeline.models.registry import make_model
 from pipeline.progress import QUIET_FOR_S, Progress, run_jobs
 from pipeline.protocol.champion import choose_champion
 from pipeline.protocol.cross_season import Candidate, fit_and_score

@@ -59,7 +59,7 @@ from matplotlib.figure import Figure
 from sklearn.base import RegressorMixin
 from threadpoolctl import threadpool_limits
 
-from pipeline.models import MODELS, make_model
+from pipeline.models.registry import MODELS, make_model
 from pipeline.plots import (
     PANEL_TITLE_FONTSIZE,
     TITLE_FONTSIZE,

@@ -1,5 +1,5 @@
-"""Candidate thermal-error models, looked up by name from ``params.yaml``."""
+"""Candidate thermal-error models; :mod:`pipeline.models.registry` looks them up by name.
 
-from pipeline.models.registry import MODELS, make_model
-
-__all__ = ["MODELS", "make_model"]
+The package does not import the registry itself: a stage that needs one model (e.g. the linear
+axes' composite) does not pay for importing every model's library.
+"""

@@ -34,7 +34,7 @@ import logging
 
 import numpy as np
 import pandas as pd
-import statsmodels.api as sm
+from statsmodels.regression.linear_model import OLS
 
 from pipeline.models.base import FeedbackModel
 from pipeline.models.feedback import linear_feedback_predict
@@ -111,12 +111,12 @@ class AutoregressiveDistributedLag(FeedbackModel):
         rows = []
         for p in range(1, int(self.max_ar) + 1):
             for q in range(int(self.max_dl) + 1):
-                result = sm.OLS(response, self._design(y_lags, x_lags, p, q, estimation)).fit()
+                result = OLS(response, self._design(y_lags, x_lags, p, q, estimation)).fit()
                 rows.append({"p": p, "q": q, "ic": float(getattr(result, self.ic))})
         self.criteria_ = pd.DataFrame(rows)
         best = self.criteria_.loc[self.criteria_["ic"].idxmin()]
         p, q = int(best["p"]), int(best["q"])
-        params = sm.OLS(response, self._design(y_lags, x_lags, p, q, estimation)).fit().params
+        params = OLS(response, self._design(y_lags, x_lags, p, q, estimation)).fit().params
         self.ar_order_, self.dl_order_ = p, q
         self.intercept_ = float(params[0])
         self.ar_ = np.asarray(params[1 : p + 1], dtype=float)

@@ -19,7 +19,8 @@ import logging
 
 import numpy as np
 import pandas as pd
-import statsmodels.api as sm
+from statsmodels.regression.linear_model import OLS, RegressionResults
+from statsmodels.tools.tools import add_constant
 
 from pipeline.models.base import TemperatureModel
 from pipeline.models.series import lagged_values
@@ -53,7 +54,7 @@ def check_lag_feasible(n_samples: int, n_sensors: int, lag: int) -> None:
         )
 
 
-def ols_fit(design: np.ndarray, y: np.ndarray) -> sm.regression.linear_model.RegressionResults:
+def ols_fit(design: np.ndarray, y: np.ndarray) -> RegressionResults:
     """Fit ``y = a0 + design @ b`` by OLS with statsmodels (classical t-tests).
 
     Parameters
@@ -68,7 +69,7 @@ def ols_fit(design: np.ndarray, y: np.ndarray) -> sm.regression.linear_model.Reg
     statsmodels RegressionResults
         ``params[0]`` is the intercept (um), ``params[1:]`` the slopes (um/K).
     """
-    return sm.OLS(y, sm.add_constant(design, has_constant="add")).fit()
+    return OLS(y, add_constant(design, has_constant="add")).fit()
 
 
 def lag_stop_reason(

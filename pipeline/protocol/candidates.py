@@ -17,7 +17,7 @@ from collections.abc import Mapping
 from joblib import delayed
 from threadpoolctl import threadpool_limits
 
-from pipeline.models import MODELS, make_model
+from pipeline.models.registry import MODELS, make_model
 from pipeline.progress import run_jobs
 from pipeline.protocol.cross_season import Candidate, UnitResult, fit_and_score
 from pipeline.protocol.units import CampaignSeries, TrainingUnit

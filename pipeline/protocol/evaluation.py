@@ -17,7 +17,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 import pandas as pd
 
-from pipeline.models import MODELS
+from pipeline.models.registry import MODELS
 from pipeline.protocol.candidates import candidate_list, run_all
 from pipeline.protocol.champion import (
     NO_COMPENSATION,

@@ -41,7 +41,6 @@ from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
-from scipy.signal import lfilter
 
 COLD_REFERENCES = ("first_sample", "mean_first_n")
 FEATURE_KINDS = ("temperature_rise", "absolute")
@@ -240,6 +239,10 @@ def first_order_lag(steps_s: np.ndarray, drive: np.ndarray, taus_s: np.ndarray) 
     """
     out = np.zeros(drive.shape)
     if steps_s.size and np.all(steps_s == steps_s[0]):
+        # imported here: scipy.signal takes about a second to import, and most of the stages
+        # that import this module never compute a speed response
+        from scipy.signal import lfilter
+
         for j, decay in enumerate(np.exp(-steps_s[0] / taus_s)):
             out[:, j] = lfilter([0.0, 1.0 - decay], [1.0, -decay], drive[:, j])
         return out

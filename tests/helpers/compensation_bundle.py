@@ -15,7 +15,7 @@ import numpy as np
 import pandas as pd
 
 from pipeline.compensation.bundle import AxisBundle, InputChecks, ModelEntry
-from pipeline.models import make_model
+from pipeline.models.registry import make_model
 from pipeline.protocol.serving import predict_table
 from pipeline.separation.features import InputSpec, SpeedResponses, model_inputs
 
