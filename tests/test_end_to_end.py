@@ -108,8 +108,8 @@ def _continue_from(demo: Demo, destination: Path) -> Path:
 
 def _fewer_candidates(work: Path, candidates: dict[str, str | list[str]]) -> None:
     """Keep the copy's pipeline short: only these candidates and the selections they read, the
-    twin's calibrations cut short, and two candidate effects in two folds in the discrepancy
-    search."""
+    twin's calibrations cut short, and one candidate effect (the one the demo's twin lacks) in two
+    folds in the discrepancy search."""
     params = yaml.safe_load((work / "params.yaml").read_text())
     params["evaluate"]["candidates"] = candidates
     read = {
@@ -119,7 +119,7 @@ def _fewer_candidates(work: Path, candidates: dict[str, str | list[str]]) -> Non
     }
     methods = params["select"]["methods"]
     params["select"]["methods"] = {name: spec for name, spec in methods.items() if name in read}
-    params["discrepancy"].update(candidates=["motor_heat", "centrifugal_growth"], n_folds=2)
+    params["discrepancy"].update(candidates=["motor_heat"], n_folds=2)
     if "twin" in candidates:
         params["evaluate"]["model_params"] = {"twin": TWIN_CALIBRATION}
     (work / "params.yaml").write_text(yaml.safe_dump(params, sort_keys=False))

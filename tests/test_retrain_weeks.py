@@ -4,7 +4,8 @@ A shop's lab clone keeps its campaigns under DVC with an S3 remote (``moto_serve
 127.0.0.1), set up and fed with the README's own lines; a second clone, the scheduled job, runs
 the README's ``git pull -q && .venv/bin/thermal retrain`` against a real ``mlflow server``. The
 campaigns come from the workshop twin (one record per week, another seed each week, a week
-later each time, sampled every minute):
+later each time, sampled every minute, its X and Z probes kept: two axes, one retrained and
+rolled back without the other):
 
 - week 1: a single campaign. No held-out score exists, the champion is ``none`` (do not
   compensate), and as the first champion it is promoted: version 1;
@@ -28,6 +29,7 @@ import sys
 from datetime import datetime, timedelta
 from pathlib import Path
 
+import pandas as pd
 import pytest
 import yaml
 from mlflow.tracking import MlflowClient
@@ -43,7 +45,8 @@ VENV = Path(sys.executable).parent.parent
 README = (ROOT / "README.md").read_text(encoding="utf-8")
 BUCKET = "thermal-campaigns"
 README_REMOTE = ("s3://thermal-campaigns/shop1", "http://minio.example:9000")
-AXES = ("X", "Y", "Z")
+AXES = ("X", "Z")
+"""The probes kept of the workshop twin's X, Y and Z."""
 WEEKS = {1: ("A", 1), 2: ("B", 4), 3: ("C", 3)}
 """Week -> (campaign id letter, campaigns kept of the workshop record)."""
 INTERVAL_S = 60.0
@@ -79,7 +82,7 @@ def run(lines: list[str], cwd: Path, env: dict[str, str], endpoint: str = "") ->
 
 
 def write_week(week: int, raw: Path, scratch: Path, env: dict[str, str]) -> list[str]:
-    """Add week ``week``'s record to ``raw``: the workshop twin, renamed and a week later."""
+    """Add week ``week``'s record to ``raw``: the workshop twin, renamed, a week later, no Y."""
     letter, keep = WEEKS[week]
     out = scratch / f"week{week}"
     subprocess.run(
@@ -97,8 +100,11 @@ def write_week(week: int, raw: Path, scratch: Path, env: dict[str, str]) -> list
         later = datetime.fromisoformat(start) + timedelta(days=7 * (week - 1))
         text = re.sub(r"^campaign_id: \S+$", f"campaign_id: {campaign}", text, flags=re.M)
         text = re.sub(r"^start: \S+$", f"start: {later.isoformat()}", text, flags=re.M)
+        text = re.sub(r"^  Y: \{probe: .*\}\n", "", text, flags=re.M)
         shutil.copytree(folder, raw / campaign)
         (raw / campaign / "campaign.yaml").write_text(text)
+        displacement = raw / campaign / "displacement.csv"
+        pd.read_csv(displacement, dtype=str)[["elapsed_s", *AXES]].to_csv(displacement, index=False)
         written.append(campaign)
     return written
 
