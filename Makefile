@@ -27,11 +27,13 @@ run: install
 # Two workers (pytest-xdist), a whole module at a time so that its shared pipeline run is built
 # once; the slow modules start first, in the order tests/conftest.py gives them (xdist would
 # otherwise reorder the modules by their number of tests): the 2-core CI machine's time.
+PYTEST := PATH="$(CURDIR)/$(BIN):$$PATH" $(BIN)/python -m pytest -n 2 --dist loadscope --no-loadscope-reorder
+
 test: install
-	PATH="$(CURDIR)/$(BIN):$$PATH" $(BIN)/python -m pytest -n 2 --dist loadscope --no-loadscope-reorder --durations=15
+	$(PYTEST) --durations=15
 
 test-fast: install
-	PATH="$(CURDIR)/$(BIN):$$PATH" $(BIN)/python -m pytest -n 2 --dist loadscope --no-loadscope-reorder -m "not slow"
+	$(PYTEST) -m "not slow"
 
 bench: install
 	PATH="$(CURDIR)/$(BIN):$$PATH" $(BIN)/python -m benchmarks.bench
@@ -41,7 +43,7 @@ bench: install
 # 2 folds.
 trials: install
 	$(BIN)/python -m benchmarks.discrepancy_trials --seeds 1 2 3 4 5 --out reports/discrepancy_trials
-	PATH="$(CURDIR)/$(BIN):$$PATH" $(BIN)/python -m pytest -n 2 --dist loadscope --no-loadscope-reorder -m trials
+	$(PYTEST) -m trials
 
 trials-quick: install
 	$(BIN)/python -m benchmarks.discrepancy_trials --quick --seeds 1 2 3 4 5 --out reports/discrepancy_trials_quick
