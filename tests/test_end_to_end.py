@@ -3,10 +3,10 @@
 The demo pipeline runs once, in full, against a real ``mlflow server`` (:func:`demo`); the tests
 of the next campaigns, a new one and a malformed one, share one continuation of a copy of that
 finished run (:func:`next_run`), as a user's next ``dvc repro`` does, so that only the stages the
-change reaches run again. That continuation runs while its MLflow server is stopped: nothing may
-be lost (the stages' outputs stay, the message says how to log later, no traceback); then the
-server is restarted on the same backend store and the execution is logged once, by ``dvc repro``
-(which reruns only ``track``) and by ``thermal track`` (which reuses the logged run); an
+change reaches run again. That continuation runs while no MLflow server answers at its tracking
+URI (the server is down): nothing may be lost (the stages' outputs stay, the message says how to
+log later, no traceback); then the server is up and the execution is logged once, by ``dvc
+repro`` (which reruns only ``track``) and by ``thermal track`` (which reuses the logged run); an
 incomplete attempt left by a connection lost mid-way is deleted, not duplicated.
 """
 
@@ -30,6 +30,7 @@ from mlflow.tracking import MlflowClient
 
 from pipeline.tracking import records, store
 from tests.helpers.mlflow_server import running_mlflow_server
+from tests.helpers.processes import free_port
 from tests.helpers.repository import copy_repository
 
 pytestmark = pytest.mark.slow
@@ -142,12 +143,12 @@ class NextRun:
     """The demo run continued with a new campaign (K13) and a malformed one (K99) in ``data/raw``.
 
     ``before``: the demo's scores of :data:`NEXT_CANDIDATES`; ``offline``: the continued ``dvc
-    repro`` against the stopped server, ``output`` its printout, ``status`` the ``dvc status``
+    repro`` while the server is down, ``output`` its printout, ``status`` the ``dvc status``
     after it, ``scores`` the scores file it wrote; ``again``: one more ``dvc repro`` on unchanged
-    inputs, the server restarted, after an incomplete attempt (``partial``, a run id) of the
+    inputs, the server up, after an incomplete attempt (``partial``, a run id) of the
     same execution (``identity``) was left in the store; ``logged`` and ``reused``: the run
-    records of that repro and of a ``thermal track`` after it; ``client``: the restarted
-    server's; ``raw_bytes``: K99's files as written.
+    records of that repro and of a ``thermal track`` after it; ``client``: the server's, once
+    up; ``raw_bytes``: K99's files as written.
     """
 
     work: Path
@@ -187,10 +188,7 @@ def next_run(demo, tmp_path_factory) -> Iterator[NextRun]:
     pairs = before[["model", "selection"]].apply(tuple, axis=1)
     before = before[pairs.isin(NEXT_CANDIDATES.items())].reset_index(drop=True)
     _fewer_candidates(work, NEXT_CANDIDATES)
-    with running_mlflow_server(tmp) as stopped_uri:
-        assert MlflowClient(tracking_uri=stopped_uri).search_experiments()  # up, store made
-    # ... and stopped now: the continued pipeline runs against an unreachable server
-    env = _env(stopped_uri)
+    env = _env(f"http://127.0.0.1:{free_port()}")  # the server down: nothing answers there
     simulate = (
         "simulate --preset single --id K13 --season summer --rpm 4000 --seed 13 --out data/raw"
     )

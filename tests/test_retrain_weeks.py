@@ -4,7 +4,7 @@ A shop's lab clone keeps its campaigns under DVC with an S3 remote (``moto_serve
 127.0.0.1), set up and fed with the README's own lines; a second clone, the scheduled job, runs
 the README's ``git pull -q && .venv/bin/thermal retrain`` against a real ``mlflow server``. The
 campaigns come from the workshop twin (one record per week, another seed each week, a week
-later each time, sampled every minute, its X and Z probes kept: two axes, one retrained and
+later each time, sampled every two minutes, its X and Z probes kept: two axes, one retrained and
 rolled back without the other):
 
 - week 1: a single campaign. No held-out score exists, the champion is ``none`` (do not
@@ -49,9 +49,9 @@ AXES = ("X", "Z")
 """The probes kept of the workshop twin's X, Y and Z."""
 WEEKS = {1: ("A", 1), 2: ("B", 4), 3: ("C", 3)}
 """Week -> (campaign id letter, campaigns kept of the workshop record)."""
-INTERVAL_S = 60.0
-"""The shop's logger samples every minute, the models' window: a third of the workshop preset's
-rows, the same campaigns."""
+INTERVAL_S = 120.0
+"""The shop's logger samples every two minutes, slower than the models' 60-s window (each sample
+is its own window): a sixth of the workshop preset's rows, the same campaigns."""
 SHOP_PARAMS = {
     "candidates": {"none": "none", "mlr": "all", "ridge": "all_speed"},
     "methods": ("all", "all_speed"),

@@ -5,10 +5,10 @@ import json
 
 import numpy as np
 import pandas as pd
-from sklearn.linear_model import LinearRegression
+from sklearn.linear_model import LinearRegression, Ridge
 
 from pipeline.models.registry import make_model
-from pipeline.protocol.serving import predict_run, predict_table
+from pipeline.protocol.serving import linear_prediction, predict_run, predict_table
 from pipeline.separation.features import InputSpec, SpeedResponses
 from pipeline.separation.spindle import SeparationSettings, spindle_thermal_error
 
@@ -113,3 +113,31 @@ def test_the_runtime_s_array_path_predicts_what_a_table_of_several_runs_gets():
         )
         np.testing.assert_allclose(alone, served[rows.to_numpy()], rtol=0, atol=1e-9)
         assert np.isfinite(alone).all()
+
+
+def test_a_linear_regression_is_applied_as_its_formula_and_other_models_by_predict():
+    """The runtime's shortcut for scikit-learn's linear regression gives what ``predict`` gives;
+    any other estimator (a ridge here) is left to its own ``predict``."""
+    rng = np.random.default_rng(5)
+    X = pd.DataFrame(rng.normal(size=(50, 3)), columns=["T1", "T2", "T3"])
+    y = X @ np.array([1.5, -0.7, 0.2]) + 3.0 + rng.normal(scale=0.1, size=50)
+    linear = LinearRegression().fit(X, y)
+    rows = rng.normal(size=(7, 3))
+    shortcut = linear_prediction(linear, rows)
+    expected = linear.predict(pd.DataFrame(rows, columns=X.columns))
+    np.testing.assert_allclose(shortcut, expected, rtol=0, atol=1e-12)
+    assert linear_prediction(Ridge().fit(X, y), rows) is None
+    two_targets = LinearRegression().fit(X, np.column_stack([y, -y]))
+    assert linear_prediction(two_targets, rows) is None
+
+    second = _logger_table(n=200).assign(campaign_id="R2")
+    table = pd.concat([_logger_table(), second], ignore_index=True)
+    table = table.drop(columns=["disp_Z", "source_row"])
+    spec = InputSpec(("T1", "T2"), "temperature_rise", "first_sample", 1, None, 60.0)
+    rises = np.random.default_rng(6).normal(size=(30, 2))
+    fitted = LinearRegression().fit(pd.DataFrame(rises, columns=["T1", "T2"]), rises @ [2.0, 1.0])
+    served = predict_table(fitted, table, spec)  # several runs: the table path, ``predict``
+    first = table[table["campaign_id"] == "R1"]
+    arrays = (first["elapsed_s"].to_numpy(), first[["T1", "T2"]].to_numpy(), first["rpm"])
+    by_formula = predict_run(fitted, *arrays, spec)
+    np.testing.assert_allclose(by_formula, served[: len(first)], rtol=0, atol=1e-12)

@@ -21,6 +21,7 @@ import shutil
 import socket
 import subprocess
 import sys
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -464,6 +465,27 @@ def versions(client: MlflowClient, axis: str = "Z") -> list[str]:
     return sorted(str(v.version) for v in found)
 
 
+DVC_LOCK = {
+    "schema": "2.0",
+    "stages": {
+        "ingest": {
+            "cmd": "thermal ingest",
+            "deps": [{"path": "data/raw", "hash": "md5", "md5": "abc.dir"}],
+            "outs": [{"path": "data/ingested", "hash": "md5", "md5": "def.dir"}],
+        },
+        "evaluate": {
+            "cmd": "thermal evaluate",
+            "outs": [{"path": "reports/cross_season_scores.csv", "md5": "123"}],
+        },
+        "track": {
+            "cmd": "thermal track",
+            "outs": [{"path": "reports/mlflow_run.json", "md5": "456"}],
+        },
+    },
+}
+"""A ``dvc.lock`` beside the outputs: its hashes are tagged on the parent run."""
+
+
 @pytest.fixture(autouse=True)
 def restore_mlflow_tracking_uri():
     """Undo ``mlflow.set_tracking_uri`` (it also sets ``MLFLOW_TRACKING_URI`` process-wide)."""
@@ -500,7 +522,37 @@ def workdir(tmp_path, monkeypatch, empty_store, outputs) -> Path:
 
 @pytest.fixture
 def client(workdir) -> MlflowClient:
-    return MlflowClient(tracking_uri=f"sqlite:///{workdir / 'mlflow.db'}")
+    return store_client(workdir)
+
+
+def store_client(root: Path) -> MlflowClient:
+    """A client of the default local store in ``root``."""
+    return MlflowClient(tracking_uri=f"sqlite:///{root / 'mlflow.db'}")
+
+
+@pytest.fixture(scope="module")
+def tracked_once(tmp_path_factory, empty_store, outputs) -> Iterator[Path]:
+    """One ``track`` run (a ``dvc.lock`` beside the outputs) for the tests that only read it.
+
+    Tests that change the folder or the store before or after tracking use :func:`workdir`.
+    """
+    root = tmp_path_factory.mktemp("tracked")
+    write_evaluate_outputs(root, outputs)
+    shutil.copy(empty_store, root / "mlflow.db")
+    (root / "dvc.lock").write_text(yaml.safe_dump(DVC_LOCK))
+    with pytest.MonkeyPatch.context() as patch:
+        patch.chdir(root)
+        patch.delenv("MLFLOW_TRACKING_URI", raising=False)
+        assert track.main([]) == 0
+    yield root
+
+
+@pytest.fixture
+def tracked(tracked_once, monkeypatch) -> Path:
+    """The folder of :func:`tracked_once`, the working directory (artifacts are found there)."""
+    monkeypatch.chdir(tracked_once)
+    monkeypatch.delenv("MLFLOW_TRACKING_URI", raising=False)
+    return tracked_once
 
 
 def test_fixture_scores_follow_the_schema_and_the_protocol(outputs):
@@ -515,8 +567,8 @@ def test_fixture_scores_follow_the_schema_and_the_protocol(outputs):
         assert card["trained_on"] == ["K01", "K02", "K03", "K04"]
 
 
-def test_one_child_per_candidate_model_selection_mode(workdir, client):
-    assert track.main([]) == 0
+def test_one_child_per_candidate_model_selection_mode(tracked):
+    workdir, client = tracked, store_client(tracked)
     parents, children = split_runs(all_runs(client))
     assert len(parents) == 1
     assert {child_key(r) for r in children} == CHILDREN
@@ -529,9 +581,9 @@ def test_one_child_per_candidate_model_selection_mode(workdir, client):
 
 
 def test_child_metrics_are_the_headline_scores_and_the_rest_is_in_its_tables(
-    workdir, client, tmp_path_factory
+    tracked, tmp_path_factory
 ):
-    track.main([])
+    workdir, client = tracked, store_client(tracked)
     _, children = split_runs(all_runs(client))
     by_key = {child_key(r): r for r in children}
     for key, run in by_key.items():
@@ -581,8 +633,8 @@ def test_child_metrics_are_the_headline_scores_and_the_rest_is_in_its_tables(
     } <= listed
 
 
-def test_child_tags_say_eligible_rank_champion_and_why_not(workdir, client):
-    track.main([])
+def test_child_tags_say_eligible_rank_champion_and_why_not(tracked):
+    client = store_client(tracked)
     _, children = split_runs(all_runs(client))
     by_key = {child_key(r): r.data.tags for r in children}
     for (axis, model, selection, mode), tags in by_key.items():
@@ -608,9 +660,9 @@ def test_child_tags_say_eligible_rank_champion_and_why_not(workdir, client):
 
 
 def test_child_params_hold_the_registered_fit_and_the_fits_table_every_unit(
-    workdir, client, outputs, tmp_path
+    tracked, outputs, tmp_path
 ):
-    track.main([])
+    client = store_client(tracked)
     _, children = split_runs(all_runs(client))
     by_key = {child_key(r): r for r in children}
     for (axis, model, selection, mode), run in by_key.items():
@@ -651,30 +703,8 @@ def test_child_params_hold_the_registered_fit_and_the_fits_table_every_unit(
     assert one_step == free_run | {"mode": "one_step"}
 
 
-def test_parent_has_champion_scores_selected_sensors_tags_and_artifacts(workdir, client, outputs):
-    (workdir / "dvc.lock").write_text(
-        yaml.safe_dump(
-            {
-                "schema": "2.0",
-                "stages": {
-                    "ingest": {
-                        "cmd": "thermal ingest",
-                        "deps": [{"path": "data/raw", "hash": "md5", "md5": "abc.dir"}],
-                        "outs": [{"path": "data/ingested", "hash": "md5", "md5": "def.dir"}],
-                    },
-                    "evaluate": {
-                        "cmd": "thermal evaluate",
-                        "outs": [{"path": "reports/cross_season_scores.csv", "md5": "123"}],
-                    },
-                    "track": {
-                        "cmd": "thermal track",
-                        "outs": [{"path": "reports/mlflow_run.json", "md5": "456"}],
-                    },
-                },
-            }
-        )
-    )
-    track.main([])
+def test_parent_has_champion_scores_selected_sensors_tags_and_artifacts(tracked, outputs):
+    workdir, client = tracked, store_client(tracked)
     (parent,), children = split_runs(all_runs(client))
     info = record(workdir)
     tags = parent.data.tags
@@ -732,8 +762,8 @@ def test_parent_has_champion_scores_selected_sensors_tags_and_artifacts(workdir,
     assert info["reused"] is False
 
 
-def test_each_axis_champion_is_registered_from_its_child_run_and_predicts(workdir, client, outputs):
-    track.main([])
+def test_each_axis_champion_is_registered_from_its_child_run_and_predicts(tracked, outputs):
+    workdir, client = tracked, store_client(tracked)
     info = record(workdir)
     _, children = split_runs(all_runs(client))
     for axis in AXES:

@@ -1,7 +1,7 @@
 """End-to-end on a user-shaped folder: the real `dvc repro` on the twin's workshop preset.
 
 Six back-to-back campaigns cut from one 46-h run (every campaign but the first starts warm),
-sampled every minute (the logger's interval is the models' window: a third of the preset's rows),
+sampled every two minutes (slower than the models' 60-s window: a sixth of the preset's rows),
 16 sensors whose places are unknown (all ``role: other``), X, Y and Z probes, one season, no
 validation split, a measured speed log. Nothing in the pipeline may stop on it: the twin is
 untestable, every axis is scored leave-one-campaign-out (neighbours in the record buffered) and
@@ -64,7 +64,7 @@ def workshop(tmp_path_factory):
         }
         _run(
             [str(BIN / "thermal"), "simulate", "--preset", "workshop", "--out", "data/raw"]
-            + ["--interval-s", "60"],
+            + ["--interval-s", "120"],
             work,
             env,
         )

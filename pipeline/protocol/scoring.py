@@ -59,11 +59,17 @@ def compensation_ratio(rms_residual_um: float, rms_uncompensated_um: float) -> f
     return 1.0 - float(rms_residual_um) / float(rms_uncompensated_um)
 
 
-def _mean_sd(values: pd.Series) -> tuple[float, float]:
-    finite = values.dropna()
-    mean = float(finite.mean()) if len(finite) else float("nan")
-    spread = float(finite.std(ddof=1)) if len(finite) >= 2 else float("nan")
+def _mean_sd(values: np.ndarray) -> tuple[float, float]:
+    finite = values[~np.isnan(values)]
+    mean = float(finite.mean()) if finite.size else float("nan")
+    spread = float(finite.std(ddof=1)) if finite.size >= 2 else float("nan")
     return mean, spread
+
+
+def _mean(values: np.ndarray) -> float:
+    """Mean of the non-NaN values; NaN when there is none."""
+    finite = values[~np.isnan(values)]
+    return float(finite.mean()) if finite.size else float("nan")
 
 
 def summarise(scores: pd.DataFrame) -> dict[str, float]:
@@ -83,22 +89,24 @@ def summarise(scores: pd.DataFrame) -> dict[str, float]:
         ``_rms`` before ``_um``, all in um; ``eta`` and ``eta_val``, the compensation ratio
         over the prediction and the validation rows (needs ``uncompensated_rms_um``).
     """
+    role = scores["role"].to_numpy(dtype=object)
+    rows = {name: role == name for name in ("fit", "prediction", "validation")}
     summary: dict[str, float] = {}
     for column, suffix in SCORE_COLUMNS.items():
-        by_role = {role: group[column] for role, group in scores.groupby("role")}
-        empty = pd.Series(dtype=float)
-        fit = by_role.get("fit", empty).dropna()
-        summary[f"S{suffix}_um"] = float(fit.mean()) if len(fit) else float("nan")
-        mn, sd = _mean_sd(by_role.get("prediction", empty))
+        values = scores[column].to_numpy(dtype=float)
+        summary[f"S{suffix}_um"] = _mean(values[rows["fit"]])
+        mn, sd = _mean_sd(values[rows["prediction"]])
         summary[f"Mn{suffix}_um"], summary[f"Sd{suffix}_um"] = mn, sd
-        mn_val, sd_val = _mean_sd(by_role.get("validation", empty))
+        mn_val, sd_val = _mean_sd(values[rows["validation"]])
         summary[f"Mn_val{suffix}_um"], summary[f"Sd_val{suffix}_um"] = mn_val, sd_val
     if "uncompensated_rms_um" in scores:
-        for role, key in (("prediction", "eta"), ("validation", "eta_val")):
-            rows = scores[(scores["role"] == role) & scores["rmse_um"].notna()]
+        rms = scores["rmse_um"].to_numpy(dtype=float)
+        uncompensated = scores["uncompensated_rms_um"].to_numpy(dtype=float)
+        for name, key in (("prediction", "eta"), ("validation", "eta_val")):
+            scored = rows[name] & ~np.isnan(rms)
             summary[key] = (
-                compensation_ratio(rows["rmse_um"].mean(), rows["uncompensated_rms_um"].mean())
-                if len(rows)
+                compensation_ratio(_mean(rms[scored]), _mean(uncompensated[scored]))
+                if scored.any()
                 else float("nan")
             )
     return summary
@@ -178,20 +186,21 @@ def candidate_summary(scores: pd.DataFrame) -> pd.DataFrame:
     the share of the held-out samples ``none`` was scored on that the candidate predicted too
     (:func:`coverage`; when ``none`` was scored).
     """
+    reference = dict(
+        iter(scores[scores["model"] == REFERENCE_MODEL].groupby(["axis", "scheme"], sort=False))
+    )
+    parts: dict[tuple, dict[str, pd.DataFrame]] = {}
+    for (*keys, scheme), part in scores.groupby([*CANDIDATE_KEYS, "scheme"], sort=True):
+        parts.setdefault(tuple(keys), {})[scheme] = part
     rows = []
-    reference = scores[scores["model"] == REFERENCE_MODEL]
-    for keys, group in scores.groupby(CANDIDATE_KEYS, sort=True):
+    for keys, by_scheme in parts.items():
         row = dict(zip(CANDIDATE_KEYS, keys, strict=True))
-        for scheme in SCHEMES:
-            prefix = SCHEME_PREFIX[scheme]
-            part = group[group["scheme"] == scheme]
-            if len(part):
-                row.update({prefix + key: value for key, value in summarise(part).items()})
-                mine = reference[
-                    (reference["axis"] == row["axis"]) & (reference["scheme"] == scheme)
-                ]
-                if len(mine):
-                    row[f"{prefix}coverage"] = coverage(part, mine)
+        for scheme in (s for s in SCHEMES if s in by_scheme):
+            prefix, part = SCHEME_PREFIX[scheme], by_scheme[scheme]
+            row.update({prefix + key: value for key, value in summarise(part).items()})
+            mine = reference.get((row["axis"], scheme))
+            if mine is not None:
+                row[f"{prefix}coverage"] = coverage(part, mine)
         rows.append(row)
     return pd.DataFrame(rows)
 

@@ -16,6 +16,8 @@ The registered model (:mod:`pipeline.tracking.champion_model`) calls :func:`pred
 
 from __future__ import annotations
 
+import sys
+
 import numpy as np
 import pandas as pd
 
@@ -93,6 +95,33 @@ def predict_table(estimator, table: pd.DataFrame, spec: InputSpec) -> np.ndarray
     return out
 
 
+def linear_prediction(estimator, rows: np.ndarray) -> np.ndarray | None:
+    """Apply a scikit-learn ``LinearRegression`` as its formula; None for any other estimator.
+
+    A linear regression on one target predicts ``rows @ coef_ + intercept_``, which is what its
+    ``predict`` computes, after checks of the input table that take 1-5 ms a call against
+    microseconds for the product. The runtime predicts every cycle; the columns are the fit's
+    by construction (:class:`InputSpec`).
+
+    Parameters
+    ----------
+    estimator : fitted estimator
+    rows : ndarray of shape (n, n_inputs)
+        The model's inputs, complete rows, in the order of ``InputSpec.inputs``.
+
+    Returns
+    -------
+    ndarray of shape (n,), um, or None
+    """
+    linear = sys.modules.get("sklearn.linear_model")  # imported if the estimator is one
+    if linear is None or type(estimator) is not linear.LinearRegression:
+        return None
+    coef = np.asarray(estimator.coef_, dtype=float)
+    if coef.ndim != 1 or coef.size != rows.shape[1]:
+        return None
+    return rows @ coef + float(estimator.intercept_)
+
+
 def predict_run(
     estimator, t_s: np.ndarray, temperatures: np.ndarray, rpm: np.ndarray, spec: InputSpec
 ) -> np.ndarray:
@@ -129,9 +158,12 @@ def predict_run(
     complete = ~np.isnan(inputs).any(axis=1)
     predicted = np.full(len(inputs), np.nan)
     if complete.any():
-        index = run_time_index(np.zeros(int(complete.sum()), dtype=int), window_t[complete])
-        X = pd.DataFrame(inputs[complete], index=index, columns=list(spec.inputs))
-        predicted[complete] = estimator.predict(X)
+        rows = inputs[complete]
+        fast = linear_prediction(estimator, rows)
+        if fast is None:
+            index = run_time_index(np.zeros(len(rows), dtype=int), window_t[complete])
+            fast = estimator.predict(pd.DataFrame(rows, index=index, columns=list(spec.inputs)))
+        predicted[complete] = fast
     if not windows:
         return predicted
     finite = np.isfinite(predicted)
