@@ -510,11 +510,17 @@ def empty_store(tmp_path_factory) -> Path:
     return path
 
 
+def evaluated_folder(root: Path, empty_store: Path, outputs: EvaluateOutputs) -> Path:
+    """Fill ``root`` as a repository after ``evaluate``: its outputs and an empty local store."""
+    write_evaluate_outputs(root, outputs)
+    shutil.copy(empty_store, root / "mlflow.db")
+    return root
+
+
 @pytest.fixture
 def workdir(tmp_path, monkeypatch, empty_store, outputs) -> Path:
     """Repo-like tmp folder with evaluate outputs; the default local store in it."""
-    write_evaluate_outputs(tmp_path, outputs)
-    shutil.copy(empty_store, tmp_path / "mlflow.db")
+    evaluated_folder(tmp_path, empty_store, outputs)
     monkeypatch.chdir(tmp_path)
     monkeypatch.delenv("MLFLOW_TRACKING_URI", raising=False)
     return tmp_path
@@ -536,9 +542,7 @@ def tracked_once(tmp_path_factory, empty_store, outputs) -> Iterator[Path]:
 
     Tests that change the folder or the store before or after tracking use :func:`workdir`.
     """
-    root = tmp_path_factory.mktemp("tracked")
-    write_evaluate_outputs(root, outputs)
-    shutil.copy(empty_store, root / "mlflow.db")
+    root = evaluated_folder(tmp_path_factory.mktemp("tracked"), empty_store, outputs)
     (root / "dvc.lock").write_text(yaml.safe_dump(DVC_LOCK))
     with pytest.MonkeyPatch.context() as patch:
         patch.chdir(root)

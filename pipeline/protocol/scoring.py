@@ -59,17 +59,17 @@ def compensation_ratio(rms_residual_um: float, rms_uncompensated_um: float) -> f
     return 1.0 - float(rms_residual_um) / float(rms_uncompensated_um)
 
 
-def _mean_sd(values: np.ndarray) -> tuple[float, float]:
-    finite = values[~np.isnan(values)]
-    mean = float(finite.mean()) if finite.size else float("nan")
-    spread = float(finite.std(ddof=1)) if finite.size >= 2 else float("nan")
-    return mean, spread
-
-
 def _mean(values: np.ndarray) -> float:
     """Mean of the non-NaN values; NaN when there is none."""
     finite = values[~np.isnan(values)]
     return float(finite.mean()) if finite.size else float("nan")
+
+
+def _mean_sd(values: np.ndarray) -> tuple[float, float]:
+    """:func:`_mean` and the standard deviation (ddof=1; NaN with fewer than two values)."""
+    finite = values[~np.isnan(values)]
+    spread = float(finite.std(ddof=1)) if finite.size >= 2 else float("nan")
+    return _mean(finite), spread
 
 
 def summarise(scores: pd.DataFrame) -> dict[str, float]:

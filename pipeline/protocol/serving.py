@@ -159,11 +159,11 @@ def predict_run(
     predicted = np.full(len(inputs), np.nan)
     if complete.any():
         rows = inputs[complete]
-        fast = linear_prediction(estimator, rows)
-        if fast is None:
+        values = linear_prediction(estimator, rows)
+        if values is None:
             index = run_time_index(np.zeros(len(rows), dtype=int), window_t[complete])
-            fast = estimator.predict(pd.DataFrame(rows, index=index, columns=list(spec.inputs)))
-        predicted[complete] = fast
+            values = estimator.predict(pd.DataFrame(rows, index=index, columns=list(spec.inputs)))
+        predicted[complete] = values
     if not windows:
         return predicted
     finite = np.isfinite(predicted)
