@@ -22,6 +22,10 @@ from pathlib import Path
 
 HEALTH_TIMEOUT_S = 60.0
 LOG_TAIL_LINES = 30
+JOB_EXECUTION_SWITCH = "MLFLOW_SERVER_ENABLE_JOB_EXECUTION"
+"""Set to ``false`` for the servers started here: MLflow 3's job runner (Huey consumer processes
+for its GenAI scorer jobs, which the pipeline never submits) would otherwise start with every
+server and keep a core busy for tens of seconds."""
 
 
 class ServerError(RuntimeError):
@@ -134,6 +138,7 @@ def running_mlflow(
     base_url = f"http://127.0.0.1:{port}"
     host = ["--host", "127.0.0.1", "--port", str(port), "--workers", "1"]
     env = {k: v for k, v in os.environ.items() if not k.startswith("MLFLOW_")}
+    env[JOB_EXECUTION_SWITCH] = "false"
     log = Path(folder) / "mlflow.log"
     with log.open("wb") as output:
         process = subprocess.Popen(  # noqa: S603
