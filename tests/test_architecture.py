@@ -12,15 +12,18 @@ changes) or a stale dependency fails here.
 from __future__ import annotations
 
 import ast
-import functools
 from pathlib import Path, PurePosixPath
 
 import pytest
 import yaml
 
 from pipeline import cli
+from pipeline.tracking.model_code import import_closure, imported_modules
+from pipeline.tracking.model_code import module_name as dotted_name
 
 ROOT = Path(__file__).resolve().parents[1]
+OWN_PACKAGES = frozenset({"pipeline", "schemas", "benchmarks", "tests"})
+"""Top-level packages of the repository, whose imports the checks follow."""
 FOUNDATION = {
     "errors",
     "paths",
@@ -82,8 +85,7 @@ ALLOWED = {
 
 def module_name(path: Path) -> str:
     """Dotted module name of a source file of the repository."""
-    parts = path.relative_to(ROOT).with_suffix("").parts
-    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+    return dotted_name(path, ROOT)
 
 
 def unit(module: str) -> str:
@@ -94,20 +96,9 @@ def unit(module: str) -> str:
     return parts[1] if len(parts) > 1 else "pipeline"
 
 
-@functools.cache
 def imports(path: Path) -> frozenset[str]:
     """Every ``pipeline``/``schemas``/``benchmarks``/``tests`` module a file imports, anywhere."""
-    found = set()
-    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
-        if isinstance(node, ast.Import):
-            found |= {alias.name for alias in node.names}
-        elif isinstance(node, ast.ImportFrom) and node.module:
-            for alias in node.names:
-                candidate = f"{node.module}.{alias.name}"
-                found.add(candidate if _source(candidate) else node.module)
-    return frozenset(
-        m for m in found if m.split(".")[0] in {"pipeline", "schemas", "benchmarks", "tests"}
-    )
+    return imported_modules(path, ROOT, OWN_PACKAGES)
 
 
 def violations(path: Path, own: str) -> list[str]:
@@ -117,14 +108,6 @@ def violations(path: Path, own: str) -> list[str]:
         for imported in imports(path)
         if unit(imported) not in {own, "pipeline"} | FOUNDATION | ALLOWED[own]
     )
-
-
-def _source(module: str) -> Path | None:
-    path = ROOT.joinpath(*module.split("."))
-    for candidate in (path.with_suffix(".py"), path / "__init__.py"):
-        if candidate.is_file():
-            return candidate
-    return None
 
 
 def library_files() -> list[Path]:
@@ -176,17 +159,7 @@ def test_the_package_never_imports_benchmarks_or_tests():
 
 def closure(module: str) -> set[Path]:
     """Source files of ``module`` and of everything it imports, transitively."""
-    seen: set[Path] = set()
-    todo = [module]
-    while todo:
-        path = _source(todo.pop())
-        if path is None or path in seen:
-            continue
-        seen.add(path)
-        todo += sorted(imports(path))
-        parts = module_name(path).split(".")
-        todo += [".".join(parts[:i]) for i in range(1, len(parts))]  # parent packages run too
-    return seen
+    return import_closure([module], ROOT, OWN_PACKAGES)
 
 
 def _docstring_only(path: Path) -> bool:

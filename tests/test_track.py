@@ -51,8 +51,10 @@ from pipeline.separation.features import InputSpec, model_inputs
 from pipeline.stages import track
 from pipeline.tracking import identity, records, stage_outputs, store
 from schemas.evaluated import CrossSeasonScoresModel
+from tests.helpers.clean_load import predict_without_repository
 from tests.helpers.mlflow_server import running_mlflow_server
 
+ROOT = Path(__file__).resolve().parents[1]
 EXPERIMENT = "thermal-test"
 REGISTERED = "thermal-error-spindle"
 AXES = ("X", "Z")
@@ -1139,6 +1141,15 @@ def test_track_logs_and_registers_on_a_real_mlflow_server(tmp_path, outputs, mon
         spec = InputSpec.from_dict(outputs.cards["X"]["input_spec"])
         expected = outputs.estimators["X"].predict(model_inputs(table, spec))
         np.testing.assert_array_equal(np.asarray(model.predict(table), dtype=float), expected)
+        table.to_csv(tmp_path / "table.csv", index=False)
+        loaded, predicted = predict_without_repository(
+            URIS["X"], tmp_path / "table.csv", tmp_path, tracking_uri=uri
+        )
+    # the model carries the modules its loading imports, not the whole package
+    assert ROOT not in loaded.parents and loaded.parent.parent.name == "code"
+    assert (loaded.parent / "tracking" / "champion_model.py").is_file()
+    assert not (loaded.parent / "stages").exists()
+    np.testing.assert_allclose(predicted, expected, rtol=1e-12)
     assert not (work / "mlflow.db").exists()  # nothing went to the default local store
 
 

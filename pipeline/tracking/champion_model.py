@@ -14,7 +14,8 @@ first row (or the mean of its first rows), the speed responses from rest at each
 signature says which columns are required (``rpm`` and ``elapsed_s`` only when the model needs
 the speed log). The estimator is the candidate's fit on all training campaigns; models on the
 error's own history predict in free run; the champion ``none`` predicts zero (do not
-compensate).
+compensate). The model carries the package modules its loading imports
+(:mod:`pipeline.tracking.model_code`), so it loads where the repository is not installed.
 """
 
 from __future__ import annotations
@@ -22,6 +23,7 @@ from __future__ import annotations
 import json
 import logging
 import os
+import tempfile
 from pathlib import Path
 
 import joblib
@@ -35,6 +37,7 @@ from pipeline import paths
 from pipeline.errors import MissingInputError
 from pipeline.protocol.serving import predict_table
 from pipeline.separation.features import InputSpec
+from pipeline.tracking.model_code import write_model_code
 
 logger = logging.getLogger(__name__)
 
@@ -145,25 +148,26 @@ def log_and_register(tracking_uri: str, run_id: str, registered_name: str, folde
     example_path = folder / paths.CHAMPION_EXAMPLE_FILE
     example = pd.read_csv(example_path) if example_path.is_file() else None
     previous_uri = os.environ.get(TRACKING_URI_ENV)
-    package = Path(__file__).resolve().parents[1]
     mlflow.set_tracking_uri(tracking_uri)
     # Not ``with start_run``: leaving the block would mark the child run FINISHED before its
     # metrics are logged; the run is handed back still RUNNING.
     mlflow.start_run(run_id=run_id)
     try:
-        info = mlflow.pyfunc.log_model(
-            name=MODEL_NAME,
-            python_model=ChampionModel(),
-            artifacts={
-                "estimator": str(folder / paths.CHAMPION_ESTIMATOR_FILE),
-                "card": str(card_path),
-            },
-            code_paths=[str(package)],
-            pip_requirements=list(REQUIREMENTS),
-            signature=signature(spec),
-            input_example=example,
-            registered_model_name=registered_name,
-        )
+        estimator = joblib.load(folder / paths.CHAMPION_ESTIMATOR_FILE)
+        with tempfile.TemporaryDirectory() as scratch:
+            info = mlflow.pyfunc.log_model(
+                name=MODEL_NAME,
+                python_model=ChampionModel(),
+                artifacts={
+                    "estimator": str(folder / paths.CHAMPION_ESTIMATOR_FILE),
+                    "card": str(card_path),
+                },
+                code_paths=[str(write_model_code(estimator, Path(scratch)))],
+                pip_requirements=list(REQUIREMENTS),
+                signature=signature(spec),
+                input_example=example,
+                registered_model_name=registered_name,
+            )
         log_compensation(card["axis"])
     finally:
         mlflow.end_run(status="RUNNING")
