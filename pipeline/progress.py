@@ -5,7 +5,8 @@ under ``dvc repro``, which captures the output, it logs plain lines instead, eac
 tenth of the work is done or half a minute has passed, e.g. ``axis Z candidates: 120/480 fits
 (25 %), 1 min 40 s``. A loop done within :data:`QUIET_FOR_S` logs nothing, so short loops do
 not fill the log. :func:`run_jobs` runs joblib jobs with it, each job's warnings captured in
-its worker and counted in the main process (:mod:`pipeline.warnings_capture`).
+its worker and counted in the main process (:mod:`pipeline.warnings_capture`); a short loop runs
+in the stage's own process (see :data:`SERIAL_UNDER_S`).
 """
 
 from __future__ import annotations
@@ -29,6 +30,11 @@ LINE_EVERY_S = 30.0
 """...or this many seconds passed since the last line."""
 QUIET_FOR_S = 30.0
 """No line (nor the final one) before the loop has run this many seconds."""
+SERIAL_UNDER_S = 15.0
+"""Jobs run one after the other in this process while the rest of them is projected (from the
+mean time of those done) to take less than this many seconds; then the rest goes to the worker
+processes. Starting the workers costs seconds of every core (each imports the model libraries
+again), more than they save on a short loop; a long one pays that once."""
 
 
 def duration_text(seconds: float) -> str:
@@ -130,17 +136,20 @@ def run_jobs(
     unit: str = "fits",
     logger: logging.Logger | None = None,
 ) -> list:
-    """Run joblib ``delayed`` jobs in ``n_jobs`` processes and show how far they are.
+    """Run joblib ``delayed`` jobs in up to ``n_jobs`` processes and show how far they are.
 
-    Each job's warnings are captured where it runs and added to the capture open here
-    (:func:`pipeline.warnings_capture.absorb`), so none is printed from a worker.
+    The jobs start in this process, one after the other; once the rest of them is projected to
+    take :data:`SERIAL_UNDER_S` or more, the rest runs in ``n_jobs`` worker processes (at once,
+    when an earlier call of this process started them). Each job's warnings are captured where
+    it runs and added to the capture open here (:func:`pipeline.warnings_capture.absorb`), so
+    none is printed from a worker.
 
     Parameters
     ----------
     jobs : iterable of tuple
         ``joblib.delayed(function)(*args, **kwargs)`` calls.
     n_jobs : int
-        Worker processes; 1 runs the jobs in this process.
+        Worker processes at most; 1 runs every job in this process.
     label, unit : str
         What :class:`Progress` shows.
     logger : logging.Logger, optional
@@ -151,14 +160,40 @@ def run_jobs(
     list
         The jobs' results, in the order of ``jobs``.
     """
-    calls = [delayed(_call_captured)(function, args, kwargs) for function, args, kwargs in jobs]
-    results = []
-    with Progress(label, len(calls), unit, logger=logger) as progress:
-        for result, counts in Parallel(n_jobs=n_jobs, return_as="generator")(calls):
+    jobs = list(jobs)
+    results: list = []
+    with Progress(label, len(jobs), unit, logger=logger) as progress:
+        started = time.monotonic()
+        while len(results) < len(jobs):
+            if _workers_pay(n_jobs, started, len(results), len(jobs)):
+                break
+            function, args, kwargs = jobs[len(results)]
+            result, counts = _call_captured(function, args, kwargs)
             absorb(counts)
             results.append(result)
             progress.update()
+        rest = [delayed(_call_captured)(f, a, k) for f, a, k in jobs[len(results) :]]
+        if rest:
+            _WORKERS["started"] = True
+            for result, counts in Parallel(n_jobs=n_jobs, return_as="generator")(rest):
+                absorb(counts)
+                results.append(result)
+                progress.update()
     return results
+
+
+_WORKERS = {"started": False}
+"""Whether this process has started joblib's worker processes (they stay for the next call)."""
+
+
+def _workers_pay(n_jobs: int, started: float, done: int, total: int) -> bool:
+    """Whether the rest of the jobs should go to the worker processes (see :func:`run_jobs`)."""
+    if n_jobs == 1:
+        return False
+    if _WORKERS["started"]:
+        return True
+    projected = (time.monotonic() - started) / done * (total - done) if done else 0.0
+    return projected >= SERIAL_UNDER_S
 
 
 def _call_captured(function: Callable, args: tuple, kwargs: dict) -> tuple[Any, WarningCounts]:

@@ -25,6 +25,7 @@ from benchmarks.discrepancy_trials import (
     run_workflow,
     write_hidden_campaigns,
 )
+from pipeline import progress
 from pipeline.config import load_section
 from pipeline.discrepancy.identifiability import NOT_IDENTIFIABLE
 from pipeline.discrepancy.localise import (
@@ -242,9 +243,10 @@ def test_held_out_residuals_come_from_folds_that_did_not_see_the_campaign():
         make_folds(IDS[:1], 4)
 
 
-def test_parallel_and_serial_searches_agree():
+def test_parallel_and_serial_searches_agree(monkeypatch):
     fake = FakeEvaluator({"thermal_bending"})
     serial = forward_search(fake, IDS, SETTINGS)
+    monkeypatch.setattr(progress, "SERIAL_UNDER_S", 0.0)  # every calibration in a worker
     parallel = forward_search(fake, IDS, replace(SETTINGS, n_jobs=2))
     assert serial.to_dict()["candidates_by_step"] == parallel.to_dict()["candidates_by_step"]
 

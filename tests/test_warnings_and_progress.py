@@ -6,7 +6,9 @@ import importlib
 import io
 import json
 import logging
+import os
 import re
+import time
 import warnings
 
 import numpy as np
@@ -15,6 +17,7 @@ import pytest
 import statsmodels.api as sm
 from joblib import delayed
 
+from pipeline import progress
 from pipeline.cli import COMMANDS
 from pipeline.models.registry import make_model
 from pipeline.progress import QUIET_FOR_S, Progress, run_jobs
@@ -122,7 +125,32 @@ def test_a_candidates_warnings_reach_its_comparison_row_and_its_child_run_tags()
     assert child.tables[records.FITS_TABLE][0]["warnings"] == expected
 
 
-def test_fits_in_worker_processes_bring_their_warnings_back():
+def _pid_after(seconds: float) -> int:
+    time.sleep(seconds)
+    return os.getpid()
+
+
+@pytest.fixture
+def workers_at_once(monkeypatch):
+    """Every call of ``run_jobs`` with more than one job process uses the worker processes."""
+    monkeypatch.setattr(progress, "SERIAL_UNDER_S", 0.0)
+
+
+def test_a_short_loop_runs_in_this_process_and_a_long_one_goes_to_the_workers(monkeypatch):
+    monkeypatch.setattr(progress, "_WORKERS", {"started": False})
+    quick = run_jobs([delayed(_pid_after)(0.0) for _ in range(6)], 2, "quick")
+    assert quick == [os.getpid()] * 6
+    assert progress._WORKERS["started"] is False
+    monkeypatch.setattr(progress, "SERIAL_UNDER_S", 0.3)
+    pids = run_jobs([delayed(_pid_after)(0.1) for _ in range(8)], 2, "slow")
+    # the first job here: the other seven (0.7 s) are projected past 0.3 s, so the workers run them
+    assert pids[0] == os.getpid() and os.getpid() not in pids[1:]
+    assert progress._WORKERS["started"] is True
+    assert os.getpid() not in run_jobs([delayed(_pid_after)(0.0)], 2, "again")
+    assert run_jobs([delayed(_pid_after)(0.0)], 1, "serial") == [os.getpid()]
+
+
+def test_fits_in_worker_processes_bring_their_warnings_back(workers_at_once):
     series = _series(collinear=True)
     unit = training_units(series)[-1]
     jobs = [

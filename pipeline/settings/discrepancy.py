@@ -80,7 +80,8 @@ class DiscrepancySettings(Settings):
     hold_out_validation : bool
         Search on the non-validation campaigns; check the named effects on the validation ones.
     n_jobs : int
-        Parallel calibrations (joblib processes); 1: serial.
+        Parallel calibrations (joblib processes); 1: serial. A loop projected to take less than
+        :data:`pipeline.progress.SERIAL_UNDER_S` runs in the stage's own process.
     max_effects : int or None
         Stop after naming this many effects; None: as many as there are candidates.
     localise : LocaliseSettings

@@ -53,7 +53,8 @@ class EvaluateSettings(Settings):
     model_params : dict of str to dict
         Hyper-parameters by model, e.g. ``{bp: {max_epochs: 3000}}``.
     n_jobs : int
-        Parallel fits (joblib processes; -1: every core).
+        Parallel fits (joblib processes; -1: every core); a loop projected to take less than
+        :data:`pipeline.progress.SERIAL_UNDER_S` runs in the stage's own process.
     champion : ChampionSettings
     """
 
