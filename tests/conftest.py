@@ -9,6 +9,8 @@ after the other.
 
 from __future__ import annotations
 
+import sys
+
 import pytest
 
 PIPELINE_MODULES = (
@@ -32,3 +34,14 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
     """Pipeline modules first, then the other modules with ``slow`` tests, then the rest."""
     slow_modules = {item.module.__name__ for item in items if item.get_closest_marker("slow")}
     items.sort(key=lambda item: _rank(item, slow_modules))
+
+
+@pytest.fixture(autouse=True)
+def import_path_restored(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Give each test its own ``sys.path``, the session's again after it.
+
+    Loading a pyfunc model in the test process puts the model's ``code`` folder first on
+    ``sys.path``; joblib worker processes started later by another test would import ``pipeline``
+    from there (the modules the model needs, not the package).
+    """
+    monkeypatch.setattr(sys, "path", list(sys.path))

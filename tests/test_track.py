@@ -899,7 +899,10 @@ def test_changed_scores_params_or_data_log_a_new_parent_and_gate_its_champion(
     first = record(workdir)
     assert [d["action"] for d in first["promotion"]] == ["promote"] * len(AXES)
     change(workdir, outputs)
+    import_path = list(sys.path)
     track.main([])
+    # the gate loaded both versions in this process and left its import path as it was
+    assert sys.path == import_path
     second = record(workdir)
     assert second["run_identity"] != first["run_identity"]
     assert second["reused"] is False

@@ -23,7 +23,10 @@ from __future__ import annotations
 import json
 import logging
 import os
+import sys
 import tempfile
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 import joblib
@@ -55,6 +58,22 @@ REQUIREMENTS = (
     "statsmodels==0.15.0",
     "joblib==1.6.0",
 )
+
+
+@contextmanager
+def import_path_kept() -> Iterator[None]:
+    """Restore ``sys.path`` after MLflow loaded or logged a model in this process.
+
+    Loading a pyfunc model (logging one with an input example loads it too) puts the model's
+    ``code`` folder first on ``sys.path``. This process has the package already; worker
+    processes it starts later must import the package from where it is installed, not the
+    modules a model carries.
+    """
+    import_path = list(sys.path)
+    try:
+        yield
+    finally:
+        sys.path[:] = import_path
 
 
 class ChampionModel(mlflow.pyfunc.PythonModel):
@@ -154,7 +173,7 @@ def log_and_register(tracking_uri: str, run_id: str, registered_name: str, folde
     mlflow.start_run(run_id=run_id)
     try:
         estimator = joblib.load(folder / paths.CHAMPION_ESTIMATOR_FILE)
-        with tempfile.TemporaryDirectory() as scratch:
+        with tempfile.TemporaryDirectory() as scratch, import_path_kept():
             info = mlflow.pyfunc.log_model(
                 name=MODEL_NAME,
                 python_model=ChampionModel(),

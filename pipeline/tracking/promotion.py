@@ -32,6 +32,7 @@ from pipeline.protocol.promotion import (
     decide_promotion,
 )
 from pipeline.separation.features import is_speed_feature
+from pipeline.tracking.champion_model import import_path_kept
 
 logger = logging.getLogger(__name__)
 
@@ -83,7 +84,8 @@ def registered_predictions(model_uri: str, table: pd.DataFrame, inputs: Sequence
     """
     import mlflow.pyfunc
 
-    model = mlflow.pyfunc.load_model(model_uri)
+    with import_path_kept():
+        model = mlflow.pyfunc.load_model(model_uri)
     sensors = [name for name in inputs if not is_speed_feature(name)]  # speed: from rpm
     frames = []
     for run_id, rows in table.groupby("run_id", sort=False):
