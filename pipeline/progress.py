@@ -129,6 +129,10 @@ class Progress:
         self.close()
 
 
+_WORKERS = {"started": False}
+"""Whether this process has started joblib's worker processes (they stay for the next call)."""
+
+
 def run_jobs(
     jobs: Iterable[Any],
     n_jobs: int,
@@ -182,10 +186,6 @@ def run_jobs(
     return results
 
 
-_WORKERS = {"started": False}
-"""Whether this process has started joblib's worker processes (they stay for the next call)."""
-
-
 def _workers_pay(n_jobs: int, started: float, done: int, total: int) -> bool:
     """Whether the rest of the jobs should go to the worker processes (see :func:`run_jobs`)."""
     if n_jobs == 1:
@@ -197,7 +197,7 @@ def _workers_pay(n_jobs: int, started: float, done: int, total: int) -> bool:
 
 
 def _call_captured(function: Callable, args: tuple, kwargs: dict) -> tuple[Any, WarningCounts]:
-    """Run one job in its worker; return its result and the warnings it emitted."""
+    """Run one job (in a worker or in this process); return its result and its warnings."""
     with captured(propagate=False) as counts:
         result = function(*args, **kwargs)
     return result, counts
