@@ -10,7 +10,12 @@ STAMP := $(VENV)/.installed
 
 install: $(STAMP)
 
-# The packages' bytecode is compiled by compileall on every core (pip compiles one file at a time).
+# The packages' bytecode is compiled by compileall on every core (pip compiles one file at a time),
+# the repository's own code too (an editable install is not compiled): every stage is a new
+# process, and where PYTHONDONTWRITEBYTECODE is set each would compile the package again.
+OWN_CODE := pipeline schemas tests benchmarks
+COMPILE_OWN := $(BIN)/python -m compileall -q -j 0 $(OWN_CODE)
+
 $(STAMP): requirements.lock pyproject.toml
 	$(PYTHON) -c 'import sys; assert sys.version_info[:2] == (3, 11), "Python 3.11 is required"'
 	$(PYTHON) -m venv $(VENV)
@@ -18,6 +23,7 @@ $(STAMP): requirements.lock pyproject.toml
 	$(BIN)/python -m pip install --quiet --disable-pip-version-check --no-compile -r requirements.lock
 	$(BIN)/python -m compileall -q -j 0 $(VENV)/lib
 	$(BIN)/python -m pip install --quiet --disable-pip-version-check --no-deps -e .
+	$(COMPILE_OWN)
 	touch $(STAMP)
 
 run: install
@@ -30,9 +36,11 @@ run: install
 PYTEST := PATH="$(CURDIR)/$(BIN):$$PATH" $(BIN)/python -m pytest -n 2 --dist loadscope --no-loadscope-reorder
 
 test: install
+	$(COMPILE_OWN)
 	$(PYTEST) --durations=15
 
 test-fast: install
+	$(COMPILE_OWN)
 	$(PYTEST) -m "not slow"
 
 bench: install

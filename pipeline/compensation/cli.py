@@ -30,7 +30,7 @@ from pipeline import paths
 from pipeline.compensation.bundle import AxisBundle, bundle_axes, read_bundle
 from pipeline.compensation.files import CsvTailSource, FileSink
 from pipeline.compensation.opcua import NodeMap, OpcUaSink, OpcUaSource
-from pipeline.compensation.runtime import CompensationRuntime, EventLog
+from pipeline.compensation.runtime import CompensationRuntime, EventLog, Reading
 from pipeline.config import load_section
 from pipeline.errors import MissingInputError, ParamsError
 from pipeline.settings.base import load_settings, parse_section
@@ -161,25 +161,75 @@ def node_map(args: argparse.Namespace, bundles: list[AxisBundle]) -> NodeMap:
     return NodeMap.defaults(sensors, axes, speed)
 
 
+class StopRequested(BaseException):
+    """SIGTERM came while the runtime waited for its source (not an error of the source)."""
+
+
+class SigtermStop:
+    """SIGTERM's handler: the runtime stops at once when it waits for its source.
+
+    A stop that comes while a cycle computes or writes waits for the cycle's end, so that no
+    axis is left with half its offsets written; one that comes before the first wait (models
+    loading, connecting) stops at that wait. Waiting is up to ``cycle_s`` (10 s by default):
+    without this a stop would wait that long.
+    """
+
+    def __init__(self) -> None:
+        self.requested, self.waiting = False, False
+
+    def request(self, signum, frame) -> None:
+        """Handle SIGTERM: stop now when waiting, else before the next wait."""
+        self.requested = True
+        if self.waiting:
+            raise StopRequested
+
+
+class StoppableSource:
+    """A source whose wait for readings a :class:`SigtermStop` may end."""
+
+    def __init__(self, source: CsvTailSource | OpcUaSource, stop: SigtermStop) -> None:
+        self.source, self.stop = source, stop
+
+    @property
+    def exhausted(self) -> bool:
+        """Whether the wrapped source has no more readings."""
+        return self.source.exhausted
+
+    def poll(self, timeout_s: float) -> list[Reading]:
+        """Return the wrapped source's readings; raise :class:`StopRequested` once SIGTERM came."""
+        if self.stop.requested:
+            raise StopRequested
+        self.stop.waiting = True
+        try:
+            return self.source.poll(timeout_s)
+        finally:
+            self.stop.waiting = False
+
+    def close(self) -> None:
+        """Close the wrapped source."""
+        self.source.close()
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run the runtime until the source ends, ``--max-cycles``, SIGTERM or Ctrl-C; return 0."""
     args = _parse_args(argv)
     settings = runtime_settings(args.params)
-    stop = {"now": False}
-
-    def request_stop(signum, frame) -> None:
-        stop["now"] = True
-
-    signal.signal(signal.SIGTERM, request_stop)
+    # asyncua logs every publish and read (INFO) and each limit the server revised (WARNING);
+    # a lost connection or refused write reaches the runtime as an error, which logs it
+    logging.getLogger("asyncua").setLevel(logging.ERROR)
+    stop = SigtermStop()
+    signal.signal(signal.SIGTERM, stop.request)
     with tempfile.TemporaryDirectory(prefix="thermal-bundle-") as workdir:
         bundles = load_bundles(args, Path(workdir))
         nodes = node_map(args, bundles)
-        source = open_source(args.source, nodes, not args.no_follow)
+        source = StoppableSource(open_source(args.source, nodes, not args.no_follow), stop)
         sink = open_sink(args.sink, nodes)
         log = EventLog(args.log)
         runtime = CompensationRuntime(bundles, settings, source, sink, log)
         try:
-            runtime.run(args.max_cycles, should_stop=lambda: stop["now"])
+            runtime.run(args.max_cycles)
+        except StopRequested:
+            LOGGER.info("stopped by SIGTERM")
         except KeyboardInterrupt:
             LOGGER.info("stopped by Ctrl-C")
         finally:

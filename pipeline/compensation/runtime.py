@@ -236,13 +236,14 @@ class CompensationRuntime:
         self._bad: dict[str, dict[str, str]] = {axis: {} for axis in self.axes}
         self._modes: dict[str, str] = {}
 
-    def run(self, max_cycles: int | None = None, should_stop: Callable[[], bool] = bool) -> None:
-        """Cycle until the source is exhausted, ``max_cycles`` or ``should_stop()``."""
+    def run(self, max_cycles: int | None = None) -> None:
+        """Cycle until the source is exhausted or ``max_cycles``; a stop is the source's to raise.
+
+        The ``stop`` event is logged however the loop ends.
+        """
         self.log.record("start", None, axes=sorted(self.axes), settings=self.settings.model_dump())
         try:
             while max_cycles is None or self.counts.cycles < max_cycles:
-                if should_stop():
-                    break
                 readings = self._poll()
                 for reading in readings:
                     self.cycle([reading])
