@@ -69,21 +69,25 @@ def method_entries(methods: Mapping[str, Mapping | None]) -> dict[str, tuple[str
 
 
 def select_unit(
-    entry: tuple[str, str, dict], unit: TrainingUnit, series: list[CampaignSeries]
+    entry: tuple[str, str, dict],
+    unit: TrainingUnit,
+    series: list[CampaignSeries],
+    with_readings: Mapping[str, set[str]],
 ) -> Selection:
     """Run one selection method on the campaigns of one training unit.
 
-    Only inputs with readings in every campaign of the unit are candidates; with the input set
-    ``temperatures``, the speed responses are not offered. When the unit's campaigns share no
-    input (a sensor renamed, the only common one dead), the selection is empty and says why;
-    the models fed by it are not fitted on that unit.
+    Only inputs with readings in every campaign of the unit are candidates
+    (``with_readings``: campaign id -> its inputs with at least one reading); with the input
+    set ``temperatures``, the speed responses are not offered. When the unit's campaigns share
+    no input (a sensor renamed, the only common one dead), the selection is empty and says
+    why; the models fed by it are not fitted on that unit.
     """
     method, inputs, settings = entry
     training = [s for s in series if s.campaign_id in unit.campaigns]
     offered = [
         column
         for column in training[0].features.columns
-        if all(s.features[column].notna().any() for s in training)
+        if all(column in with_readings[s.campaign_id] for s in training)
         and (inputs == "temperatures_and_speed" or not is_speed_feature(column))
     ]
     if not offered:
@@ -98,8 +102,12 @@ def select_axis(
     series: list[CampaignSeries], units: list[TrainingUnit], entries: dict
 ) -> dict[str, dict[str, Selection]]:
     """Every method on every training unit of one axis: ``{method: {unit name: Selection}}``."""
+    with_readings = {
+        s.campaign_id: set(s.features.columns[s.features.notna().any().to_numpy()])
+        for s in series
+    }
     return {
-        name: {unit.name: select_unit(entry, unit, series) for unit in units}
+        name: {unit.name: select_unit(entry, unit, series, with_readings) for unit in units}
         for name, entry in entries.items()
     }
 
