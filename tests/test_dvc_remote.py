@@ -26,9 +26,13 @@ def _run(command: list[str], cwd: Path) -> None:
     assert done.returncode == 0, f"{command}\n{done.stdout}\n{done.stderr}"
 
 
-@pytest.fixture
-def lab(tmp_path) -> Path:
-    """A repository whose data/raw is DVC-tracked and pushed to a folder remote."""
+@pytest.fixture(scope="module")
+def lab(tmp_path_factory) -> Path:
+    """A repository whose data/raw is DVC-tracked and pushed to a folder remote.
+
+    Shared by the tests, which only clone it.
+    """
+    tmp_path = tmp_path_factory.mktemp("remote")
     lab = tmp_path / "lab"
     (lab / "data" / "raw" / "K01").mkdir(parents=True)
     (lab / "data" / "raw" / "K01" / "campaign.yaml").write_text("campaign_id: K01\n")
@@ -52,9 +56,11 @@ def test_a_fresh_clone_pulls_the_campaigns_from_a_folder_remote(lab, tmp_path, m
     assert (clone / "data" / "raw" / "K01" / "campaign.yaml").read_text() == "campaign_id: K01\n"
 
 
-def test_without_a_remote_the_campaigns_are_used_as_they_are(lab, monkeypatch):
-    monkeypatch.chdir(lab)
-    _run([DVC, "remote", "remove", "shelf"], lab)
+def test_without_a_remote_the_campaigns_are_used_as_they_are(lab, tmp_path, monkeypatch):
+    clone = tmp_path / "clone"
+    _run(["git", "clone", "-q", str(lab), str(clone)], tmp_path)
+    _run([DVC, "remote", "remove", "shelf"], clone)
+    monkeypatch.chdir(clone)
     assert pull(DVC).startswith("no DVC remote configured")
 
 
