@@ -4,6 +4,7 @@ fallbacks when a sensor fails, hold and decay when the source stalls, refused wr
 from __future__ import annotations
 
 import json
+import signal
 import subprocess
 from pathlib import Path
 
@@ -13,6 +14,7 @@ import pytest
 
 from pipeline.compensation.axis import bound
 from pipeline.compensation.bundle import read_bundle, write_bundle
+from pipeline.compensation.cli import SigtermStop, StoppableSource, StopRequested
 from pipeline.compensation.files import CsvTailSource, FileSink, MemorySink, TableSource
 from pipeline.compensation.guard import bad_inputs
 from pipeline.compensation.replay import replay_axis, replay_run
@@ -310,6 +312,55 @@ def test_a_failing_source_is_logged_and_the_runtime_goes_on(bundle):
     assert runtime.counts.source_errors == 2 and runtime.counts.writes == 10
     errors = [e for e in runtime.log.events if e["event"] == "source_error"]
     assert len(errors) == 2 and "BadConnectionClosed" in errors[0]["error"]
+
+
+class _StopOnWrite(MemorySink):
+    """A sink during whose ``at``-th write SIGTERM comes (its handler is called)."""
+
+    def __init__(self, stop: SigtermStop, at: int) -> None:
+        super().__init__()
+        self.stop, self.at = stop, at
+
+    def write(self, t_s, offsets):
+        super().write(t_s, offsets)
+        if len(self.writes) == self.at:
+            self.stop.request(signal.SIGTERM, None)
+
+
+class _StopWhileWaiting(TableSource):
+    """A source during whose wait after ``at`` readings SIGTERM comes."""
+
+    def __init__(self, table, stop: SigtermStop, at: int) -> None:
+        super().__init__(table)
+        self.stop, self.at, self.given = stop, at, 0
+
+    def poll(self, timeout_s):
+        if self.given == self.at:
+            self.stop.request(signal.SIGTERM, None)  # raises: the runtime was waiting
+        readings = super().poll(timeout_s)
+        self.given += len(readings)
+        return readings
+
+
+def test_sigterm_ends_a_wait_at_once_and_a_cycle_only_after_its_write(bundle):
+    table = campaign(HELD_OUT).head(10)[["elapsed_s", "rpm", *SENSORS]]
+    during_cycle = SigtermStop()
+    sink = _StopOnWrite(during_cycle, at=3)
+    runtime = CompensationRuntime(
+        [bundle], LOOSE, StoppableSource(TableSource(table), during_cycle), sink, EventLog(None)
+    )
+    with pytest.raises(StopRequested):
+        runtime.run()
+    assert len(sink.writes) == 3 and runtime.counts.writes == 3  # the third cycle wrote
+    assert runtime.log.events[-1]["event"] == "stop"
+
+    while_waiting = SigtermStop()
+    source = StoppableSource(_StopWhileWaiting(table, while_waiting, at=4), while_waiting)
+    runtime = CompensationRuntime([bundle], LOOSE, source, MemorySink(), EventLog(None))
+    with pytest.raises(StopRequested):
+        runtime.run()
+    assert runtime.counts.cycles == 4 and not while_waiting.waiting
+    assert runtime.log.events[-1]["event"] == "stop"
 
 
 def test_an_axis_without_held_out_campaigns_has_an_empty_proof_that_says_so(bundle):
