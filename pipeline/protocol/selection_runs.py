@@ -103,8 +103,7 @@ def select_axis(
 ) -> dict[str, dict[str, Selection]]:
     """Every method on every training unit of one axis: ``{method: {unit name: Selection}}``."""
     with_readings = {
-        s.campaign_id: set(s.features.columns[s.features.notna().any().to_numpy()])
-        for s in series
+        s.campaign_id: set(s.features.columns[s.features.notna().any().to_numpy()]) for s in series
     }
     return {
         name: {unit.name: select_unit(entry, unit, series, with_readings) for unit in units}
