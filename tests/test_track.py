@@ -52,7 +52,7 @@ from pipeline.stages import track
 from pipeline.tracking import identity, records, stage_outputs, store
 from schemas.evaluated import CrossSeasonScoresModel
 from tests.helpers.clean_load import predict_without_repository
-from tests.helpers.mlflow_server import running_mlflow_server
+from tests.helpers.mlflow_server import empty_database, running_mlflow_server
 
 ROOT = Path(__file__).resolve().parents[1]
 EXPERIMENT = "thermal-test"
@@ -508,7 +508,7 @@ def outputs() -> EvaluateOutputs:
 def empty_store(tmp_path_factory) -> Path:
     """A migrated, empty MLflow SQLite database, copied by each test (creation takes ~2 s)."""
     path = tmp_path_factory.mktemp("store") / "mlflow.db"
-    MlflowClient(tracking_uri=f"sqlite:///{path}").search_experiments()
+    empty_database(path)
     return path
 
 

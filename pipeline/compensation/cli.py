@@ -30,7 +30,7 @@ from pipeline import paths
 from pipeline.compensation.bundle import AxisBundle, bundle_axes, read_bundle
 from pipeline.compensation.files import CsvTailSource, FileSink
 from pipeline.compensation.opcua import NodeMap, OpcUaSink, OpcUaSource
-from pipeline.compensation.runtime import CompensationRuntime, EventLog, Reading
+from pipeline.compensation.runtime import CompensationRuntime, EventLog, Reading, Source
 from pipeline.config import load_section
 from pipeline.errors import MissingInputError, ParamsError
 from pipeline.settings.base import load_settings, parse_section
@@ -187,7 +187,7 @@ class SigtermStop:
 class StoppableSource:
     """A source whose wait for readings a :class:`SigtermStop` may end."""
 
-    def __init__(self, source: CsvTailSource | OpcUaSource, stop: SigtermStop) -> None:
+    def __init__(self, source: Source, stop: SigtermStop) -> None:
         self.source, self.stop = source, stop
 
     @property
