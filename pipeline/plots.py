@@ -183,9 +183,15 @@ def wrap_text(fig: Figure, text: str, fontsize: float, width_in: float | None = 
     lines = []
     for line in text.split("\n"):
         wrapped, chars = line, len(line)
-        while chars > 8 and widest(wrapped) > available_px:
-            chars -= max(1, chars // 20)
+        width = widest(line)
+        if width > available_px and chars > 8:
+            # Start from the width the line's mean character width allows (measuring a text is
+            # the cost here), then narrow until every line fits.
+            chars = max(8, int(chars * available_px / width))
             wrapped = textwrap.fill(line, chars)
+            while chars > 8 and widest(wrapped) > available_px:
+                chars -= max(1, chars // 20)
+                wrapped = textwrap.fill(line, chars)
         count = wrapped.count("\n") + 1
         if count > 1:  # as many lines, of even length: no short last line
             even = -(-len(line) // count)
@@ -236,7 +242,7 @@ def ink_for(rgba: tuple[float, ...]) -> str:
     return "k" if 0.2126 * red + 0.7152 * green + 0.0722 * blue > 0.45 else "w"
 
 
-def fit_tick_labels(fig: Figure, axis: Axis, spacing_px: float) -> None:
+def fit_tick_labels(fig: Figure, axis: Axis, spacing_px: float) -> bool:
     """Shrink (down to 6.5 pt), then turn upright on one line, tick labels wider than their spacing.
 
     Parameters
@@ -247,25 +253,32 @@ def fit_tick_labels(fig: Figure, axis: Axis, spacing_px: float) -> None:
         An x axis with one label per category.
     spacing_px : float
         Distance between neighbouring ticks, px.
+
+    Returns
+    -------
+    bool
+        True if the labels were turned upright (they then need more room than the layout gave
+        them); False if they were left as they were or only made smaller.
     """
     labels = [label for label in axis.get_ticklabels() if label.get_text()]
     if not labels or spacing_px <= 0:
-        return
+        return False
     renderer = fig.canvas.get_renderer()
     widest = max(label.get_window_extent(renderer).width for label in labels)
     if widest <= 0.92 * spacing_px:
-        return
+        return False
     fontsize = labels[0].get_fontsize() * 0.92 * spacing_px / widest
     if fontsize >= MIN_TICK_FONTSIZE:
         for label in labels:
             label.set_fontsize(fontsize)
-        return
+        return False
     axis.set_ticks(
         axis.get_ticklocs(),
         [label.get_text().replace("\n", " ") for label in axis.get_ticklabels()],
         rotation=90,
         fontsize=max(MIN_TICK_FONTSIZE, labels[0].get_fontsize() * 0.9),
     )
+    return True
 
 
 def _cell_text(value: float) -> str:
@@ -331,16 +344,21 @@ def score_heatmap_figure(
             text.set_in_layout(False)
             text.set_visible(False)
     fig.draw_without_rendering()
+    upright = False
     for ax, (rows, columns), texts in cells:
         cell_w = ax.bbox.width / max(columns, 1)
         cell_h = ax.bbox.height / max(rows, 1)
-        fit_tick_labels(fig, ax.xaxis, cell_w)
+        upright |= fit_tick_labels(fig, ax.xaxis, cell_w)
         px_per_pt = fig.dpi / 72.0
         chars = max((len(t.get_text()) for t in texts), default=4)
         size = min(9.0, 0.55 * cell_h / px_per_pt, 0.9 * cell_w / (0.64 * chars * px_per_pt))
         for text in texts:
             text.set_fontsize(max(size, 5.0))
             text.set_visible(True)
+    if not upright:
+        # The layout just computed still holds (labels only made smaller, cell values outside
+        # it): keep it rather than compute it again when the figure is drawn.
+        fig.set_layout_engine("none")
     return fig
 
 

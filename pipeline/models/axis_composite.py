@@ -44,7 +44,6 @@ from dataclasses import dataclass, replace
 import numpy as np
 import pandas as pd
 from numpy.polynomial import Polynomial
-from statsmodels.regression.linear_model import OLS
 
 from pipeline.errors import InputDataError, ParamsError
 from pipeline.fit_statistics import root_mean_square
@@ -254,6 +253,10 @@ def fit_slope_model(
             f"{len(k)} training passes cannot fit a slope model with {len(sensors)} sensors and "
             "an intercept; select fewer sensors or measure more passes"
         )
+    # statsmodels is imported here, not with the module: a folder without axis campaigns runs the
+    # stage without it (the import takes seconds).
+    from statsmodels.regression.linear_model import OLS
+
     design = np.column_stack([np.ones(len(k)), features.to_numpy(dtype=float)])
     fit = OLS(k, design).fit()
     params = np.asarray(fit.params, dtype=float)

@@ -36,7 +36,7 @@ import logging
 
 import numpy as np
 import pandas as pd
-from scipy import stats
+from scipy.special import fdtri
 
 from pipeline.selection.grey import RESOLUTION_COEFFICIENT, grey_relational_degree
 from pipeline.selection.result import STATUS_USED, Selection, clean_inputs
@@ -197,7 +197,7 @@ def cluster_levels(temperatures: pd.DataFrame, alpha: float = 0.05) -> pd.DataFr
                 "lambda": float(level),
                 "n_groups": r,
                 "F": f_statistic(zscored, labels) if testable else float("nan"),
-                "F_crit": float(stats.f.ppf(1.0 - alpha, r - 1, m - r)) if testable else np.nan,
+                "F_crit": float(fdtri(r - 1, m - r, 1.0 - alpha)) if testable else np.nan,
                 "groups": ",".join(map(str, labels)),
             }
         )
