@@ -1,9 +1,13 @@
 """Hidden-effect trials: does the discrepancy workflow name what was hidden in the data.
 
-For each case (no effect, each of the six effects alone, pairs), the project's twin
-(:func:`pipeline.twin.campaigns.simulate_spindle_campaign`) with exactly those effects switched
-on, random plausible parameters and realistic sensor and probe noise writes "measured"
-campaigns with speed steps and cool-downs in the raw contract; the workflow
+For each case (no effect, each of the six effects alone, pairs), a machine with exactly those
+effects switched on, random plausible parameters and realistic sensor and probe noise writes
+"measured" campaigns with speed steps and cool-downs in the raw contract. Two machines
+(:data:`GENERATORS`): the project's twin
+(:func:`pipeline.twin.campaigns.simulate_spindle_campaign`), whose effects have exactly the forms
+the search fits, and a machine model written without it
+(:mod:`benchmarks.independent_machine`: its own discretisation, effect forms and instruments),
+on which a rule that holds only because the forms match fails. The workflow
 (:mod:`pipeline.stages.discrepancy`) runs on the folder like on any measurements. The truth is
 used only to score the result: a trial is *correct* when the named effects equal the hidden
 ones and, when something was hidden, the held-out displacement RMS after adding them is at most
@@ -22,8 +26,9 @@ proposed for the effects classed not identifiable are run on the clean machine: 
 anything then is a false alarm.
 
 ``python -m benchmarks.discrepancy_trials --seeds 1 2 3 4 5 --out reports/discrepancy_trials`` runs
-every case over the seeds and writes ``trials.csv`` (one row per case and seed) and ``rates.md``
-(rate of correct naming per case). The slow tests run the same trials with one seed per case.
+every case over the seeds on both machines (``--generators`` to choose) and writes
+``trials.csv`` (one row per machine, case and seed) and ``rates.md`` (rate of correct naming per
+machine and case). The slow tests run the same trials with one seed per case.
 """
 
 from __future__ import annotations
@@ -34,7 +39,7 @@ import shutil
 import sys
 import tempfile
 import time
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from datetime import datetime, timedelta
 from pathlib import Path
@@ -45,6 +50,7 @@ import pandas as pd
 from scipy.stats import norm
 from statsmodels.stats.proportion import proportion_confint
 
+from benchmarks import independent_machine
 from pipeline.config import DEFAULT_PARAMS
 from pipeline.discrepancy.identifiability import NOT_IDENTIFIABLE
 from pipeline.discrepancy.search import CANDIDATE_EFFECTS
@@ -267,6 +273,38 @@ def write_plan_campaigns(
 
 
 @dataclass(frozen=True)
+class Generator:
+    """A machine that writes the trials' campaigns in the raw contract.
+
+    Attributes
+    ----------
+    name : str
+        ``twin`` or ``independent``.
+    write_hidden : callable
+        ``(folder, effects, seed, n)``: the trial's ``n`` stepped campaigns with ``effects``.
+    write_plan : callable
+        ``(folder, proposed, effects, seed, n, round_) -> ids``: ``n`` campaigns of a proposed
+        test on the same machine (the same ``seed``).
+    """
+
+    name: str
+    write_hidden: Callable[[Path, Iterable[str], int, int], None]
+    write_plan: Callable[[Path, Mapping[str, Any], Iterable[str], int, int, int], list[str]]
+
+
+GENERATORS = {
+    "twin": Generator("twin", write_hidden_campaigns, write_plan_campaigns),
+    "independent": Generator(
+        "independent",
+        independent_machine.write_hidden_campaigns,
+        independent_machine.write_plan_campaigns,
+    ),
+}
+"""The project's twin, and a machine model written without it
+(:mod:`benchmarks.independent_machine`): the rules of the search must hold on both."""
+
+
+@dataclass(frozen=True)
 class PlanFollowUp:
     """The proposed test of a not-identifiable hidden effect, run on the same machine.
 
@@ -321,6 +359,7 @@ def follow_plan(
     seed: int,
     section: DiscrepancySettings,
     workdir: Path,
+    generator: str = "twin",
 ) -> list[PlanFollowUp]:
     """Run the proposed test of each of ``effects`` classed not identifiable, then rerun.
 
@@ -340,6 +379,8 @@ def follow_plan(
         The ``discrepancy`` params section.
     workdir : Path
         Folder for the copies and the reports.
+    generator : str
+        The machine of :data:`GENERATORS` that wrote the trial (and writes the tests).
 
     Returns
     -------
@@ -358,7 +399,7 @@ def follow_plan(
             if test is None:
                 break
             n = int(test.get("campaigns", PLAN_CAMPAIGNS))
-            ids = write_plan_campaigns(folder, test, hidden, seed, n, round_)
+            ids = GENERATORS[generator].write_plan(folder, test, hidden, seed, n, round_)
             after = run_workflow(folder, workdir / f"out_plan_{effect}_{round_}", section)
             visible = "expected_signal_sigma" in test
             names.append(str(test["name"]) if visible else f"calibration: {test['name']}")
@@ -469,6 +510,8 @@ class TrialResult:
     follow_ups : tuple of PlanFollowUp
         The proposed tests of the hidden effects classed not identifiable (with nothing
         hidden: of every effect classed not identifiable), run and rerun.
+    generator : str
+        The machine of :data:`GENERATORS` that wrote the campaigns.
     """
 
     hidden: tuple[str, ...]
@@ -482,6 +525,7 @@ class TrialResult:
     classes: tuple[str, ...] = ()
     not_identifiable: tuple[str, ...] = ()
     follow_ups: tuple[PlanFollowUp, ...] = field(default=())
+    generator: str = "twin"
 
     @property
     def named_correctly(self) -> bool:
@@ -519,6 +563,7 @@ class TrialResult:
         """One row of ``trials.csv`` (follow-up columns empty without a follow-up)."""
         follow = self.follow_ups
         return {
+            "generator": self.generator,
             "hidden": case_name(self.hidden),
             "seed": self.seed,
             "named": "+".join(self.named) or "none",
@@ -553,8 +598,8 @@ def run_trial(
     section: DiscrepancySettings,
     workdir: Path,
     n_campaigns: int = 8,
-    heat_scatter_rel: float = HEAT_SCATTER_REL,
     follow_up: bool = True,
+    generator: str = "twin",
 ) -> TrialResult:
     """Generate campaigns with ``hidden`` effects, run the workflow, score it.
 
@@ -567,24 +612,25 @@ def run_trial(
     workdir : Path
         Empty folder for the raw campaigns and the report.
     n_campaigns : int
-    heat_scatter_rel : float
     follow_up : bool
         Run the proposed test of each hidden effect classed not identifiable, or with nothing
         hidden of every effect classed not identifiable (:func:`follow_plan`).
+    generator : str
+        The machine of :data:`GENERATORS` that writes the campaigns.
 
     Returns
     -------
     TrialResult
     """
     hidden = tuple(sorted(hidden))
-    write_hidden_campaigns(workdir / "raw", hidden, seed, n_campaigns, heat_scatter_rel)
+    GENERATORS[generator].write_hidden(workdir / "raw", hidden, seed, n_campaigns)
     t0 = time.perf_counter()
     doc = run_workflow(workdir / "raw", workdir / "out", section)
     ident = doc["identifiability"]
     unidentifiable = tuple(e for e, v in ident.items() if v["class"] == NOT_IDENTIFIABLE)
     targets = hidden or unidentifiable
     follow_ups = (
-        follow_plan(workdir / "raw", doc, targets, hidden, seed, section, workdir)
+        follow_plan(workdir / "raw", doc, targets, hidden, seed, section, workdir, generator)
         if follow_up
         else []
     )
@@ -600,27 +646,29 @@ def run_trial(
         classes=tuple(ident[e]["class"] for e in hidden),
         not_identifiable=unidentifiable,
         follow_ups=tuple(follow_ups),
+        generator=generator,
     )
 
 
 def rates_table(trials: pd.DataFrame) -> pd.DataFrame:
-    """Rates per case.
+    """Rates per generator and case.
 
-    Columns ``hidden``, ``n``; the fractions ``named_correctly``, ``z_halved``, ``gap_halved``
-    and ``correct`` (see :class:`TrialResult`); ``rmse_um_before``, ``rmse_um_after`` (medians
-    over the seeds, um) and their ranges ``rmse_um_before_range``, ``rmse_um_after_range``
-    (min, max), um; ``classes`` (the hidden effects' identifiability classes and how many
-    trials ended in each); ``plans_run`` (trials whose proposed test was run), ``plan_named``
-    (of those, the fraction in which the effect was then named, NaN without any; ``plan_n``
-    trials it counts) and
-    ``plan_rmse`` and ``plan_rmse_t`` (the rerun's held-out Z, um, and temperature, K, RMS
+    Columns ``generator`` (``twin`` where ``trials`` has no such column), ``hidden``, ``n``;
+    the fractions ``named_correctly``, ``z_halved``, ``gap_halved`` and ``correct`` (see
+    :class:`TrialResult`); ``rmse_um_before``, ``rmse_um_after`` (medians over the seeds, um)
+    and their ranges ``rmse_um_before_range``, ``rmse_um_after_range`` (min, max), um;
+    ``classes`` (the hidden effects' identifiability classes and how many trials ended in
+    each); ``plans_run`` (trials whose proposed test was run), ``plan_named`` (of those, the
+    fraction in which the effect was then named, NaN without any; ``plan_n`` trials it counts)
+    and ``plan_rmse`` and ``plan_rmse_t`` (the rerun's held-out Z, um, and temperature, K, RMS
     before -> after, medians).
     """
     trials = trials.assign(
+        generator=trials["generator"] if "generator" in trials else "twin",
         plan=trials["plan"].fillna("").astype(str),
         plan_effect_named=trials["plan_effect_named"].map(_as_bool),
     )
-    grouped = trials.groupby("hidden", sort=False)
+    grouped = trials.groupby(["generator", "hidden"], sort=False)
     return pd.DataFrame(
         {
             "classes": grouped["class"].agg(_counts),
@@ -696,17 +744,24 @@ def _plan_rmse(rows: pd.DataFrame) -> str:
     return f"{before.median():.2f} -> {after.median():.2f}"
 
 
+GENERATOR_TITLES = {
+    "twin": "The project's twin",
+    "independent": "The independent machine (benchmarks.independent_machine)",
+}
+
+
 def rates_markdown(rates: pd.DataFrame, trials: pd.DataFrame, seeds: Sequence[int]) -> str:
-    """Return the rates as a Markdown report."""
+    """Return the rates as a Markdown report, one section per generator."""
+    if "generator" not in trials:
+        trials = trials.assign(generator="twin")
     lines = [
         "# Hidden-effect trials of the discrepancy workflow",
         "",
-        f"Seeds {', '.join(map(str, seeds))}: {int(trials['named_correctly'].sum())} of "
-        f"{len(trials)} trials named exactly the hidden effects; {int(trials['correct'].sum())} "
-        "also at least halved the held-out displacement RMS (*correct*). *Gap "
-        "halved*: the held-out displacement or temperature RMS at least halved. Rates with "
-        "their 95 % Wilson interval (five trials: one trial moves a rate by 20 points); RMS "
-        "columns: medians over the seeds (range), um.",
+        f"Seeds {', '.join(map(str, seeds))}. Rates with their 95 % Wilson interval (five "
+        "trials: one trial moves a rate by 20 points); RMS columns: medians over the seeds "
+        "(range), um. *Correct*: named exactly the hidden effects and, when something was "
+        "hidden, at least halved the held-out displacement RMS. *Gap halved*: the held-out "
+        "displacement or temperature RMS at least halved.",
         "",
         "*Class*: the identifiability class each hidden effect ended in (trials per class). "
         "*Plan run*: trials whose hidden effect was classed not identifiable with a visible "
@@ -716,6 +771,23 @@ def rates_markdown(rates: pd.DataFrame, trials: pd.DataFrame, seeds: Sequence[in
         "machine); *named after plan*: of those, the share that named the effect (with "
         "nothing hidden: that named an absent effect, a false alarm); *Z after plan*: the rerun's "
         "held-out Z RMS (um) and temperature RMS (K), baseline -> augmented twin (medians).",
+    ]
+    for generator in dict.fromkeys(trials["generator"]):
+        lines += _generator_section(
+            rates[rates["generator"] == generator], trials[trials["generator"] == generator]
+        )
+    return "\n".join(lines) + "\n"
+
+
+def _generator_section(rates: pd.DataFrame, trials: pd.DataFrame) -> list[str]:
+    """Return the Markdown lines of one generator's rates and its trials not correct."""
+    generator = str(trials["generator"].iloc[0])
+    lines = [
+        "",
+        f"## {GENERATOR_TITLES.get(generator, generator)}",
+        "",
+        f"{int(trials['named_correctly'].sum())} of {len(trials)} trials named exactly the "
+        f"hidden effects; {int(trials['correct'].sum())} were correct.",
         "",
         "| hidden | trials | named correctly | Z halved | gap halved | correct "
         "| held-out Z RMS before | after | class | plan run | named after plan | Z after plan "
@@ -731,7 +803,7 @@ def rates_markdown(rates: pd.DataFrame, trials: pd.DataFrame, seeds: Sequence[in
             f"{_spread(r.rmse_um_after, r.rmse_um_after_range)} | {r.classes} | "
             f"{r.plans_run} | {named_after} | {r.plan_rmse} | {r.plan_rmse_t} |"
         )
-    wrong = trials[~trials["correct"]]
+    wrong = trials[~trials["correct"].astype(bool)]
     if len(wrong):
         lines += ["", "Trials not correct (not named exactly, or Z not halved):", ""]
         lines += [
@@ -740,7 +812,7 @@ def rates_markdown(rates: pd.DataFrame, trials: pd.DataFrame, seeds: Sequence[in
             f"{r.rmse_T_K_before:.3f} -> {r.rmse_T_K_after:.3f} K"
             for r in wrong.itertuples()
         ]
-    return "\n".join(lines) + "\n"
+    return lines
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -749,6 +821,13 @@ def main(argv: list[str] | None = None) -> int:
         prog="python -m benchmarks.discrepancy_trials", description=__doc__.splitlines()[0]
     )
     parser.add_argument("--seeds", type=int, nargs="+", default=[1, 2, 3, 4, 5])
+    parser.add_argument(
+        "--generators",
+        nargs="+",
+        choices=list(GENERATORS),
+        default=list(GENERATORS),
+        help="machines that write the campaigns; default both",
+    )
     parser.add_argument(
         "--cases",
         nargs="+",
@@ -771,14 +850,18 @@ def main(argv: list[str] | None = None) -> int:
         args.campaigns = QUICK_CAMPAIGNS
     args.out.mkdir(parents=True, exist_ok=True)
     rows = []
-    for seed in args.seeds:
-        for case in [c for c in CASES if not args.cases or case_name(c) in args.cases]:
-            with tempfile.TemporaryDirectory() as tmp:
-                result = run_trial(case, seed, section, Path(tmp), args.campaigns)
-            logger.info("trial %s", result.row())
-            rows.append(result.row())
-            trials = pd.DataFrame(rows)
-            trials.to_csv(args.out / "trials.csv", index=False)
+    cases = [c for c in CASES if not args.cases or case_name(c) in args.cases]
+    for generator in args.generators:
+        for seed in args.seeds:
+            for case in cases:
+                with tempfile.TemporaryDirectory() as tmp:
+                    result = run_trial(
+                        case, seed, section, Path(tmp), args.campaigns, generator=generator
+                    )
+                logger.info("trial %s", result.row())
+                rows.append(result.row())
+                trials = pd.DataFrame(rows)
+                trials.to_csv(args.out / "trials.csv", index=False)
     rates = rates_table(trials)
     (args.out / "rates.md").write_text(rates_markdown(rates, trials, args.seeds), encoding="utf-8")
     logger.info("rates written to %s", args.out / "rates.md")

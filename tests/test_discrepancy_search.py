@@ -367,6 +367,22 @@ def test_trial_scoring_and_rates_table():
     assert "hidden none, seed 1: named sensor_lag" in md
 
 
+def test_rates_are_reported_per_generator():
+    twin = TrialResult(("motor_heat",), 1, ("motor_heat",), 2.0, 0.9, 1.0, 0.8, 10.0)
+    false_name = ("motor_heat", "thermal_bending")
+    other = TrialResult(
+        ("motor_heat",), 1, false_name, 2.0, 0.9, 1.0, 0.8, 10.0, generator="independent"
+    )
+    trials = pd.DataFrame([twin.row(), other.row()])
+    rates = rates_table(trials).set_index(["generator", "hidden"])
+    assert rates.loc[("twin", "motor_heat"), "named_correctly"] == 1.0
+    assert rates.loc[("independent", "motor_heat"), "named_correctly"] == 0.0
+    md = rates_markdown(rates_table(trials), trials, [1])
+    assert md.index("## The project's twin") < md.index("## The independent machine")
+    assert md.count("| motor_heat | 1 |") == 2
+    assert "hidden motor_heat, seed 1: named motor_heat+thermal_bending" in md
+
+
 def test_smoke_one_hidden_effect_is_named_and_reported(tmp_path):
     """The CLI on 4 campaigns + 1 broken one, three candidates, two folds (about a minute)."""
     import yaml
@@ -523,7 +539,8 @@ def test_mlflow_run_holds_the_metrics_and_figures(tmp_path, monkeypatch):
         (0, pytest.approx(doc["rmse_um_before"])),
         (1, pytest.approx(doc["steps"][0]["rmse_um_after"])),
     ]
-    assert run.data.params["motor_heat.p_motor_heat_um"] == "1.0"
+    assert run.data.params["motor_heat.p_motor_heat"] == "1.0"
+    assert run.data.tags["unit.motor_heat.p_motor_heat"] == "um"
     cid = next(iter(doc["per_campaign"]))
     after = doc["per_campaign"][cid]["after"]["z_um"]
     assert run.data.metrics[f"rmse_um_after.{cid}"] == pytest.approx(after)

@@ -21,7 +21,7 @@ from pipeline.tracking.location import (
     local_artifact_location,
     resolve_tracking_uri,
 )
-from pipeline.tracking.store import ensure_experiment, make_client
+from pipeline.tracking.store import ensure_experiment, log_values, make_client
 
 logger = logging.getLogger(__name__)
 
@@ -39,40 +39,54 @@ def _run_tags(doc: Mapping[str, Any]) -> dict[str, str]:
     return tags
 
 
-def _log_rmse(client: Any, run_id: str, rmse: Mapping[str, Any], prefix: str = "") -> None:
-    """Log the held-out Z (um) and temperature (K) RMS before and after that ``rmse`` holds."""
-    for key in ("rmse_um_before", "rmse_um_after", "rmse_T_K_before", "rmse_T_K_after"):
-        if rmse.get(key) is not None:
-            client.log_metric(run_id, f"{prefix}{key}", float(rmse[key]))
+Metrics = list[tuple[str, float, int]]
+"""Metrics of the run: ``(key, value, step)``."""
 
 
-def _log_search(client: Any, run_id: str, doc: Mapping[str, Any]) -> None:
-    """Log the held-out Z RMS along the search (um) and each named effect's parameters.
+def _rmse_metrics(rmse: Mapping[str, Any], prefix: str = "") -> Metrics:
+    """Return the held-out Z (um) and temperature (K) RMS before and after that ``rmse`` holds."""
+    keys = ("rmse_um_before", "rmse_um_after", "rmse_T_K_before", "rmse_T_K_after")
+    return [(f"{prefix}{k}", float(rmse[k]), 0) for k in keys if rmse.get(k) is not None]
+
+
+def _search_values(doc: Mapping[str, Any]) -> tuple[Metrics, dict[str, str], dict[str, str]]:
+    """Return the held-out Z RMS along the search (um) and each named effect's parameters.
 
     Step 0 of the ``heldout_rmse_um`` metric is the baseline, step k the twin after the k-th
-    named effect; parameters are logged as ``<effect>.<name>_<unit>``.
+    named effect. Each parameter an effect brings is the param ``<effect>.<name>`` (its value)
+    with the tag ``unit.<effect>.<name>`` (its unit, e.g. ``um/krpm^2``): MLflow allows only
+    letters, digits, ``_ - . / :`` and spaces in keys, so units, which may hold ``^`` or ``*``,
+    stay out of them.
     """
+    metrics: Metrics = []
+    params, tags = {}, {}
     if doc.get("rmse_um_before") is not None:
-        client.log_metric(run_id, "heldout_rmse_um", float(doc["rmse_um_before"]), step=0)
+        metrics.append(("heldout_rmse_um", float(doc["rmse_um_before"]), 0))
     for k, step in enumerate(doc.get("steps", []), start=1):
-        client.log_metric(run_id, "heldout_rmse_um", float(step["rmse_um_after"]), step=k)
+        metrics.append(("heldout_rmse_um", float(step["rmse_um_after"]), k))
         for name, value in step["effect_parameters"].items():
             if value["value"] is not None:
-                client.log_param(run_id, f"{step['effect']}.{name}_{value['unit']}", value["value"])
+                params[f"{step['effect']}.{name}"] = str(value["value"])
+                tags[f"unit.{step['effect']}.{name}"] = str(value["unit"])
+    return metrics, params, tags
 
 
-def _log_per_campaign(client: Any, run_id: str, per_campaign: Mapping[str, Any]) -> None:
-    """Log each campaign's held-out Z (um) and temperature (K) RMS before and after."""
+def _per_campaign_metrics(per_campaign: Mapping[str, Any]) -> Metrics:
+    """Return each campaign's held-out Z (um) and temperature (K) RMS before and after."""
+    metrics: Metrics = []
     for cid, pair in per_campaign.items():
         for when in ("before", "after"):
             for key, name in (("z_um", "rmse_um"), ("t_k", "rmse_T_K")):
                 value = pair[when].get(key)
                 if value is not None and np.isfinite(value):
-                    client.log_metric(run_id, f"{name}_{when}.{cid}", float(value))
+                    metrics.append((f"{name}_{when}.{cid}", float(value), 0))
+    return metrics
 
 
-def _log_identifiability(client: Any, run_id: str, entries: Mapping[str, Any]) -> None:
-    """Log every candidate's identifiability class, signal and proposed test.
+def _identifiability_values(
+    entries: Mapping[str, Any],
+) -> tuple[Metrics, dict[str, str], dict[str, str]]:
+    """Return every candidate's identifiability class, signal and proposed test.
 
     Each effect gets the tag ``identifiability.<effect>`` (its class), the metric
     ``signal_sigma.<effect>`` (its visible signal, noise sigmas) and, when it is not
@@ -80,11 +94,13 @@ def _log_identifiability(client: Any, run_id: str, entries: Mapping[str, Any]) -
     ``calibration step: <its name>`` or ``none visible``) with the metric
     ``proposed_signal_sigma.<effect>`` (the signal the plan would leave, or the grid's best).
     """
+    metrics: Metrics = []
+    params, tags = {}, {}
     for effect, entry in entries.items():
-        client.set_tag(run_id, f"identifiability.{effect}", str(entry["class"]))
+        tags[f"identifiability.{effect}"] = str(entry["class"])
         signal = entry.get("signal_sigma")
         if signal is not None and np.isfinite(signal):
-            client.log_metric(run_id, f"signal_sigma.{effect}", float(signal))
+            metrics.append((f"signal_sigma.{effect}", float(signal), 0))
         proposed = entry.get("proposed_test")
         if not proposed:
             continue
@@ -97,11 +113,44 @@ def _log_identifiability(client: Any, run_id: str, entries: Mapping[str, Any]) -
             if step
             else "none visible"
         )
-        client.log_param(run_id, f"proposed_test.{effect}", name[:500])
+        params[f"proposed_test.{effect}"] = name[:500]
         if plan.get("expected_signal_sigma") is not None:
-            client.log_metric(
-                run_id, f"proposed_signal_sigma.{effect}", float(plan["expected_signal_sigma"])
+            metrics.append(
+                (f"proposed_signal_sigma.{effect}", float(plan["expected_signal_sigma"]), 0)
             )
+    return metrics, params, tags
+
+
+def run_values(doc: Mapping[str, Any]) -> tuple[Metrics, dict[str, str], dict[str, str]]:
+    """Return the run's metrics ``(key, value, step)``, params and tags after creation.
+
+    Parameters
+    ----------
+    doc : mapping
+        The ``discrepancy.json`` content.
+
+    Returns
+    -------
+    metrics : list of (str, float, int)
+    params : dict of str to str
+    tags : dict of str to str
+    """
+    search_metrics, params, tags = _search_values(doc)
+    ident_metrics, ident_params, ident_tags = _identifiability_values(
+        doc.get("identifiability") or {}
+    )
+    metrics = [
+        *_rmse_metrics(doc),
+        *search_metrics,
+        *_per_campaign_metrics(doc.get("per_campaign", {})),
+        # the validation campaigns the search never saw
+        *_rmse_metrics(doc.get("validation") or {}, prefix="validation_"),
+        *ident_metrics,
+    ]
+    params["named_effects"] = ",".join(doc["named_effects"]) or "none"
+    params.update({name: str(value) for name, value in doc.get("thresholds", {}).items()})
+    params["campaigns"] = ",".join(doc["campaigns"])[:500]
+    return metrics, {**params, **ident_params}, {**tags, **ident_tags}
 
 
 def log_discrepancy_run(
@@ -133,16 +182,7 @@ def log_discrepancy_run(
     run = client.create_run(experiment_id, tags=_run_tags(doc), run_name="discrepancy")
     run_id = run.info.run_id
     try:
-        _log_rmse(client, run_id, doc)
-        _log_search(client, run_id, doc)
-        _log_per_campaign(client, run_id, doc.get("per_campaign", {}))
-        # the validation campaigns the search never saw
-        _log_rmse(client, run_id, doc.get("validation") or {}, prefix="validation_")
-        client.log_param(run_id, "named_effects", ",".join(doc["named_effects"]) or "none")
-        for name, value in doc.get("thresholds", {}).items():
-            client.log_param(run_id, name, str(value))
-        client.log_param(run_id, "campaigns", ",".join(doc["campaigns"])[:500])
-        _log_identifiability(client, run_id, doc.get("identifiability") or {})
+        log_values(client, run_id, *run_values(doc))
         for path in files:
             client.log_artifact(run_id, str(path), artifact_path="discrepancy")
     except BaseException:

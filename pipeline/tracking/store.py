@@ -168,17 +168,30 @@ def discard_incomplete(
     return deleted
 
 
-def log_record(client: MlflowClient, run_id: str, record: RunRecord) -> None:
-    """Log a record's params and metrics (tags are set at run creation) in one ``log_batch``."""
-    if not record.metrics and not record.params:
+def log_values(
+    client: MlflowClient,
+    run_id: str,
+    metrics: Sequence[tuple[str, float, int]] = (),
+    params: Mapping[str, str] | None = None,
+    tags: Mapping[str, str] | None = None,
+) -> None:
+    """Log metrics ``(key, value, step)``, params and tags in one ``log_batch`` call."""
+    params, tags = params or {}, tags or {}
+    if not metrics and not params and not tags:
         return
     timestamp = int(time.time() * 1000)
     client.log_batch(
         run_id,
-        metrics=[Metric(key, value, timestamp, 0) for key, value in record.metrics.items()],
-        params=[Param(key, value) for key, value in record.params.items()],
-        tags=[],
+        metrics=[Metric(key, float(value), timestamp, step) for key, value, step in metrics],
+        params=[Param(key, str(value)) for key, value in params.items()],
+        tags=[RunTag(key, str(value)) for key, value in tags.items()],
     )
+
+
+def log_record(client: MlflowClient, run_id: str, record: RunRecord) -> None:
+    """Log a record's params and metrics (tags are set at run creation) in one ``log_batch``."""
+    metrics = [(key, value, 0) for key, value in record.metrics.items()]
+    log_values(client, run_id, metrics, record.params)
 
 
 def _create_run(client: MlflowClient, experiment_id: str, record: RunRecord, extra: dict) -> str:
