@@ -41,7 +41,13 @@ from pipeline.discrepancy.identifiability import (
 from pipeline.discrepancy.model import EFFECT_SPECS, EFFECTS
 from pipeline.discrepancy.report_text import markdown
 from pipeline.discrepancy.search import FitResult, ModelEvidence, SearchResult
-from pipeline.discrepancy.visibility import PLAUSIBLE, RISE_SIZED, Visibility, baseline_point
+from pipeline.discrepancy.visibility import (
+    PLAUSIBLE,
+    RISE_SIZED,
+    Visibility,
+    baseline_point,
+    overlap,
+)
 from pipeline.errors import ParamsError
 from pipeline.settings.discrepancy import IdentifiabilityParams
 from tests.helpers.twin_cases import (
@@ -226,6 +232,34 @@ def test_speed_steps_show_the_same_laws(speed_steps):
         assert figures.collinearity_index <= SETTINGS.max_collinearity_index
         assert figures.signal_z_um <= figures.response_z_um  # the projection only removes
     assert len(classes) == len(EFFECTS)
+
+
+def test_each_effect_s_overlap_with_every_other_says_how_far_one_could_stand_in(speed_steps):
+    classes = _classes(speed_steps)
+    testable = [e for e, entry in classes.items() if entry.figures is not None]
+    for effect in testable:
+        overlaps = classes[effect].overlaps
+        assert set(overlaps) == set(testable) - {effect}
+        for other, value in overlaps.items():
+            assert 0.0 <= value <= 1.0 + 1e-12
+            assert value == pytest.approx(classes[other].overlaps[effect])
+        assert overlap(classes[effect].figures, classes[effect].figures) == pytest.approx(1.0)
+    # a law of Z alone and a lag of the readings alone have no common signature
+    assert classes["centrifugal_growth"].overlaps["sensor_lag"] < 0.3
+    entry = classes["centrifugal_growth"].to_dict(SETTINGS)
+    assert set(entry["overlaps"]) == set(testable) - {"centrifugal_growth"}
+
+
+def test_a_named_effect_is_reported_with_the_candidate_it_could_stand_in_for():
+    from pipeline.discrepancy.report_text import _proxy_line
+
+    close = {"thermal_bending": {"overlaps": {"motor_heat": 0.95, "sensor_lag": 0.2}}}
+    (line,) = _proxy_line("thermal_bending", close)
+    assert "`motor_heat` by 0.95" in line and "may stand in for `motor_heat`" in line
+    apart = {"thermal_bending": {"overlaps": {"motor_heat": 0.41, "sensor_lag": None}}}
+    (line,) = _proxy_line("thermal_bending", apart)
+    assert "by 0.41" in line and "its signature is its own" in line
+    assert _proxy_line("thermal_bending", {}) == []
 
 
 def test_the_motor_loss_is_sized_by_the_rise_it_gives_its_node(speed_steps):

@@ -496,6 +496,26 @@ def test_report_files_say_what_was_named_and_the_gap(tmp_path):
     assert {f.name for f in files} >= {"discrepancy.json", "heldout_fit.png", "residuals.png"}
 
 
+def test_an_effect_named_on_the_temperatures_says_the_displacement_gap_stayed():
+    from pipeline.discrepancy.report_text import _step_lines
+
+    step = {
+        "effect": "motor_heat",
+        "rmse_um_before": 0.91,
+        "rmse_um_after": 0.87,
+        "rmse_T_K_before": 0.5,
+        "rmse_T_K_after": 0.03,
+        "evidence": {"heldout_reduction": 0.044, "delta_bic": -300.0},
+        "effect_parameters": {},
+        "parameters": {},
+    }
+    text = "\n".join(_step_lines(step, 0.2))
+    assert "named on the temperatures alone" in text and "changed by -4 %" in text
+    assert "**the displacement gap did not shrink**" in text and "headstock" in text
+    on_z = {**step, "evidence": {"heldout_reduction": 0.5, "delta_bic": -300.0}}
+    assert "temperatures alone" not in "\n".join(_step_lines(on_z, 0.2))
+
+
 def test_mlflow_run_holds_the_metrics_and_figures(tmp_path, monkeypatch):
     from mlflow.tracking import MlflowClient
 

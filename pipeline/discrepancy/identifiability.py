@@ -37,7 +37,7 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 from pipeline.discrepancy.data import MeasuredCampaign
@@ -48,6 +48,8 @@ from pipeline.discrepancy.visibility import (
     BaselinePoint,
     Visibility,
     baseline_point,
+    json_figure,
+    overlap,
     visibility,
 )
 from pipeline.settings.base import unknown_name_error
@@ -176,6 +178,9 @@ class EffectIdentifiability:
         Sensor roles it needs that no campaign has (untestable).
     shortfalls : tuple of str
         Thresholds it misses (:func:`shortfalls`).
+    overlaps : dict of str to float
+        Every other testable candidate -> :func:`~pipeline.discrepancy.visibility.overlap` of
+        their visible parts (0..1): how far the data could take one for the other.
     """
 
     effect: str
@@ -183,6 +188,7 @@ class EffectIdentifiability:
     figures: Visibility | None = None
     missing_roles: tuple[str, ...] = ()
     shortfalls: tuple[str, ...] = ()
+    overlaps: dict[str, float] = field(default_factory=dict)
 
     def to_dict(self, settings: IdentifiabilitySettings) -> dict[str, Any]:
         """JSON-ready entry: ``class``, the figures or the missing roles, the thresholds."""
@@ -192,6 +198,7 @@ class EffectIdentifiability:
         else:
             out["shortfalls"] = list(self.shortfalls)
             out.update(self.figures.to_dict())
+            out["overlaps"] = {k: json_figure(v) for k, v in self.overlaps.items()}
         out["thresholds"] = settings.thresholds()
         return out
 
@@ -234,7 +241,27 @@ def assess_effects(
                 figures.signal_t_k,
                 figures.collinearity_index,
             )
-    return out
+    return _with_overlaps(out)
+
+
+def _with_overlaps(
+    entries: Mapping[str, EffectIdentifiability],
+) -> dict[str, EffectIdentifiability]:
+    """Return the entries with each testable effect's overlap with every other one."""
+    shown = {e: v.figures for e, v in entries.items() if v.figures is not None}
+    return {
+        effect: replace(
+            entry,
+            overlaps={
+                other: overlap(shown[effect], figures)
+                for other, figures in shown.items()
+                if other != effect
+            },
+        )
+        if effect in shown
+        else entry
+        for effect, entry in entries.items()
+    }
 
 
 def searched_point(

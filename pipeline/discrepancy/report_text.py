@@ -29,6 +29,18 @@ EFFECT_WORDS = {
 }
 """One line per effect, for the report."""
 
+WHY_Z_STAYS = {
+    "sensor_lag": "a lag changes what the sensors read, not the structure, so it cannot move "
+    "the displacement; the refit it brings only re-balances the twin's Z laws",
+    "motor_heat": "the motor's heat reaches the displacement through the headstock, whose "
+    "sensor the baseline already follows, so the twin's Z prediction hardly changes",
+}
+"""Why an effect named on the temperatures leaves the displacement gap as it was."""
+WHY_Z_STAYS_OTHERWISE = (
+    "the effect explains the readings, while what is left of the displacement residual is not its "
+    "signature"
+)
+
 
 def _source(doc: Mapping[str, Any]) -> str:
     """Return what the campaigns are: synthetic or measured."""
@@ -68,6 +80,11 @@ def _fmt(x: float | None, digits: int = 2) -> str:
 def _pct(x: float | None) -> str:
     """Return the fraction ``x`` as a whole percentage, or ``n/a`` when missing or not finite."""
     return "n/a" if x is None or not np.isfinite(x) else f"{100 * x:.0f} %"
+
+
+def _signed_pct(x: float | None) -> str:
+    """Return the fraction ``x`` as a signed whole percentage (``-4 %``), or ``n/a``."""
+    return "n/a" if x is None or not np.isfinite(x) else f"{100 * x:+.0f} %"
 
 
 def _motor_rise(params: Mapping[str, Any]) -> float | None:
@@ -127,8 +144,25 @@ def _intro_lines(doc: Mapping[str, Any]) -> list[str]:
     ]
 
 
-def _step_lines(step: Mapping[str, Any]) -> list[str]:
-    """Return the bullet of one named effect: its evidence and its calibrated parameters."""
+def _temperature_only_line(step: Mapping[str, Any], min_z_reduction: float) -> list[str]:
+    """Return the line saying that an effect named on the temperatures left the Z gap open."""
+    reduction = step["evidence"]["heldout_reduction"]
+    if reduction is None or reduction >= min_z_reduction:
+        return []
+    why = WHY_Z_STAYS.get(step["effect"], WHY_Z_STAYS_OTHERWISE)
+    return [
+        f"  - named on the temperatures alone: the held-out Z residual changed by "
+        f"{_signed_pct(-reduction)}, short of the -{_pct(min_z_reduction)} that names an effect "
+        f"on the displacement, so **the displacement gap did not shrink** with it: {why}"
+    ]
+
+
+def _step_lines(step: Mapping[str, Any], min_z_reduction: float) -> list[str]:
+    """Return the bullet of one named effect: its evidence and its calibrated parameters.
+
+    ``min_z_reduction`` is the relative fall of the held-out Z residual that names an effect
+    on the displacement (``params.yaml`` ``discrepancy.min_heldout_reduction``).
+    """
     ev = step["evidence"]
     lines = [
         f"- adding `{step['effect']}` ({EFFECT_WORDS.get(step['effect'], '')}) reduces the "
@@ -137,6 +171,7 @@ def _step_lines(step: Mapping[str, Any]) -> list[str]:
         f"temperatures from {_fmt(step['rmse_T_K_before'])} K to "
         f"{_fmt(step['rmse_T_K_after'])} K; BIC changes by {_fmt(ev['delta_bic'], 1)}."
     ]
+    lines += _temperature_only_line(step, min_z_reduction)
     own = step["effect_parameters"]
     shown = ", ".join(f"{k} = {_fmt(v['value'], 4)} {v['unit']}" for k, v in own.items())
     shown = shown or "none (it uses the measured signals)"
@@ -153,6 +188,34 @@ def _step_lines(step: Mapping[str, Any]) -> list[str]:
     return lines
 
 
+PROXY_OVERLAP = 0.9
+"""Overlap (|cos| of the visible parts) from which a named effect may stand in for another."""
+
+
+def _proxy_line(effect: str, entries: Mapping[str, Any]) -> list[str]:
+    """Return the line saying which other candidate a named effect's evidence is closest to."""
+    overlaps = {
+        other: value
+        for other, value in ((entries.get(effect) or {}).get("overlaps") or {}).items()
+        if value is not None
+    }
+    if not overlaps:
+        return []
+    other = max(overlaps, key=overlaps.get)
+    value = overlaps[other]
+    verdict = (
+        f"it may stand in for `{other}`: the data cannot tell the two apart, and a test that "
+        "loads them differently is needed before the name can be trusted"
+        if value >= PROXY_OVERLAP
+        else "its signature is its own"
+    )
+    return [
+        f"  - a proxy for another candidate? what the baseline cannot absorb of it overlaps "
+        f"that of `{other}` by {value:.2f} (|cos|, the most of any other candidate; 1 = "
+        f"indistinguishable, from {PROXY_OVERLAP}: a possible proxy): {verdict}"
+    ]
+
+
 def _missing_lines(doc: Mapping[str, Any]) -> list[str]:
     """Return the named effects with their evidence, the overall and per-campaign RMS."""
     named = doc["named_effects"]
@@ -164,7 +227,8 @@ def _missing_lines(doc: Mapping[str, Any]) -> list[str]:
             "",
         ]
         for step in doc["steps"]:
-            lines += _step_lines(step)
+            lines += _step_lines(step, doc["thresholds"]["min_heldout_reduction"])
+            lines += _proxy_line(step["effect"], doc.get("identifiability") or {})
     else:
         lines = [
             "No candidate effect passes the thresholds: the baseline twin explains the data "

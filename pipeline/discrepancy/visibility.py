@@ -41,7 +41,7 @@ some campaigns (:class:`BaselinePoint`), for one effect whose sensor roles are p
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -130,6 +130,9 @@ class Visibility:
     values : dict of str to (float, str)
         The effect's plausible size: name -> (value, unit), its parameters' values and, for a
         heat sized by its rise (:data:`RISE_SIZED`), that rise.
+    visible : ndarray
+        The visible part itself over the weighted residual rows (Z samples and temperature
+        readings, noise sigmas): what :func:`overlap` compares across effects.
     """
 
     collinearity_index: float
@@ -142,6 +145,7 @@ class Visibility:
     response_z_um: float
     response_t_k: float
     values: dict[str, tuple[float, str]]
+    visible: np.ndarray = field(default_factory=lambda: np.zeros(0), repr=False, compare=False)
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready figures (4 significant digits; None when not finite)."""
@@ -403,4 +407,20 @@ def visibility(effect: str, point: BaselinePoint, plausible: Mapping[str, float]
         ),
         **_signals(effect, visible[: response.size], response, rows),
         values=shown,
+        visible=visible[: response.size],
     )
+
+
+def overlap(first: Visibility, second: Visibility) -> float:
+    """Return how far two effects' visible parts point the same way: ``|cos|`` of their angle.
+
+    Both are what the calibrated baseline cannot absorb of each effect at its plausible size,
+    on the same weighted residual rows. Near 1, the data cannot tell one effect from the other
+    (either, once named, would fit what the other leaves); near 0, each has a signature of its
+    own. NaN when either has no visible part.
+    """
+    a, b = first.visible, second.visible
+    norm = float(np.linalg.norm(a) * np.linalg.norm(b))
+    if a.size == 0 or a.size != b.size or norm == 0.0 or not np.isfinite(norm):
+        return float("nan")
+    return abs(float(a @ b)) / norm
