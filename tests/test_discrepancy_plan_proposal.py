@@ -117,16 +117,43 @@ def test_the_grid_is_small_and_adds_a_sensor_only_where_a_role_is_missing(flat):
     assert all(p.cost == p.duration_h + tp.SENSOR_COST_H for p in added)
     intervals = {p.sample_interval_s for p in plans}
     assert intervals == {tp.own_interval_s(point.campaigns), tp.FAST_INTERVAL_S}
-    # heaters go only on parts with a sensor, one load per plan, at a grid power
-    heated = [p for p in plans if p.heat_loads]
+    # heaters go only on parts with a sensor, one load per plan, at a grid power (the plans
+    # that load both column faces need both)
+    heated = [p for p in plans if len(p.heat_loads) == 1]
     assert {p.heat_loads[0].role for p in heated} == {"column_rear", "column_front"}
     assert {p.heat_loads[0].role for p in fewer_plans if p.heat_loads} == {"column_front"}
+    assert not any(len(p.heat_loads) > 1 for p in fewer_plans)
     for p in heated:
         (load,) = p.heat_loads
         assert p.cost == p.duration_h + tp.HEATER_COST_H
         assert {s.value for s in load.program.segments} <= set(tp.HEATER_POWERS_W)
         assert all(s.to_min <= p.duration_h * 60.0 for s in load.program.segments)
     assert not any(p.heat_loads for p in tp.candidate_plans(point.campaigns, "motor_heat", fewer))
+
+
+def test_bending_plans_load_the_column_faces_in_turn_or_unequally_and_say_why(flat):
+    """One heater on a face drives the column's front-to-rear difference and its mean together;
+    the paired plans change their ratio during the test, so the difference (bending) moves
+    apart from the mean (the baseline's expansion)."""
+    point = flat[0]
+    plans = tp.candidate_plans(point.campaigns, "thermal_bending", point.roles)
+    paired = [p for p in plans if len(p.heat_loads) == 2]
+    assert len(paired) == 2 * len(tp.DURATIONS_H) * len(tp.PAIRED_POWERS_W)
+    for plan in paired:
+        front, rear = plan.heat_loads
+        assert (front.role, rear.role) == ("column_front", "column_rear")
+        assert plan.cost == plan.duration_h + 2 * tp.HEATER_COST_H
+        assert all(s.value == 0.0 for s in plan.program.segments)  # the spindle stopped
+        t = np.arange(0.0, plan.duration_h * 3600.0, 600.0)
+        difference = front.power_at(t) - rear.power_at(t)
+        total = front.power_at(t) + rear.power_at(t)
+        ratio = np.divide(difference, total, out=np.full(t.size, np.nan), where=total > 0)
+        assert np.nanmax(ratio) - np.nanmin(ratio) > 0.5 or np.nanmax(np.abs(ratio)) < 1.0
+        entry = plan.to_dict(3.0)
+        assert entry["separates"] == tp.SEPARATES["thermal_bending"]
+        assert len(entry["heat_loads"]) == 2
+    assert all(p.separates for p in plans if p.heat_loads)
+    assert not any(p.separates for p in plans if not p.heat_loads)
 
 
 def test_the_grid_is_whole_and_its_smallest_pulse_fits_any_part_never_heated(flat):

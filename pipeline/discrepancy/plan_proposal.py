@@ -12,10 +12,13 @@ under which the effect would be identifiable (:func:`propose_tests`):
    programs with a sensor of that role added; and, where the effect reads a part a heater can
    load (:data:`HEAT_LOAD_ROLES`, roles the campaigns have a sensor on), an external heat load
    of :data:`HEATER_POWERS_W` on that part for a short pulse after a spindle run or for half
-   the test, with the spindle stopped, or running in the other half (:func:`heater_plans`).
-   A load the spindle does not drive separates what the spindle's heat ties together (the
-   column's front-to-rear difference and its mean rise, a sensor's delay and its node's heat
-   capacity).
+   the test, with the spindle stopped, or running in the other half (:func:`heater_plans`);
+   and where the effect reads two such parts, the two loaded differently: one after the
+   other, or both at once at different powers (:func:`paired_heater_plans`). A load the
+   spindle does not drive separates what the spindle's heat ties together (a sensor's delay
+   and its node's heat capacity); two loads whose ratio changes separate what one load ties
+   together (the column's front-to-rear difference, which bends it, and its mean rise, which
+   the baseline's expansion follows). A plan records what it is meant to separate.
 2. **The simulated test.** Each plan is one campaign simulated noise-free by the planning
    twin (:func:`~pipeline.discrepancy.plan_twin.plan_twin`: the baseline refitted with its
    priors, so that what the campaigns leave loose sits at typical values; a node the added
@@ -131,14 +134,30 @@ on one half drives alone; a sensor's lag shows when its own part is heated direc
 its reading rising later than the part's heat capacity allows, so the lightest part a heater
 can be put on comes first (the motor casing; a bearing housing sits inside the headstock)."""
 
+SEPARATES = {
+    "thermal_bending": "the column's expansion, the baseline's law on the column's mean rise",
+    "sensor_lag": "the heat capacity of the part the sensor reads, in the baseline",
+}
+"""What a heater plan is meant to tell each effect apart from (the law of the baseline that
+shares its signature under the spindle's heat)."""
+
+PAIRED_ROLES = {"thermal_bending": ("column_front", "column_rear")}
+"""Parts loaded differently by the plans of :func:`paired_heater_plans`, per effect: one heater
+on a column face drives its front-to-rear difference (bending) and its mean rise (expansion)
+together, two loaded in turn or unequally make the difference change while the mean goes on."""
+
+PAIRED_POWERS_W = (100.0, 250.0, 500.0)
+"""Heater powers of the plans that load two parts (:func:`paired_heater_plans`), W: the pads
+of a few tens of watts are for the calibration step on one part."""
+
 PULSE_MIN = 15.0
 """Length of the short heat pulse of the grid, min: a fast rise that a sensor's lag delays,
 while the part stays in the envelope; the smallest such pulse on a part the campaigns never
 heated is the calibration step of :func:`propose_test`."""
 
 MAX_PLANS = 150
-"""Most plans tried per effect (the full grid has at most 22 programs, 11 with an added sensor
-and 35 heater plans per heated role)."""
+"""Most plans tried per effect (the full grid has at most 22 programs, 11 with an added sensor,
+35 heater plans per heated role and 12 plans loading two parts)."""
 
 PLAN_REPEATS = 2
 """Campaigns of a proposed test: the test run on two days, so that one odd day does not decide
@@ -165,6 +184,9 @@ class TestPlan:
         True when ``sample_interval_s`` is the campaigns' own.
     heat_loads : tuple of HeatLoad
         External heat loads to apply (W), as ``heat_loads:`` of campaign.yaml will record them.
+    separates : str
+        What the plan is meant to tell the effect apart from (:data:`SEPARATES`), "" for a
+        plan that only makes the effect larger.
     """
 
     __test__ = False  # not a pytest class
@@ -176,6 +198,7 @@ class TestPlan:
     add_sensors: tuple[str, ...] = ()
     own_interval: bool = True
     heat_loads: tuple[HeatLoad, ...] = ()
+    separates: str = ""
 
     @property
     def cost(self) -> float:
@@ -200,6 +223,7 @@ class TestPlan:
             "campaigns": PLAN_REPEATS,
             "cost_h": float(self.cost),
             "name": self.name,
+            "separates": self.separates,
             "expected_signal_sigma": float(f"{signal_sigma:.4g}"),
         }
 
@@ -268,7 +292,9 @@ def heater(role: str, power_w: float, from_min: float, to_min: float) -> HeatLoa
     return HeatLoad(role, program, f"{power_w:g} W heater on the {role.replace('_', ' ')}")
 
 
-def heater_plans(high: float, roles: Sequence[str], interval_s: float) -> list[TestPlan]:
+def heater_plans(
+    high: float, roles: Sequence[str], interval_s: float, separates: str = ""
+) -> list[TestPlan]:
     """Return the grid's tests with a heater on one of ``roles`` (see the module docstring).
 
     For each duration of :data:`DURATIONS_H`, role and power of :data:`HEATER_POWERS_W`: the
@@ -280,6 +306,7 @@ def heater_plans(high: float, roles: Sequence[str], interval_s: float) -> list[T
     The short pulse follows a spindle run rather than a cold machine: every sensor then moves
     (the machine cools), where after a pulse on a cold, stopped machine the far sensors read
     one quantised value for hours and validation quarantines the campaign for a stuck sensor.
+    ``separates`` says what the plans are meant to tell the effect apart from.
     """
     plans = []
     for duration in DURATIONS_H:
@@ -300,7 +327,55 @@ def heater_plans(high: float, roles: Sequence[str], interval_s: float) -> list[T
                 for words, program, on_min, length in patterns:
                     load = heater(role, power, on_min, on_min + length)
                     name = words.format(load=load.what, on=length) + f", {duration:g} h"
-                    plans.append(TestPlan(name, program, duration, interval_s, (), True, (load,)))
+                    plans.append(
+                        TestPlan(name, program, duration, interval_s, (), True, (load,), separates)
+                    )
+    return plans
+
+
+def paired_heater_plans(effect: str, roles: Sequence[str], interval_s: float) -> list[TestPlan]:
+    """Return the grid's tests that load the two parts of :data:`PAIRED_ROLES` differently.
+
+    Only when both are among ``roles`` (the roles with a sensor); the spindle stays stopped.
+
+    For each duration of :data:`DURATIONS_H` and power of :data:`PAIRED_POWERS_W`: the heater
+    on the first part for half the test, then on the second for the other half; and both at
+    once for the first half, the first at that power and the second at a quarter of it, then
+    the cool-down. Where two effects (or an effect and a law of the baseline) share a signature
+    under one load, loads whose ratio changes during the test separate them (e.g. a column's
+    bending, which follows its front-to-rear difference, from its expansion, which follows its
+    mean rise). Each plan records what it separates (:data:`SEPARATES`). Sampled every
+    ``interval_s`` (s).
+    """
+    pair = PAIRED_ROLES.get(effect, ())
+    if len(pair) < 2 or not set(pair) <= set(roles):
+        return []
+    first, second = pair
+    plans = []
+    for duration in DURATIONS_H:
+        half = duration * 30.0
+        stopped = Program((Segment(0.0, 2 * half, 0.0),), key="rpm")
+        for power in PAIRED_POWERS_W:
+            turns = (heater(first, power, 0.0, half), heater(second, power, half, 2 * half))
+            both = (heater(first, power, 0.0, half), heater(second, power / 4.0, 0.0, half))
+            turn_words = f"a {power:g} W heater on the {{a}} for {half:g} min, then on the {{b}}"
+            both_words = (
+                f"{power:g} W on the {{a}} and {power / 4:g} W on the {{b}} for {half:g} min"
+            )
+            for loads, words in ((turns, turn_words), (both, both_words)):
+                name = words.format(a=first.replace("_", " "), b=second.replace("_", " "))
+                plans.append(
+                    TestPlan(
+                        f"{name} with the spindle stopped, {duration:g} h",
+                        stopped,
+                        duration,
+                        interval_s,
+                        (),
+                        True,
+                        loads,
+                        SEPARATES.get(effect, ""),
+                    )
+                )
     return plans
 
 
@@ -335,7 +410,8 @@ def candidate_plans(
         for name, program, duration in programs:
             plans.append(TestPlan(name, program, duration, own, (role,), True))
     heated = [r for r in HEAT_LOAD_ROLES.get(effect, ()) if r in roles]
-    plans += heater_plans(high, heated, own)
+    plans += paired_heater_plans(effect, heated, own)
+    plans += heater_plans(high, heated, own, SEPARATES.get(effect, ""))
     return plans[:MAX_PLANS]
 
 
@@ -571,6 +647,8 @@ def _program_words(plan: TestPlan) -> str:
     if plan.heat_loads:
         loads = "; ".join(_load_words(load) for load in plan.heat_loads)
         words += f", and record the heat load under `heat_loads:` in campaign.yaml ({loads})"
+    if plan.separates:
+        words += f"; the test is meant to tell it apart from {plan.separates}"
     return words
 
 
