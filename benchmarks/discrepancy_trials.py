@@ -52,6 +52,7 @@ from statsmodels.stats.proportion import proportion_confint
 
 from benchmarks import independent_machine
 from pipeline.config import DEFAULT_PARAMS
+from pipeline.discrepancy.followup import FollowUp
 from pipeline.discrepancy.identifiability import NOT_IDENTIFIABLE
 from pipeline.discrepancy.search import CANDIDATE_EFFECTS
 from pipeline.settings.base import load_settings
@@ -400,7 +401,8 @@ def follow_plan(
                 break
             n = int(test.get("campaigns", PLAN_CAMPAIGNS))
             ids = GENERATORS[generator].write_plan(folder, test, hidden, seed, n, round_)
-            after = run_workflow(folder, workdir / f"out_plan_{effect}_{round_}", section)
+            out = workdir / f"out_plan_{effect}_{round_}"
+            after = run_workflow(folder, out, section, follow=FollowUp.from_document(after))
             visible = "expected_signal_sigma" in test
             names.append(str(test["name"]) if visible else f"calibration: {test['name']}")
             expected = float(test["expected_signal_sigma"]) if visible else expected
@@ -466,18 +468,25 @@ def _follow_up(
 
 
 def run_workflow(
-    raw: Path, out: Path, section: DiscrepancySettings, params_file: Path = DEFAULT_PARAMS
+    raw: Path,
+    out: Path,
+    section: DiscrepancySettings,
+    params_file: Path = DEFAULT_PARAMS,
+    follow: FollowUp | None = None,
 ) -> dict:
     """Run the discrepancy workflow (no MLflow) on a raw folder; return ``discrepancy.json``.
 
-    The ingest and validation limits come from ``params_file`` as in the stage.
+    The ingest and validation limits come from ``params_file`` as in the stage; ``follow`` is
+    the earlier run's outcome, as the stage keeps it (a rerun after a proposed test).
     """
     from pipeline.discrepancy.workflow import read_raw, run
 
     gap = load_settings(IngestSettings, "ingest", params_file).max_alignment_gap_s
     limits = load_settings(ValidateSettings, "validate", params_file).limits()
     campaigns, quarantined, synthetic = read_raw(raw, gap, limits)
-    _, doc, _ = run(campaigns, section, out, quarantined=quarantined, synthetic=synthetic)
+    _, doc, _ = run(
+        campaigns, section, out, quarantined=quarantined, synthetic=synthetic, follow=follow
+    )
     return doc
 
 

@@ -64,6 +64,8 @@ DISCREPANCY = REPORTS / "discrepancy"
 DISCREPANCY_DOCUMENT = DISCREPANCY / "discrepancy.json"
 DISCREPANCY_RECORD = REPORTS / "discrepancy_run.json"
 """The discrepancy stage's MLflow run id (not cached by DVC: it changes every execution)."""
+DISCREPANCY_HISTORY = REPORTS / "discrepancy_history.json"
+"""What the discrepancy stage's next run needs of this one (kept by DVC between runs)."""
 
 METRICS = Path("metrics")
 CROSS_SEASON_METRICS = METRICS / "cross_season.json"

@@ -547,6 +547,7 @@ def test_mlflow_run_holds_the_metrics_and_figures(tmp_path, monkeypatch):
             },
         },
     }
+    doc["suspects"] = [{"effect": "thermal_bending", "reason": "newly named by P1_01"}]
     uri = f"sqlite:///{(tmp_path / 'mlflow.db').as_posix()}"
     monkeypatch.setenv("MLFLOW_TRACKING_URI", uri)
     run_id = log_discrepancy_run(files, doc, TrackingSettings(), "discrepancy-test")
@@ -567,6 +568,7 @@ def test_mlflow_run_holds_the_metrics_and_figures(tmp_path, monkeypatch):
     names = {a.path for a in client.list_artifacts(run_id, "discrepancy")}
     assert "discrepancy/heldout_fit.png" in names and "discrepancy/discrepancy.md" in names
     assert run.data.tags["identifiability.motor_heat"] == "named"
+    assert run.data.tags["suspects"] == "thermal_bending"
     assert run.data.tags["identifiability.sensor_lag"] == "not_identifiable"
     assert run.data.metrics["signal_sigma.thermal_bending"] == pytest.approx(0.31)
     assert run.data.params["proposed_test.thermal_bending"] == "heater"

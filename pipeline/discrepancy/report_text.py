@@ -216,6 +216,18 @@ def _proxy_line(effect: str, entries: Mapping[str, Any]) -> list[str]:
     ]
 
 
+def _suspect_lines(suspects: Sequence[Mapping[str, str]]) -> list[str]:
+    """Return the effects that passed the search's rule but were held back, with why."""
+    if not suspects:
+        return []
+    return [
+        "",
+        "**Suspects**, held back though they pass the search's rule (not in the twin):",
+        "",
+        *(f"- `{s['effect']}`: {s['reason']}." for s in suspects),
+    ]
+
+
 def _missing_lines(doc: Mapping[str, Any]) -> list[str]:
     """Return the named effects with their evidence, the overall and per-campaign RMS."""
     named = doc["named_effects"]
@@ -236,6 +248,7 @@ def _missing_lines(doc: Mapping[str, Any]) -> list[str]:
         ]
     return [
         *lines,
+        *_suspect_lines(doc.get("suspects") or []),
         "",
         f"Overall held-out Z residual: **{_fmt(doc['rmse_um_before'])} um** with the baseline, "
         f"**{_fmt(doc['rmse_um_after'])} um** with {_twin_plus(named, 'no effect added')}; "

@@ -40,6 +40,7 @@ import numpy as np
 import pandas as pd
 from joblib import delayed
 
+from pipeline.discrepancy.followup import FollowUp, reduction_on, suspect_reason
 from pipeline.fit_statistics import root_mean_square
 from pipeline.progress import run_jobs
 from pipeline.settings.base import unknown_name_error
@@ -346,6 +347,9 @@ class SearchResult:
         Wall time, s.
     validation : ValidationCheck or None
         The named effects checked on the validation campaigns, None when none was held out.
+    suspects : dict of str to str
+        Effects that passed but were held back by the search's gate (after a proposed test:
+        :func:`pipeline.discrepancy.followup.suspect_reason`), with the reason.
     """
 
     named_effects: list[str]
@@ -357,6 +361,7 @@ class SearchResult:
     folds: list[list[str]]
     seconds: float
     validation: ValidationCheck | None = None
+    suspects: dict[str, str] = field(default_factory=dict)
 
     @property
     def rmse_um_before(self) -> float:
@@ -372,6 +377,7 @@ class SearchResult:
         """JSON-ready summary (``discrepancy.json`` without the localisation)."""
         return {
             "named_effects": list(self.named_effects),
+            "suspects": [{"effect": e, "reason": r} for e, r in self.suspects.items()],
             "rmse_um_before": _num(self.rmse_um_before),
             "rmse_um_after": _num(self.rmse_um_after),
             "rmse_T_K_before": _num(self.baseline.rmse_heldout_t_k),
@@ -582,11 +588,33 @@ def _log_round(step: int, ranked: Sequence[Candidate]) -> None:
         )
 
 
+Gate = Callable[[str, ModelEvidence, ModelEvidence], str | None]
+"""``(effect, current, augmented) -> reason``: why a passing effect stays a suspect, or None."""
+
+
+def _admitted(
+    ranked: Sequence[Candidate],
+    models: Mapping[str, ModelEvidence],
+    current: ModelEvidence,
+    gate: Gate | None,
+    suspects: dict[str, str],
+) -> Candidate | None:
+    """Return the best passing candidate the gate lets through; record the ones it holds."""
+    for candidate in (c for c in ranked if c.passes):
+        reason = gate(candidate.effect, current, models[candidate.effect]) if gate else None
+        if reason is None:
+            return candidate
+        suspects[candidate.effect] = reason
+        logger.warning("%s passes but stays a suspect: %s", candidate.effect, reason)
+    return None
+
+
 def forward_search(
     evaluator: Evaluator,
     campaign_ids: Sequence[str],
     settings: SearchSettings,
     untestable: Mapping[str, Sequence[str]] | None = None,
+    gate: Gate | None = None,
 ) -> SearchResult:
     """Name the missing effects by forward selection (see the module docstring).
 
@@ -598,6 +626,9 @@ def forward_search(
     settings : SearchSettings
     untestable : mapping, optional
         Effect -> missing roles; these are never tried.
+    gate : callable, optional
+        Asked about each passing candidate, best first; one it gives a reason for is a
+        suspect (not named, not tried again) and the next passing one is asked.
 
     Returns
     -------
@@ -617,10 +648,15 @@ def forward_search(
     baseline = current
     logger.info("baseline twin: held-out Z RMS %.2f um", baseline.rmse_heldout_um)
     named: list[str] = []
+    suspects: dict[str, str] = {}
     steps: list[Step] = []
     rounds: list[list[Candidate]] = []
     while len(named) < settings.max_effects:
-        pool = [e for e in settings.candidates if e not in named and e not in untestable]
+        pool = [
+            e
+            for e in settings.candidates
+            if e not in named and e not in untestable and e not in suspects
+        ]
         if not pool:
             break
         sets = [current.effects | {e} for e in pool]
@@ -628,7 +664,7 @@ def forward_search(
         ranked = _ranked(pool, current, models, settings)
         rounds.append(ranked)
         _log_round(len(rounds), ranked)
-        best = next((c for c in ranked if c.passes), None)
+        best = _admitted(ranked, dict(zip(pool, models, strict=True)), current, gate, suspects)
         if best is None:
             break
         after = models[pool.index(best.effect)]
@@ -644,6 +680,7 @@ def forward_search(
         untestable=untestable,
         folds=[list(f) for f in folds],
         seconds=time.perf_counter() - start,
+        suspects=suspects,
     )
 
 
@@ -745,19 +782,42 @@ def split_for_search(campaigns: Sequence, settings: SearchSettings) -> tuple[lis
     return searched, held
 
 
-def search_twin(campaigns: Sequence, settings: SearchSettings) -> SearchResult:
+def follow_up_gate(follow: FollowUp | None, ids: Sequence[str], settings: SearchSettings) -> Gate:
+    """Return the gate of :func:`forward_search` after an earlier run ``follow``.
+
+    It measures each passing effect's held-out Z and temperature reductions on the campaigns
+    ``follow`` had not seen and asks :func:`pipeline.discrepancy.followup.suspect_reason`.
+    """
+    new = [c for c in ids if follow is None or c not in follow.campaigns]
+
+    def gate(effect: str, current: ModelEvidence, augmented: ModelEvidence) -> str | None:
+        z = reduction_on(new, current.heldout.z_residual_um, augmented.heldout.z_residual_um)
+        t = reduction_on(new, current.heldout.t_residual_k, augmented.heldout.t_residual_k)
+        thresholds = (settings.min_heldout_reduction, settings.min_heldout_t_reduction)
+        only_readings = effect in SENSOR_ONLY_EFFECTS
+        return suspect_reason(effect, follow, ids, z, t, thresholds, only_readings)
+
+    return gate
+
+
+def search_twin(
+    campaigns: Sequence, settings: SearchSettings, follow: FollowUp | None = None
+) -> SearchResult:
     """Run :func:`forward_search` on measured campaigns with the calibrated twin.
 
     The search uses the campaigns :func:`split_for_search` keeps; the baseline and the
     augmented twin, calibrated on all of those, then predict the validation campaigns
-    (:attr:`SearchResult.validation`), which no step of the search has seen.
+    (:attr:`SearchResult.validation`), which no step of the search has seen. After an earlier
+    run (``follow``), a newly named effect must owe its evidence to the new campaigns
+    (:func:`follow_up_gate`).
     """
     roles = campaign_roles(campaigns)
     evaluator = TwinEvaluator(campaigns, roles)
     searched, held = split_for_search(campaigns, settings)
     ids = [c.campaign_id for c in searched]
     untestable = untestable_effects(settings.candidates, roles)
-    result = forward_search(evaluator, ids, settings, untestable)
+    gate = follow_up_gate(follow, ids, settings) if follow is not None else None
+    result = forward_search(evaluator, ids, settings, untestable, gate)
     if held:
         held_ids = tuple(c.campaign_id for c in held)
         # the full calibrations of the search are already fitted on every searched campaign

@@ -21,6 +21,7 @@ from pathlib import Path
 import pandas as pd
 
 from pipeline.discrepancy.data import MeasuredCampaign, campaigns_from_tables
+from pipeline.discrepancy.followup import FollowUp
 from pipeline.discrepancy.identifiability import (
     IdentifiabilitySettings,
     identifiability,
@@ -158,8 +159,12 @@ def run(
     *,
     quarantined: list[str] | None = None,
     synthetic: bool = False,
+    follow: FollowUp | None = None,
 ) -> tuple[SearchResult, dict, list[Path]]:
     """Search, localise and write the outputs for already-read campaigns.
+
+    ``follow`` is the earlier run's outcome (:mod:`pipeline.discrepancy.followup`): an effect
+    it did not name must owe its evidence to the campaigns it had not seen.
 
     Returns
     -------
@@ -172,7 +177,7 @@ def run(
     settings = SearchSettings.from_settings(section)
     loc_settings = section.localise
     ident_settings = IdentifiabilitySettings.from_settings(section.identifiability)
-    result = search_twin(campaigns, settings)
+    result = search_twin(campaigns, settings, follow)
     point = searched_point(campaigns, result, ident_settings)
     classes = identifiability(campaigns, result, settings.candidates, ident_settings, point)
     floor = held_out_floor(result, point.campaigns, settings)

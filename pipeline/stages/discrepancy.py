@@ -40,6 +40,8 @@ import pandas as pd
 from pipeline import paths
 from pipeline.config import DEFAULT_PARAMS
 from pipeline.discrepancy.data import MeasuredCampaign
+from pipeline.discrepancy.followup import FollowUp, history_entry
+from pipeline.discrepancy.report import STATUS_TESTED
 from pipeline.discrepancy.workflow import (
     read_raw,
     run,
@@ -105,6 +107,13 @@ def main(argv: list[str] | None = None) -> int:
     )
     parser.add_argument("--no-mlflow", action="store_true", help="do not log an MLflow run")
     parser.add_argument(
+        "--history",
+        type=Path,
+        default=None,
+        help="the earlier run's outcome, read and then replaced (default "
+        f"{paths.DISCREPANCY_HISTORY} when --out is the default, else none)",
+    )
+    parser.add_argument(
         "--run-record",
         type=Path,
         default=None,
@@ -127,10 +136,12 @@ def main(argv: list[str] | None = None) -> int:
             return 1
     reason = untestable_reason(campaigns)
     common = {"quarantined": quarantined, "synthetic": synthetic}
+    history = args.history or (paths.DISCREPANCY_HISTORY if args.out == DEFAULT_OUT else None)
     if reason is not None:
         doc, files = run_untestable(campaigns, reason, args.out, **common)
     else:
-        doc, files = run(campaigns, section, args.out, **common)[1:]
+        doc, files = run(campaigns, section, args.out, follow=read_follow_up(history), **common)[1:]
+    write_history(history, doc)
     if tracking is not None:
         try:
             doc["mlflow_run_id"] = log_discrepancy_run(files, doc, tracking, section.experiment)
@@ -140,6 +151,27 @@ def main(argv: list[str] | None = None) -> int:
     if record is not None:
         write_run_record(record, doc.get("mlflow_run_id"))
     return 0
+
+
+def read_follow_up(path: Path | None) -> FollowUp | None:
+    """Return the earlier run's outcome kept in ``path``, None without one."""
+    if path is None or not path.is_file():
+        return None
+    return FollowUp.from_document(json.loads(path.read_text(encoding="utf-8")))
+
+
+def write_history(path: Path | None, doc: dict) -> None:
+    """Keep what the next run needs of this one (:func:`history_entry`) in ``path``.
+
+    An untestable run removes it: the next run that can search starts afresh.
+    """
+    if path is None:
+        return
+    if doc.get("status") != STATUS_TESTED:
+        path.unlink(missing_ok=True)
+        return
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(json.dumps(history_entry(doc), indent=2) + "\n", encoding="utf-8")
 
 
 def write_run_record(path: Path, run_id: str | None) -> None:

@@ -33,6 +33,7 @@ def _run_tags(doc: Mapping[str, Any]) -> dict[str, str]:
         "status": str(doc.get("status", STATUS_TESTED)),
         "synthetic": str(bool(doc["synthetic"])).lower(),
         "named_effects": ",".join(doc["named_effects"]) or "none",
+        "suspects": ",".join(s["effect"] for s in doc.get("suspects") or []) or "none",
     }
     if doc.get("status") == STATUS_UNTESTABLE:
         tags["mlflow.note.content"] = f"Untestable: {doc['reason']}"

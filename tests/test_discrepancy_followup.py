@@ -1,0 +1,137 @@
+"""After a proposed test: a new name needs evidence from the new campaigns, and a test meant for
+one effect that names another leaves it a suspect until a second test confirms it."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from pipeline.discrepancy.followup import FollowUp, history_entry, reduction_on, suspect_reason
+from pipeline.discrepancy.search import FitResult, SearchSettings, follow_up_gate, forward_search
+from pipeline.stages.discrepancy import read_follow_up, write_history
+
+OLD = [f"K{i:02d}" for i in range(1, 7)]
+NEW = ["P1_01", "P1_02"]
+SETTINGS = SearchSettings(n_jobs=1, n_folds=4)
+THRESHOLDS = (SETTINGS.min_heldout_reduction, SETTINGS.min_heldout_t_reduction)
+
+
+class LocalMisfit:
+    """A fake evaluator: each missing true effect leaves ``gain`` um of held-out Z residual on
+    the campaigns of ``where[effect]`` only (noise ``noise`` um elsewhere); BIC falls with the
+    effects found, as a real calibration's would."""
+
+    def __init__(self, where: dict[str, set[str]], gain: float = 5.0, noise: float = 0.5):
+        self.where, self.gain, self.noise = where, gain, noise
+
+    def __call__(self, effects, train, test, start=None):
+        missing = [e for e in self.where if e not in effects]
+        z = {
+            c: np.full(50, self.noise + sum(self.gain for e in missing if c in self.where[e]))
+            for c in test
+        }
+        t = {c: pd.DataFrame({"T1": np.full(50, 0.1)}) for c in test}
+        bic = 100.0 * len(missing) ** 2 + 8.0 * len(effects)
+        params = {f"p_{e}": (1.0, "um") for e in sorted(effects)}
+        return FitResult(bic, bic, params, z, t)
+
+
+def follow(targets=(), named=(), suspects=None) -> FollowUp:
+    """The earlier run: it saw :data:`OLD`."""
+    return FollowUp(frozenset(OLD), frozenset(named), frozenset(targets), dict(suspects or {}))
+
+
+def search(where, earlier):
+    ids = OLD + NEW
+    gate = follow_up_gate(earlier, ids, SETTINGS)
+    return forward_search(LocalMisfit(where), ids, SETTINGS, gate=gate)
+
+
+def test_the_effect_the_test_was_proposed_for_is_named_on_the_new_campaigns():
+    result = search({"thermal_bending": set(NEW)}, follow(targets={"thermal_bending"}))
+    assert result.named_effects == ["thermal_bending"] and result.suspects == {}
+
+
+def test_another_effect_newly_named_by_the_test_stays_a_suspect():
+    result = search({"motor_heat": set(NEW)}, follow(targets={"sensor_lag"}))
+    assert result.named_effects == []
+    reason = result.suspects["motor_heat"]
+    assert "newly named by the new campaigns P1_01, P1_02" in reason
+    assert "proposed tests for sensor_lag" in reason and "a second test must confirm" in reason
+    assert result.to_dict()["suspects"] == [{"effect": "motor_heat", "reason": reason}]
+
+
+def test_a_second_test_confirms_a_suspect():
+    earlier = follow(targets={"sensor_lag"}, suspects={"motor_heat": "first test"})
+    assert search({"motor_heat": set(NEW)}, earlier).named_effects == ["motor_heat"]
+
+
+def test_a_new_name_whose_evidence_is_in_the_old_campaigns_stays_a_suspect():
+    """The misfit sits where the earlier run had looked; the new campaigns show none of it."""
+    result = search({"motor_heat": {"K01", "K02"}}, follow(targets={"motor_heat"}))
+    assert result.named_effects == []
+    assert "its evidence is not in the new campaigns" in result.suspects["motor_heat"]
+
+
+def test_without_an_earlier_run_or_with_a_name_it_kept_nothing_is_gated():
+    assert search({"motor_heat": set(NEW)}, None).named_effects == ["motor_heat"]
+    kept = follow(named={"motor_heat"})
+    assert search({"motor_heat": {"K01"}}, kept).named_effects == ["motor_heat"]
+
+
+def test_with_no_new_campaign_the_earlier_suspects_stay_suspects():
+    earlier = follow(suspects={"motor_heat": "named by a test for sensor_lag"})
+    reason = suspect_reason("motor_heat", earlier, OLD, 0.9, 0.9, THRESHOLDS)
+    assert reason == "named by a test for sensor_lag"
+    assert suspect_reason("ambient_variation", earlier, OLD, 0.9, 0.9, THRESHOLDS) is None
+
+
+def test_a_readings_only_effect_needs_its_temperature_evidence_on_the_new_campaigns():
+    earlier = follow(targets={"sensor_lag"})
+    ids = OLD + NEW
+    assert suspect_reason("sensor_lag", earlier, ids, 0.9, 0.05, THRESHOLDS, True) is not None
+    assert suspect_reason("sensor_lag", earlier, ids, 0.0, 0.5, THRESHOLDS, True) is None
+
+
+def test_the_reduction_is_pooled_over_the_named_campaigns_only():
+    before = {"A": np.full(4, 2.0), "B": np.full(4, 10.0)}
+    after = {"A": np.full(4, 1.0), "B": np.full(4, 10.0)}
+    assert reduction_on(["A"], before, after) == pytest.approx(0.5)
+    assert reduction_on(["A", "B"], before, after) < 0.05
+    assert np.isnan(reduction_on(["C"], before, after))
+
+
+def test_the_stage_keeps_the_history_a_tested_run_needs_and_drops_it_when_untestable(tmp_path):
+    doc = {
+        "status": "tested",
+        "campaigns": OLD,
+        "named_effects": ["ambient_variation"],
+        "suspects": [{"effect": "motor_heat", "reason": "why"}],
+        "identifiability": {
+            "sensor_lag": {"class": "not_identifiable"},
+            "ambient_variation": {"class": "named"},
+        },
+    }
+    path = tmp_path / "history.json"
+    write_history(path, doc)
+    assert json.loads(path.read_text()) == history_entry(doc)
+    back = read_follow_up(path)
+    assert back == FollowUp(
+        frozenset(OLD),
+        frozenset({"ambient_variation"}),
+        frozenset({"sensor_lag"}),
+        {"motor_heat": "why"},
+    )
+    write_history(path, {"status": "untestable", "named_effects": []})
+    assert not path.exists() and read_follow_up(path) is None
+
+
+def test_the_report_lists_the_suspects_with_their_reason():
+    from pipeline.discrepancy.report_text import _suspect_lines
+
+    lines = _suspect_lines([{"effect": "motor_heat", "reason": "newly named by P1_01"}])
+    assert "**Suspects**" in lines[1] and "- `motor_heat`: newly named by P1_01." in lines
+    assert _suspect_lines([]) == []
