@@ -47,9 +47,9 @@ test-fast: install
 bench: install
 	PATH="$(CURDIR)/$(BIN):$$PATH" $(BIN)/python -m benchmarks.bench
 
-# Every hidden-effect case over seeds 1-5 (8 campaigns each), then the trial tests (seed 1, every
-# case, the proposed tests run; `make test` runs the smoke case only); trials-quick: 4 campaigns,
-# 2 folds.
+# Every hidden-effect case over seeds 1-5 (8 campaigns each) on both machines (the twin and
+# benchmarks/independent_machine.py), then the trial tests (the twin, seed 1, every case, the
+# proposed tests run; `make test` runs the smoke case only); trials-quick: 4 campaigns, 2 folds.
 trials: install
 	$(BIN)/python -m benchmarks.discrepancy_trials --seeds 1 2 3 4 5 --out reports/discrepancy_trials
 	$(PYTEST) -m trials
