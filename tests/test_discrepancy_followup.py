@@ -1,5 +1,6 @@
-"""After a proposed test: a new name needs evidence from the new campaigns, and a test meant for
-one effect that names another leaves it a suspect until a second test confirms it."""
+"""No false names: a later effect needs evidence of its own, where the effects named before it
+act least; after a proposed test, a new name needs evidence from the new campaigns, and a test
+meant for one effect that names another leaves it a suspect until a second test confirms it."""
 
 from __future__ import annotations
 
@@ -10,6 +11,7 @@ import pandas as pd
 import pytest
 
 from pipeline.discrepancy.followup import FollowUp, history_entry, reduction_on, suspect_reason
+from pipeline.discrepancy.own_evidence import weak_campaigns
 from pipeline.discrepancy.search import FitResult, SearchSettings, follow_up_gate, forward_search
 from pipeline.stages.discrepancy import read_follow_up, write_history
 
@@ -135,3 +137,61 @@ def test_the_report_lists_the_suspects_with_their_reason():
     lines = _suspect_lines([{"effect": "motor_heat", "reason": "newly named by P1_01"}])
     assert "**Suspects**" in lines[1] and "- `motor_heat`: newly named by P1_01." in lines
     assert _suspect_lines([]) == []
+
+
+class Remainder:
+    """A fake evaluator whose second candidate only mops up what the first leaves.
+
+    ``nonlinear_bearing_heat`` (hidden) leaves 5 um on K01-K04 and 1 um on K05-K08; once it is
+    named, its imperfect form leaves ``remainder`` um on K01-K04, which ``thermal_bending``
+    (not hidden) fits; ``centrifugal_growth``, when ``second`` is True, is hidden too and
+    leaves 2 um on every campaign.
+    """
+
+    def __init__(self, remainder: float = 1.5, second: bool = False):
+        self.remainder, self.second = remainder, second
+
+    def __call__(self, effects, train, test, start=None):
+        def level(campaign: str) -> float:
+            strong = campaign in {"K01", "K02", "K03", "K04"}
+            value = 0.5
+            if "nonlinear_bearing_heat" not in effects:
+                value += 5.0 if strong else 1.0
+            elif strong and "thermal_bending" not in effects:
+                value += self.remainder
+            if self.second and "centrifugal_growth" not in effects:
+                value += 2.0
+            return value
+
+        z = {c: np.full(50, level(c)) for c in test}
+        t = {c: pd.DataFrame({"T1": np.full(50, 0.1)}) for c in test}
+        bic = 100.0 * float(np.mean([level(c) ** 2 for c in train])) + 8.0 * len(effects)
+        params = {f"p_{e}": (1.0, "um") for e in sorted(effects)}
+        return FitResult(bic, bic, params, z, t)
+
+
+IDS = [f"K{i:02d}" for i in range(1, 9)]
+
+
+def test_a_second_effect_that_fits_what_the_first_leaves_is_a_suspect():
+    result = forward_search(Remainder(), IDS, SETTINGS)
+    assert result.named_effects == ["nonlinear_bearing_heat"]
+    reason = result.suspects["thermal_bending"]
+    assert "where nonlinear_bearing_heat already act" in reason
+    assert "(K05, K06, K07, K08)" in reason
+
+
+def test_a_second_effect_with_evidence_of_its_own_is_named():
+    result = forward_search(Remainder(remainder=0.0, second=True), IDS, SETTINGS)
+    assert result.named_effects == ["nonlinear_bearing_heat", "centrifugal_growth"]
+    assert result.suspects == {}
+
+
+def test_the_weak_campaigns_are_where_the_named_effects_lowered_the_residual_least():
+    evaluator = Remainder()
+    base = evaluator(frozenset(), IDS, IDS)
+    named = evaluator(frozenset({"nonlinear_bearing_heat"}), IDS, IDS)
+    weak = weak_campaigns(
+        (base.z_residual_um, base.t_residual_k), (named.z_residual_um, named.t_residual_k)
+    )
+    assert weak == ["K05", "K06", "K07", "K08"]

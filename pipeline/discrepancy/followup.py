@@ -153,9 +153,9 @@ def suspect_reason(
     if not (z_ok or t_ok):
         return (
             f"its evidence is not in the new campaigns {', '.join(new)}: on them alone it "
-            f"changes the held-out Z residual by {_signed(-z_reduction_new)} and the "
-            f"temperatures by {_signed(-t_reduction_new)}; it passed on campaigns the earlier "
-            "run had already seen without naming it"
+            f"changes the held-out Z residual by {signed_percent(-z_reduction_new)} and the "
+            f"temperatures by {signed_percent(-t_reduction_new)}; it passed on campaigns the "
+            "earlier run had already seen without naming it"
         )
     if effect in follow.targets or effect in follow.suspects:
         return None
@@ -167,6 +167,6 @@ def suspect_reason(
     )
 
 
-def _signed(x: float) -> str:
-    """Return a fraction as a signed whole percentage, or n/a."""
+def signed_percent(x: float) -> str:
+    """Return a fraction as a signed whole percentage (``-4 %``), or n/a."""
     return "n/a" if not np.isfinite(x) else f"{100 * x:+.0f} %"

@@ -41,6 +41,7 @@ import pandas as pd
 from joblib import delayed
 
 from pipeline.discrepancy.followup import FollowUp, reduction_on, suspect_reason
+from pipeline.discrepancy.own_evidence import own_evidence_reason, weak_campaigns
 from pipeline.fit_statistics import root_mean_square
 from pipeline.progress import run_jobs
 from pipeline.settings.base import unknown_name_error
@@ -592,16 +593,41 @@ Gate = Callable[[str, ModelEvidence, ModelEvidence], str | None]
 """``(effect, current, augmented) -> reason``: why a passing effect stays a suspect, or None."""
 
 
+def _residuals(evidence: ModelEvidence) -> tuple[dict, dict]:
+    """Held-out Z and temperature residuals of a model, per campaign."""
+    return evidence.heldout.z_residual_um, evidence.heldout.t_residual_k
+
+
 def _admitted(
     ranked: Sequence[Candidate],
     models: Mapping[str, ModelEvidence],
-    current: ModelEvidence,
+    trail: tuple[ModelEvidence, ModelEvidence, Sequence[str]],
+    settings: SearchSettings,
     gate: Gate | None,
     suspects: dict[str, str],
 ) -> Candidate | None:
-    """Return the best passing candidate the gate lets through; record the ones it holds."""
+    """Return the best passing candidate whose evidence is its own; record the ones held back.
+
+    ``trail`` is (baseline, current model, effects named so far). A later effect must pass on
+    the campaigns where the named ones act least
+    (:func:`pipeline.discrepancy.own_evidence.own_evidence_reason`), then the ``gate``.
+    """
+    baseline, current, named = trail
+    weak = weak_campaigns(_residuals(baseline), _residuals(current)) if named else []
+    thresholds = (settings.min_heldout_reduction, settings.min_heldout_t_reduction)
     for candidate in (c for c in ranked if c.passes):
-        reason = gate(candidate.effect, current, models[candidate.effect]) if gate else None
+        augmented = models[candidate.effect]
+        reason = own_evidence_reason(
+            candidate.effect,
+            named,
+            weak,
+            _residuals(current),
+            _residuals(augmented),
+            thresholds,
+            candidate.effect in SENSOR_ONLY_EFFECTS,
+        )
+        if reason is None and gate is not None:
+            reason = gate(candidate.effect, current, augmented)
         if reason is None:
             return candidate
         suspects[candidate.effect] = reason
@@ -664,7 +690,8 @@ def forward_search(
         ranked = _ranked(pool, current, models, settings)
         rounds.append(ranked)
         _log_round(len(rounds), ranked)
-        best = _admitted(ranked, dict(zip(pool, models, strict=True)), current, gate, suspects)
+        by_effect = dict(zip(pool, models, strict=True))
+        best = _admitted(ranked, by_effect, (baseline, current, named), settings, gate, suspects)
         if best is None:
             break
         after = models[pool.index(best.effect)]

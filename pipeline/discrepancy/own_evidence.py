@@ -1,0 +1,107 @@
+"""A later effect's evidence: its own, or what the effects named before it leave.
+
+Forward selection adds, at each step, the candidate that best fits what the twin still misses.
+Once an effect is named, what is left of its signature (a calibration that cannot follow it
+exactly, a form that differs from the machine's) can make a second candidate pass that only
+mops it up: on an independent machine model, ``thermal_bending`` was named beside the hidden
+``nonlinear_bearing_heat``. A later effect is therefore named only when it passes the search's
+own rule (:func:`pipeline.discrepancy.search.candidate_evidence`'s thresholds) on the campaigns
+where the effects named so far act least (:func:`weak_campaigns`): there, what it fits cannot
+be a remainder of theirs. Otherwise it is a *suspect*
+(:func:`own_evidence_reason`), reported and left out of the twin.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+import numpy as np
+
+from pipeline.discrepancy.followup import reduction_on, signed_percent
+
+Residuals = Mapping[str, Any]
+"""Campaign -> held-out residual: Z (um, array) or temperatures (K, DataFrame)."""
+
+
+def _rms(values: Any) -> float:
+    """RMS of the finite values of a residual (array or DataFrame)."""
+    flat = np.asarray(values, dtype=float).ravel()
+    flat = flat[np.isfinite(flat)]
+    return float(np.sqrt(np.mean(flat**2))) if flat.size else float("nan")
+
+
+def _signature(before: Residuals, after: Residuals) -> dict[str, float]:
+    """Each campaign's fall of the held-out residual RMS, over the largest fall (0..1)."""
+    fall = {c: _rms(before[c]) - _rms(after[c]) for c in after if c in before}
+    largest = max((v for v in fall.values() if np.isfinite(v)), default=0.0)
+    return {c: v / largest if largest > 0 else 0.0 for c, v in fall.items()}
+
+
+def weak_campaigns(
+    baseline: tuple[Residuals, Residuals], current: tuple[Residuals, Residuals]
+) -> list[str]:
+    """Return the campaigns where the named effects change the held-out fit least.
+
+    The signature of the effects named so far on a campaign is how far they lowered its
+    held-out residual RMS from the baseline's (um for Z, K for the temperatures), each over its
+    largest fall on any campaign, the larger of the two; the campaigns at or below the median
+    signature are where their evidence is weakest.
+
+    Parameters
+    ----------
+    baseline, current : (Z residuals, temperature residuals)
+        Held-out residuals of the baseline twin and of the twin with the effects named so far.
+
+    Returns
+    -------
+    list of str
+        Sorted campaign ids.
+    """
+    z, t = _signature(baseline[0], current[0]), _signature(baseline[1], current[1])
+    strength = {c: max(z.get(c, 0.0), t.get(c, 0.0)) for c in current[0]}
+    if not strength:
+        return []
+    median = float(np.median(list(strength.values())))
+    return sorted(c for c, v in strength.items() if v <= median)
+
+
+def own_evidence_reason(
+    effect: str,
+    named: Sequence[str],
+    weak: Sequence[str],
+    current: tuple[Residuals, Residuals],
+    augmented: tuple[Residuals, Residuals],
+    thresholds: tuple[float, float],
+    by_readings_only: bool = False,
+) -> str | None:
+    """Return why ``effect`` is a suspect beside ``named``, or None when its evidence is its own.
+
+    Parameters
+    ----------
+    effect : str
+    named : sequence of str
+        Effects named so far (nothing is asked of the first).
+    weak : sequence of str
+        :func:`weak_campaigns` of the effects named so far.
+    current, augmented : (Z residuals, temperature residuals)
+        Held-out residuals without and with ``effect``.
+    thresholds : (float, float)
+        The search's ``min_heldout_reduction`` and ``min_heldout_t_reduction``.
+    by_readings_only : bool
+        The effect changes the readings only (its Z route does not count).
+    """
+    if not named:
+        return None
+    z = reduction_on(weak, current[0], augmented[0])
+    t = reduction_on(weak, current[1], augmented[1])
+    z_ok = not by_readings_only and np.isfinite(z) and z >= thresholds[0]
+    t_ok = np.isfinite(t) and t >= thresholds[1]
+    if z_ok or t_ok:
+        return None
+    return (
+        f"its evidence lies where {', '.join(named)} already act: on the campaigns where they "
+        f"change the held-out fit least ({', '.join(weak)}), it changes the held-out Z by "
+        f"{signed_percent(-z)} and the temperatures by {signed_percent(-t)}, short of the search's "
+        f"thresholds; it may fit what {named[-1]} leaves rather than an effect of its own"
+    )
