@@ -11,7 +11,7 @@ import pandas as pd
 import pytest
 
 from pipeline.discrepancy.followup import FollowUp, history_entry, reduction_on, suspect_reason
-from pipeline.discrepancy.own_evidence import weak_campaigns
+from pipeline.discrepancy.own_evidence import implausible_reason, weak_campaigns
 from pipeline.discrepancy.search import FitResult, SearchSettings, follow_up_gate, forward_search
 from pipeline.stages.discrepancy import read_follow_up, write_history
 
@@ -195,3 +195,28 @@ def test_the_weak_campaigns_are_where_the_named_effects_lowered_the_residual_lea
         (base.z_residual_um, base.t_residual_k), (named.z_residual_um, named.t_residual_k)
     )
     assert weak == ["K05", "K06", "K07", "K08"]
+
+
+class FlatterLaw(LocalMisfit):
+    """``nonlinear_bearing_heat`` fits a misfit on every campaign with a calibrated exponent
+    of ``exponent``."""
+
+    def __init__(self, exponent: float):
+        super().__init__({"nonlinear_bearing_heat": set(IDS)})
+        self.exponent = exponent
+
+    def __call__(self, effects, train, test, start=None):
+        fit = super().__call__(effects, train, test, start)
+        if "nonlinear_bearing_heat" in effects:
+            fit.params["bearing_exponent"] = (self.exponent, "1")
+        return fit
+
+
+def test_an_effect_whose_calibration_is_not_its_physics_is_a_suspect():
+    """A bearing law flatter than linear is the cooling or a drive loss, not bearing friction."""
+    flat = forward_search(FlatterLaw(0.87), IDS, SETTINGS)
+    assert flat.named_effects == []
+    assert "bearing_exponent = 0.87 lies outside 1.15-3" in flat.suspects["nonlinear_bearing_heat"]
+    steep = forward_search(FlatterLaw(1.6), IDS, SETTINGS)
+    assert steep.named_effects == ["nonlinear_bearing_heat"]
+    assert implausible_reason("motor_heat", {"q_motor_W_per_krpm": (50.0, "W/krpm")}) is None

@@ -20,6 +20,22 @@ import numpy as np
 
 from pipeline.discrepancy.followup import reduction_on, signed_percent
 
+PHYSICAL_RANGES = {
+    "bearing_exponent": (
+        1.15,
+        3.0,
+        "bearing friction power grows at least as fast as the speed (Palmgren: a load term ~ n, "
+        "a viscous term ~ n^(5/3)), so a law flatter than linear is something else that varies "
+        "with speed, such as the cooling of the spindle or a drive loss",
+    ),
+}
+"""Calibrated values an effect's mechanism allows, where its bounds are wider (they let the
+calibration move freely): parameter -> (lowest, highest, why). The exponent of
+``nonlinear_bearing_heat`` is bounded to [0.5, 3] for the calibration; on a machine whose
+spindle cooling grows with speed it settled at 0.87 and was named, fitting a flatter heat-speed
+law that no bearing friction gives. From 1.15 the law is steeper than linear by more than the
+load term alone explains."""
+
 Residuals = Mapping[str, Any]
 """Campaign -> held-out residual: Z (um, array) or temperatures (K, DataFrame)."""
 
@@ -105,3 +121,24 @@ def own_evidence_reason(
         f"{signed_percent(-z)} and the temperatures by {signed_percent(-t)}, short of the search's "
         f"thresholds; it may fit what {named[-1]} leaves rather than an effect of its own"
     )
+
+
+def implausible_reason(effect: str, params: Mapping[str, tuple[float, str]]) -> str | None:
+    """Return why the calibrated ``params`` are not the physics of ``effect``, or None.
+
+    Parameters
+    ----------
+    effect : str
+    params : mapping of str to (float, str)
+        The augmented model's calibrated parameters (name -> (value, unit)).
+    """
+    for name, (low, high, why) in PHYSICAL_RANGES.items():
+        if name not in params:
+            continue
+        value = float(params[name][0])
+        if not low <= value <= high:
+            return (
+                f"its calibrated {name} = {value:.3g} lies outside {low:g}-{high:g}, what "
+                f"{effect} can be: {why}"
+            )
+    return None

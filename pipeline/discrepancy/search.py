@@ -41,7 +41,11 @@ import pandas as pd
 from joblib import delayed
 
 from pipeline.discrepancy.followup import FollowUp, reduction_on, suspect_reason
-from pipeline.discrepancy.own_evidence import own_evidence_reason, weak_campaigns
+from pipeline.discrepancy.own_evidence import (
+    implausible_reason,
+    own_evidence_reason,
+    weak_campaigns,
+)
 from pipeline.fit_statistics import root_mean_square
 from pipeline.progress import run_jobs
 from pipeline.settings.base import unknown_name_error
@@ -608,16 +612,17 @@ def _admitted(
 ) -> Candidate | None:
     """Return the best passing candidate whose evidence is its own; record the ones held back.
 
-    ``trail`` is (baseline, current model, effects named so far). A later effect must pass on
-    the campaigns where the named ones act least
-    (:func:`pipeline.discrepancy.own_evidence.own_evidence_reason`), then the ``gate``.
+    ``trail`` is (baseline, current model, effects named so far). Its calibrated parameters
+    must be the effect's physics (:func:`pipeline.discrepancy.own_evidence.implausible_reason`);
+    a later effect must pass on the campaigns where the named ones act least
+    (:func:`~pipeline.discrepancy.own_evidence.own_evidence_reason`); then the ``gate``.
     """
     baseline, current, named = trail
     weak = weak_campaigns(_residuals(baseline), _residuals(current)) if named else []
     thresholds = (settings.min_heldout_reduction, settings.min_heldout_t_reduction)
     for candidate in (c for c in ranked if c.passes):
         augmented = models[candidate.effect]
-        reason = own_evidence_reason(
+        reason = implausible_reason(candidate.effect, augmented.full.params) or own_evidence_reason(
             candidate.effect,
             named,
             weak,
