@@ -331,6 +331,8 @@ class PlanFollowUp:
     quarantined : tuple of str
         Campaigns of the tests that the workflow did not get (quarantined by validation); the
         follow-up stops at the first such round.
+    suspects : tuple of str
+        Effects the last rerun held back as suspects.
     """
 
     effect: str
@@ -345,6 +347,7 @@ class PlanFollowUp:
     rmse_t_k_after: float
     rounds: int = 1
     quarantined: tuple[str, ...] = ()
+    suspects: tuple[str, ...] = ()
 
     @property
     def effect_named(self) -> bool:
@@ -464,6 +467,7 @@ def _follow_up(
         rmse_t_k_after=float(after["rmse_T_K_after"]),
         rounds=len(names),
         quarantined=lost,
+        suspects=tuple(s["effect"] for s in after.get("suspects") or ()),
     )
 
 
@@ -521,6 +525,8 @@ class TrialResult:
         hidden: of every effect classed not identifiable), run and rerun.
     generator : str
         The machine of :data:`GENERATORS` that wrote the campaigns.
+    suspects : tuple of str
+        Effects that passed the search's rule but were held back as suspects.
     """
 
     hidden: tuple[str, ...]
@@ -535,6 +541,7 @@ class TrialResult:
     not_identifiable: tuple[str, ...] = ()
     follow_ups: tuple[PlanFollowUp, ...] = field(default=())
     generator: str = "twin"
+    suspects: tuple[str, ...] = ()
 
     @property
     def named_correctly(self) -> bool:
@@ -576,6 +583,7 @@ class TrialResult:
             "hidden": case_name(self.hidden),
             "seed": self.seed,
             "named": "+".join(self.named) or "none",
+            "suspects": "+".join(self.suspects) or "none",
             "rmse_um_before": round(self.rmse_um_before, 3),
             "rmse_um_after": round(self.rmse_um_after, 3),
             "rmse_T_K_before": round(self.rmse_t_k_before, 4),
@@ -589,6 +597,7 @@ class TrialResult:
             "plan": " | ".join(f.plan for f in follow),
             "plan_expected_sigma": "+".join(f"{f.expected_sigma:.2f}" for f in follow),
             "plan_named": "+".join("+".join(f.named) or "none" for f in follow),
+            "plan_suspects": "+".join("+".join(f.suspects) or "none" for f in follow),
             "plan_effect_named": self.plan_named,
             "plan_rounds": "+".join(str(f.rounds) for f in follow),
             "plan_quarantined": "+".join(" ".join(f.quarantined) or "none" for f in follow),
@@ -656,6 +665,7 @@ def run_trial(
         not_identifiable=unidentifiable,
         follow_ups=tuple(follow_ups),
         generator=generator,
+        suspects=tuple(s["effect"] for s in doc.get("suspects") or ()),
     )
 
 
