@@ -404,8 +404,8 @@ def follow_plan(
                 break
             n = int(test.get("campaigns", PLAN_CAMPAIGNS))
             ids = GENERATORS[generator].write_plan(folder, test, hidden, seed, n, round_)
-            out = workdir / f"out_plan_{effect}_{round_}"
-            after = run_workflow(folder, out, section, follow=FollowUp.from_document(after))
+            report = workdir / f"out_plan_{effect}_{round_}"
+            after = run_workflow(folder, report, section, follow=FollowUp.from_document(after))
             visible = "expected_signal_sigma" in test
             names.append(str(test["name"]) if visible else f"calibration: {test['name']}")
             expected = float(test["expected_signal_sigma"]) if visible else expected
