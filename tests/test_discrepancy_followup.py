@@ -220,3 +220,61 @@ def test_an_effect_whose_calibration_is_not_its_physics_is_a_suspect():
     steep = forward_search(FlatterLaw(1.6), IDS, SETTINGS)
     assert steep.named_effects == ["nonlinear_bearing_heat"]
     assert implausible_reason("motor_heat", {"q_motor_W_per_krpm": (50.0, "W/krpm")}) is None
+
+
+def _trial_doc(campaigns, named, suspects=()):
+    """A rerun's ``discrepancy.json``: bending not identifiable with a visible heater test."""
+    proposed = {
+        "visible": True,
+        "name": "heater",
+        "expected_signal_sigma": 3.0,
+        "campaigns": 1,
+        "spindle_program": [{"from_min": 0, "rpm": 0}],
+        "sample_interval_s": 180,
+        "duration_h": 4,
+    }
+    cls = "named" if "thermal_bending" in named else "not_identifiable"
+    return {
+        "campaigns": list(campaigns),
+        "named_effects": list(named),
+        "suspects": [{"effect": e, "reason": "why"} for e in suspects],
+        "identifiability": {"thermal_bending": {"class": cls, "proposed_test": proposed}},
+        "rmse_um_before": 2.0,
+        "rmse_um_after": 1.0,
+        "rmse_T_K_before": 0.2,
+        "rmse_T_K_after": 0.1,
+    }
+
+
+def test_a_trial_follow_up_reruns_with_the_earlier_run_until_the_effect_is_named(
+    tmp_path, monkeypatch
+):
+    """Round after round, each rerun gets the run before it (as the stage keeps it); the
+    follow-up records the rounds, what was named and the suspects of the last rerun."""
+    import benchmarks.discrepancy_trials as trials
+
+    first = _trial_doc(OLD, [])
+    reruns = iter(
+        [
+            _trial_doc([*OLD, "P1_01"], [], suspects=["motor_heat"]),
+            _trial_doc([*OLD, "P1_01", "P2_01"], ["thermal_bending"], suspects=["motor_heat"]),
+        ]
+    )
+    earlier = []
+
+    def workflow(folder, report, section, params_file=None, follow=None):
+        earlier.append(follow)
+        return next(reruns)
+
+    def write_plan(folder, proposed, effects, seed, n, round_):
+        return [f"P{round_}_01"]
+
+    monkeypatch.setattr(trials, "run_workflow", workflow)
+    monkeypatch.setitem(trials.GENERATORS, "fake", trials.Generator("fake", None, write_plan))
+    (tmp_path / "raw").mkdir()
+    (follow,) = trials.follow_plan(
+        tmp_path / "raw", first, ["thermal_bending"], ["thermal_bending"], 1, None, tmp_path, "fake"
+    )
+    assert follow.effect_named and follow.rounds == 2 and follow.suspects == ("motor_heat",)
+    assert [f.campaigns for f in earlier] == [frozenset(OLD), frozenset([*OLD, "P1_01"])]
+    assert earlier[1].suspects == {"motor_heat": "why"}
