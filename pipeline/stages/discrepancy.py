@@ -163,15 +163,15 @@ def read_follow_up(path: Path | None) -> FollowUp | None:
 def write_history(path: Path | None, doc: dict) -> None:
     """Keep what the next run needs of this one (:func:`history_entry`) in ``path``.
 
-    An untestable run removes it: the next run that can search starts afresh.
+    An untestable run keeps only its status (the file is a DVC output, so it is written): the
+    next run that can search starts afresh.
     """
     if path is None:
         return
-    if doc.get("status") != STATUS_TESTED:
-        path.unlink(missing_ok=True)
-        return
+    tested = doc.get("status") == STATUS_TESTED
+    entry = history_entry(doc) if tested else {"status": doc.get("status")}
     path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(json.dumps(history_entry(doc), indent=2) + "\n", encoding="utf-8")
+    path.write_text(json.dumps(entry, indent=2) + "\n", encoding="utf-8")
 
 
 def write_run_record(path: Path, run_id: str | None) -> None:
