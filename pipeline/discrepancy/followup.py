@@ -91,12 +91,6 @@ def history_entry(doc: Mapping[str, Any]) -> dict[str, Any]:
     }
 
 
-def _pooled(arrays: Sequence[np.ndarray]) -> float:
-    """RMS over every finite value of ``arrays``."""
-    values = [np.asarray(a, dtype=float).ravel() for a in arrays]
-    return root_mean_square(np.concatenate(values)) if values else float("nan")
-
-
 def reduction_on(
     campaign_ids: Sequence[str],
     before: Mapping[str, Any],
@@ -110,9 +104,26 @@ def reduction_on(
     ids = [c for c in campaign_ids if c in before and c in after]
     if not ids:
         return float("nan")
-    first = _pooled([np.asarray(before[c], dtype=float) for c in ids])
-    second = _pooled([np.asarray(after[c], dtype=float) for c in ids])
+    first, second = (
+        root_mean_square(np.concatenate([np.asarray(r[c], dtype=float).ravel() for c in ids]))
+        for r in (before, after)
+    )
     return 1.0 - second / first if first > 0 else float("nan")
+
+
+def meets_thresholds(
+    z_reduction: float,
+    t_reduction: float,
+    thresholds: tuple[float, float],
+    by_readings_only: bool = False,
+) -> bool:
+    """Return whether held-out reductions (0..1) pass the search's rule: Z or temperatures.
+
+    ``thresholds`` are ``min_heldout_reduction`` and ``min_heldout_t_reduction``; an effect of
+    the readings only (``by_readings_only``) passes on the temperatures alone.
+    """
+    z_ok = not by_readings_only and np.isfinite(z_reduction) and z_reduction >= thresholds[0]
+    return bool(z_ok or (np.isfinite(t_reduction) and t_reduction >= thresholds[1]))
 
 
 def suspect_reason(
@@ -146,11 +157,7 @@ def suspect_reason(
     new = sorted(set(campaign_ids) - follow.campaigns)
     if not new:
         return follow.suspects.get(effect)
-    z_ok = (
-        not by_readings_only and np.isfinite(z_reduction_new) and z_reduction_new >= thresholds[0]
-    )
-    t_ok = np.isfinite(t_reduction_new) and t_reduction_new >= thresholds[1]
-    if not (z_ok or t_ok):
+    if not meets_thresholds(z_reduction_new, t_reduction_new, thresholds, by_readings_only):
         return (
             f"its evidence is not in the new campaigns {', '.join(new)}: on them alone it "
             f"changes the held-out Z residual by {signed_percent(-z_reduction_new)} and the "
@@ -167,6 +174,6 @@ def suspect_reason(
     )
 
 
-def signed_percent(x: float) -> str:
+def signed_percent(x: float | None) -> str:
     """Return a fraction as a signed whole percentage (``-4 %``), or n/a."""
-    return "n/a" if not np.isfinite(x) else f"{100 * x:+.0f} %"
+    return "n/a" if x is None or not np.isfinite(x) else f"{100 * x:+.0f} %"

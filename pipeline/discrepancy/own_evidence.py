@@ -18,7 +18,8 @@ from typing import Any
 
 import numpy as np
 
-from pipeline.discrepancy.followup import reduction_on, signed_percent
+from pipeline.discrepancy.followup import meets_thresholds, reduction_on, signed_percent
+from pipeline.fit_statistics import root_mean_square
 
 PHYSICAL_RANGES = {
     "bearing_exponent": (
@@ -40,16 +41,11 @@ Residuals = Mapping[str, Any]
 """Campaign -> held-out residual: Z (um, array) or temperatures (K, DataFrame)."""
 
 
-def _rms(values: Any) -> float:
-    """RMS of the finite values of a residual (array or DataFrame)."""
-    flat = np.asarray(values, dtype=float).ravel()
-    flat = flat[np.isfinite(flat)]
-    return float(np.sqrt(np.mean(flat**2))) if flat.size else float("nan")
-
-
 def _signature(before: Residuals, after: Residuals) -> dict[str, float]:
     """Each campaign's fall of the held-out residual RMS, over the largest fall (0..1)."""
-    fall = {c: _rms(before[c]) - _rms(after[c]) for c in after if c in before}
+    fall = {
+        c: root_mean_square(before[c]) - root_mean_square(after[c]) for c in after if c in before
+    }
     largest = max((v for v in fall.values() if np.isfinite(v)), default=0.0)
     return {c: v / largest if largest > 0 else 0.0 for c, v in fall.items()}
 
@@ -111,9 +107,7 @@ def own_evidence_reason(
         return None
     z = reduction_on(weak, current[0], augmented[0])
     t = reduction_on(weak, current[1], augmented[1])
-    z_ok = not by_readings_only and np.isfinite(z) and z >= thresholds[0]
-    t_ok = np.isfinite(t) and t >= thresholds[1]
-    if z_ok or t_ok:
+    if meets_thresholds(z, t, thresholds, by_readings_only):
         return None
     return (
         f"its evidence lies where {', '.join(named)} already act: on the campaigns where they "

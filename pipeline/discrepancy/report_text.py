@@ -16,6 +16,8 @@ from typing import Any
 
 import numpy as np
 
+from pipeline.discrepancy.followup import signed_percent
+
 TITLE = "# Where the twin and the measurements disagree"
 """First line of both reports."""
 
@@ -80,11 +82,6 @@ def _fmt(x: float | None, digits: int = 2) -> str:
 def _pct(x: float | None) -> str:
     """Return the fraction ``x`` as a whole percentage, or ``n/a`` when missing or not finite."""
     return "n/a" if x is None or not np.isfinite(x) else f"{100 * x:.0f} %"
-
-
-def _signed_pct(x: float | None) -> str:
-    """Return the fraction ``x`` as a signed whole percentage (``-4 %``), or ``n/a``."""
-    return "n/a" if x is None or not np.isfinite(x) else f"{100 * x:+.0f} %"
 
 
 def _motor_rise(params: Mapping[str, Any]) -> float | None:
@@ -152,7 +149,7 @@ def _temperature_only_line(step: Mapping[str, Any], min_z_reduction: float) -> l
     why = WHY_Z_STAYS.get(step["effect"], WHY_Z_STAYS_OTHERWISE)
     return [
         f"  - named on the temperatures alone: the held-out Z residual changed by "
-        f"{_signed_pct(-reduction)}, short of the -{_pct(min_z_reduction)} that names an effect "
+        f"{signed_percent(-reduction)}, short of the -{_pct(min_z_reduction)} that names an effect "
         f"on the displacement, so **the displacement gap did not shrink** with it: {why}"
     ]
 
