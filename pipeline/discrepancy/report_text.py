@@ -168,14 +168,7 @@ def _step_lines(step: Mapping[str, Any], min_z_reduction: float) -> list[str]:
         f"temperatures from {_fmt(step['rmse_T_K_before'])} K to "
         f"{_fmt(step['rmse_T_K_after'])} K; BIC changes by {_fmt(ev['delta_bic'], 1)}."
     ]
-    if ev.get("passed_on"):
-        lines.append(
-            "  - named on the campaigns of the test proposed for it "
-            f"({', '.join(ev['passed_on'])}): on all the held-out campaigns the fall is "
-            "diluted by those that could not show it"
-        )
-    else:
-        lines += _temperature_only_line(step, min_z_reduction)
+    lines += _temperature_only_line(step, min_z_reduction)
     own = step["effect_parameters"]
     shown = ", ".join(f"{k} = {_fmt(v['value'], 4)} {v['unit']}" for k, v in own.items())
     shown = shown or "none (it uses the measured signals)"

@@ -19,10 +19,8 @@ An effect *passes* when ``delta_bic <= max_delta_bic`` and the held-out Z RMS fa
 displacement, so when it improves the held-out Z but not the readings, its extra dynamics stand
 in for something else the twin lacks (seen on trial data with no lag hidden: held-out Z -29 %,
 temperatures -1 %). Candidates are ranked by ``delta_bic``; the best passing one
-is added and the search repeats until none passes. After a test proposed for an effect, that
-effect may also pass on the test's campaigns alone, where the pooled reduction is diluted by
-the campaigns that could not show it (:class:`FollowUpGate`). The calibrations of a step run
-in parallel (joblib, ``n_jobs``).
+is added and the search repeats until none passes. The calibrations of a step run in parallel
+(joblib, ``n_jobs``).
 
 The search works through an *evaluator*: ``evaluator(effects, train_ids, test_ids, start) ->
 FitResult`` (``start``: parameter name -> starting value, or None). :class:`TwinEvaluator`
@@ -42,7 +40,7 @@ import numpy as np
 import pandas as pd
 from joblib import delayed
 
-from pipeline.discrepancy.followup import FollowUp, meets_thresholds, reduction_on, suspect_reason
+from pipeline.discrepancy.followup import FollowUp, reduction_on, suspect_reason
 from pipeline.discrepancy.own_evidence import (
     implausible_reason,
     own_evidence_reason,
@@ -267,10 +265,6 @@ class Candidate:
     passes : bool
         Both thresholds met.
     converged : bool
-    passed_on : tuple of str
-        Empty when the thresholds were met on all the held-out campaigns; else the campaigns of
-        the test proposed for this effect, on which alone they were met
-        (:meth:`FollowUpGate.passes_on_test`).
     """
 
     effect: str
@@ -282,7 +276,6 @@ class Candidate:
     heldout_t_reduction: float
     passes: bool
     converged: bool
-    passed_on: tuple[str, ...] = ()
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready fields."""
@@ -296,7 +289,6 @@ class Candidate:
             "heldout_T_reduction": _num(self.heldout_t_reduction),
             "passes": bool(self.passes),
             "converged": bool(self.converged),
-            "passed_on": list(self.passed_on),
         }
 
 
@@ -601,6 +593,10 @@ def _log_round(step: int, ranked: Sequence[Candidate]) -> None:
         )
 
 
+Gate = Callable[[str, ModelEvidence, ModelEvidence], str | None]
+"""``(effect, current, augmented) -> reason``: why a passing effect stays a suspect, or None."""
+
+
 def _residuals(evidence: ModelEvidence) -> tuple[dict, dict]:
     """Held-out Z and temperature residuals of a model, per campaign."""
     return evidence.heldout.z_residual_um, evidence.heldout.t_residual_k
@@ -611,27 +607,21 @@ def _admitted(
     models: Mapping[str, ModelEvidence],
     trail: tuple[ModelEvidence, ModelEvidence, Sequence[str]],
     settings: SearchSettings,
-    gate: FollowUpGate | None,
+    gate: Gate | None,
     suspects: dict[str, str],
 ) -> Candidate | None:
     """Return the best passing candidate whose evidence is its own; record the ones held back.
 
-    ``trail`` is (baseline, current model, effects named so far). A candidate passes on all
-    the held-out campaigns or, after a test proposed for it, on the test's campaigns alone
-    (:meth:`FollowUpGate.passes_on_test`). Its calibrated parameters must be the effect's
-    physics (:func:`pipeline.discrepancy.own_evidence.implausible_reason`); a later effect must
-    pass on the campaigns where the named ones act least
+    ``trail`` is (baseline, current model, effects named so far). Its calibrated parameters
+    must be the effect's physics (:func:`pipeline.discrepancy.own_evidence.implausible_reason`);
+    a later effect must pass on the campaigns where the named ones act least
     (:func:`~pipeline.discrepancy.own_evidence.own_evidence_reason`); then the ``gate``.
     """
     baseline, current, named = trail
     weak = weak_campaigns(_residuals(baseline), _residuals(current)) if named else []
     thresholds = (settings.min_heldout_reduction, settings.min_heldout_t_reduction)
-    for candidate in ranked:
+    for candidate in (c for c in ranked if c.passes):
         augmented = models[candidate.effect]
-        if not candidate.passes:
-            if gate is None or not gate.passes_on_test(candidate, current, augmented):
-                continue
-            candidate = replace(candidate, passed_on=tuple(gate.new))
         reason = implausible_reason(candidate.effect, augmented.full.params) or own_evidence_reason(
             candidate.effect,
             named,
@@ -642,7 +632,7 @@ def _admitted(
             candidate.effect in SENSOR_ONLY_EFFECTS,
         )
         if reason is None and gate is not None:
-            reason = gate.reason(candidate.effect, current, augmented)
+            reason = gate(candidate.effect, current, augmented)
         if reason is None:
             return candidate
         suspects[candidate.effect] = reason
@@ -655,7 +645,7 @@ def forward_search(
     campaign_ids: Sequence[str],
     settings: SearchSettings,
     untestable: Mapping[str, Sequence[str]] | None = None,
-    gate: FollowUpGate | None = None,
+    gate: Gate | None = None,
 ) -> SearchResult:
     """Name the missing effects by forward selection (see the module docstring).
 
@@ -667,10 +657,9 @@ def forward_search(
     settings : SearchSettings
     untestable : mapping, optional
         Effect -> missing roles; these are never tried.
-    gate : FollowUpGate, optional
-        After an earlier run: asked about each passing candidate, best first; one it gives a
-        reason for is a suspect (not named, not tried again) and the next passing one is
-        asked. A target of the earlier run may pass on its test's campaigns alone.
+    gate : callable, optional
+        Asked about each passing candidate, best first; one it gives a reason for is a
+        suspect (not named, not tried again) and the next passing one is asked.
 
     Returns
     -------
@@ -825,71 +814,22 @@ def split_for_search(campaigns: Sequence, settings: SearchSettings) -> tuple[lis
     return searched, held
 
 
-@dataclass(frozen=True)
-class FollowUpGate:
-    """The search's rules after an earlier run ``follow`` (:mod:`pipeline.discrepancy.followup`).
+def follow_up_gate(follow: FollowUp | None, ids: Sequence[str], settings: SearchSettings) -> Gate:
+    """Return the gate of :func:`forward_search` after an earlier run ``follow``.
 
-    Attributes
-    ----------
-    follow : FollowUp
-    ids : tuple of str
-        The campaigns of this run.
-    settings : SearchSettings
+    It measures each passing effect's held-out Z and temperature reductions on the campaigns
+    ``follow`` had not seen and asks :func:`pipeline.discrepancy.followup.suspect_reason`.
     """
+    new = [c for c in ids if follow is None or c not in follow.campaigns]
 
-    follow: FollowUp
-    ids: tuple[str, ...]
-    settings: SearchSettings
-
-    @property
-    def new(self) -> list[str]:
-        """The campaigns the earlier run had not seen: the proposed test's."""
-        return [c for c in self.ids if c not in self.follow.campaigns]
-
-    @property
-    def thresholds(self) -> tuple[float, float]:
-        """``min_heldout_reduction`` and ``min_heldout_t_reduction``."""
-        return self.settings.min_heldout_reduction, self.settings.min_heldout_t_reduction
-
-    def reductions(self, current: ModelEvidence, augmented: ModelEvidence) -> tuple[float, float]:
-        """Fall of the held-out Z and temperature residuals on the new campaigns alone."""
-        return (
-            reduction_on(self.new, current.heldout.z_residual_um, augmented.heldout.z_residual_um),
-            reduction_on(self.new, current.heldout.t_residual_k, augmented.heldout.t_residual_k),
-        )
-
-    def reason(self, effect: str, current: ModelEvidence, augmented: ModelEvidence) -> str | None:
-        """Why a passing ``effect`` stays a suspect (:func:`suspect_reason`), or None."""
-        z, t = self.reductions(current, augmented)
+    def gate(effect: str, current: ModelEvidence, augmented: ModelEvidence) -> str | None:
+        z = reduction_on(new, current.heldout.z_residual_um, augmented.heldout.z_residual_um)
+        t = reduction_on(new, current.heldout.t_residual_k, augmented.heldout.t_residual_k)
+        thresholds = (settings.min_heldout_reduction, settings.min_heldout_t_reduction)
         only_readings = effect in SENSOR_ONLY_EFFECTS
-        return suspect_reason(effect, self.follow, self.ids, z, t, self.thresholds, only_readings)
+        return suspect_reason(effect, follow, ids, z, t, thresholds, only_readings)
 
-    def passes_on_test(
-        self, candidate: Candidate, current: ModelEvidence, augmented: ModelEvidence
-    ) -> bool:
-        """Whether a target of the earlier run passes on its test's campaigns alone.
-
-        The test was chosen to show this effect, and the campaigns the earlier run had already
-        seen could not: pooled with them, its held-out reduction is diluted by campaigns where
-        the effect has nothing to show. It passes when, on the new campaigns alone, its
-        held-out Z (or temperature) residual falls by the search's thresholds, and the BIC
-        over all the campaigns falls by at least ``max_delta_bic``.
-        """
-        if candidate.effect not in self.follow.targets or not self.new:
-            return False
-        if not (
-            np.isfinite(candidate.delta_bic) and candidate.delta_bic <= self.settings.max_delta_bic
-        ):
-            return False
-        z, t = self.reductions(current, augmented)
-        return meets_thresholds(z, t, self.thresholds, candidate.effect in SENSOR_ONLY_EFFECTS)
-
-
-def follow_up_gate(
-    follow: FollowUp | None, ids: Sequence[str], settings: SearchSettings
-) -> FollowUpGate | None:
-    """Return the gate of :func:`forward_search` after an earlier run ``follow`` (None: none)."""
-    return None if follow is None else FollowUpGate(follow, tuple(ids), settings)
+    return gate
 
 
 def search_twin(
@@ -908,9 +848,8 @@ def search_twin(
     searched, held = split_for_search(campaigns, settings)
     ids = [c.campaign_id for c in searched]
     untestable = untestable_effects(settings.candidates, roles)
-    result = forward_search(
-        evaluator, ids, settings, untestable, follow_up_gate(follow, ids, settings)
-    )
+    gate = follow_up_gate(follow, ids, settings) if follow is not None else None
+    result = forward_search(evaluator, ids, settings, untestable, gate)
     if held:
         held_ids = tuple(c.campaign_id for c in held)
         # the full calibrations of the search are already fitted on every searched campaign
