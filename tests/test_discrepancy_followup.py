@@ -223,6 +223,35 @@ def test_an_effect_whose_calibration_is_not_its_physics_is_a_suspect():
     assert implausible_reason("motor_heat", {"q_motor_W_per_krpm": (50.0, "W/krpm")}) is None
 
 
+class FrontHeavyColumn(LocalMisfit):
+    """``thermal_bending`` fits a misfit on every campaign with ``bending`` um/K beside a column
+    coefficient of 7 um/K."""
+
+    def __init__(self, bending: float):
+        super().__init__({"thermal_bending": set(IDS)})
+        self.bending = bending
+
+    def __call__(self, effects, train, test, start=None):
+        fit = super().__call__(effects, train, test, start)
+        fit.params["alpha_column_um_per_K"] = (7.0, "um/K")
+        if "thermal_bending" in effects:
+            fit.params["bending_um_per_K"] = (self.bending, "um/K")
+        return fit
+
+
+@pytest.mark.parametrize("bending", [2.1, -5.0])
+def test_a_front_rear_law_a_lopsided_column_expansion_gives_is_not_bending(bending):
+    """Up to half the column's coefficient, unequal weights of its faces explain the law."""
+    result = forward_search(FrontHeavyColumn(bending), IDS, SETTINGS)
+    assert result.named_effects == []
+    reason = result.suspects["thermal_bending"]
+    assert "is not above 0.5 x alpha_column_um_per_K = 3.5" in reason
+
+
+def test_a_front_rear_law_beyond_any_weighting_of_the_faces_is_bending():
+    assert forward_search(FrontHeavyColumn(6.0), IDS, SETTINGS).named_effects == ["thermal_bending"]
+
+
 def _trial_doc(campaigns, named, suspects=()):
     """A rerun's ``discrepancy.json``: bending not identifiable with a visible heater test."""
     proposed = {

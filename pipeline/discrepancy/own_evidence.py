@@ -19,6 +19,7 @@ from typing import Any
 import numpy as np
 
 from pipeline.discrepancy.followup import meets_thresholds, reduction_on, signed_percent
+from pipeline.discrepancy.model import EFFECT_SPECS
 from pipeline.fit_statistics import root_mean_square
 
 PHYSICAL_RANGES = {
@@ -36,6 +37,26 @@ calibration move freely): parameter -> (lowest, highest, why). The exponent of
 spindle cooling grows with speed it settled at 0.87 and was named, fitting a flatter heat-speed
 law that no bearing friction gives. From 1.15 the law is steeper than linear by more than the
 load term alone explains."""
+
+RELATIVE_FLOORS = {
+    "bending_um_per_K": (
+        "alpha_column_um_per_K",
+        0.5,
+        "a column whose expansion weighs its faces unequally (the head carried on guideways on "
+        "its front face) lifts the head by alpha H (w dT_front + (1 - w) dT_rear) with w in "
+        "[0, 1]: beyond the baseline's law on the mean rise, a front-minus-rear law of (w - 1/2) "
+        "alpha H, at most half the column's coefficient. Bending (the front warmer, the column "
+        "tilts back and the nose, overhanging by d, rises by alpha H d / W on a column W deep) "
+        "is told from that only above it",
+    ),
+}
+"""Calibrated values an effect must exceed, as a share of a baseline parameter, before the fit
+is its physics rather than a baseline law with another weighting: parameter -> (baseline
+parameter, share, why). On an independent machine model whose column lifts the head by 0.8 of
+its front face's growth and 0.2 of its rear's, ``thermal_bending`` was named on a clean machine
+(two seeds of five): that machine's own front-minus-rear law is 0.3 of its column's
+coefficient, and 0.73-1.2 with bending (overhang 300-450 mm on a 500-700 mm deep column); the
+twin's bending is 0.75-1.1 of it."""
 
 Residuals = Mapping[str, Any]
 """Campaign -> held-out residual: Z (um, array) or temperatures (K, DataFrame)."""
@@ -126,13 +147,23 @@ def implausible_reason(effect: str, params: Mapping[str, tuple[float, str]]) -> 
     params : mapping of str to (float, str)
         The augmented model's calibrated parameters (name -> (value, unit)).
     """
+    own = {spec.name for spec in EFFECT_SPECS[effect].params}
     for name, (low, high, why) in PHYSICAL_RANGES.items():
-        if name not in params:
+        if name not in own or name not in params:
             continue
         value = float(params[name][0])
         if not low <= value <= high:
             return (
                 f"its calibrated {name} = {value:.3g} lies outside {low:g}-{high:g}, what "
                 f"{effect} can be: {why}"
+            )
+    for name, (reference, share, why) in RELATIVE_FLOORS.items():
+        if name not in own or reference not in params:
+            continue
+        value, floor = float(params[name][0]), share * float(params[reference][0])
+        if value <= floor:
+            return (
+                f"its calibrated {name} = {value:.3g} is not above {share:g} x {reference} = "
+                f"{floor:.3g}: {why}"
             )
     return None
