@@ -338,15 +338,18 @@ def test_the_hidden_effects_are_named_and_the_gap_halves(tmp_path, hidden):
 @pytest.mark.slow
 @pytest.mark.trials
 @pytest.mark.parametrize("hidden", list(map(frozenset, CASES)), ids=case_name)
-def test_on_the_independent_machine_nothing_absent_is_named(tmp_path, hidden):
-    """Seed 1 on :mod:`benchmarks.independent_machine` (4 campaigns, 2 folds): whatever is
-    named, by the first run or after the proposed tests run on the same machine, was hidden.
+@pytest.mark.parametrize("seed", [1, 3])
+def test_on_the_independent_machine_nothing_absent_is_named(tmp_path, hidden, seed):
+    """Seeds 1 and 3 on :mod:`benchmarks.independent_machine` (4 campaigns, 2 folds): whatever
+    is named, by the first run or after the proposed tests run on the same machine, was hidden.
 
     The machine has its own discretisation and its own form for each effect, so how much of a
     hidden effect the twin can name varies (``make trials`` reports it); a name it was not
-    given is a false name, whatever its evidence."""
+    given is a false name, whatever its evidence. The machine's column lifts the head by 0.8 of
+    its front face's growth and 0.2 of its rear's, which named ``thermal_bending`` on seed 3's
+    clean machine before bending had to exceed what unequal weights of the faces give."""
     section = SECTION.model_copy(update={"n_folds": 2})
-    result = run_trial(hidden, 1, section, tmp_path, n_campaigns=4, generator="independent")
+    result = run_trial(hidden, seed, section, tmp_path, n_campaigns=4, generator="independent")
     assert set(result.named) <= set(hidden), result.row()
     for follow in result.follow_ups:
         assert set(follow.named) <= set(hidden), result.row()

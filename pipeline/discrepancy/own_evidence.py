@@ -30,13 +30,22 @@ PHYSICAL_RANGES = {
         "a viscous term ~ n^(5/3)), so a law flatter than linear is something else that varies "
         "with speed, such as the cooling of the spindle or a drive loss",
     ),
+    "bending_um_per_K": (
+        0.0,
+        50.0,
+        "a column whose front face is warmer than its rear tilts back, and the nose, which "
+        "overhangs in front of it, rises: a law of the other sign is something else that "
+        "follows the column's front-minus-rear difference",
+    ),
 }
 """Calibrated values an effect's mechanism allows, where its bounds are wider (they let the
 calibration move freely): parameter -> (lowest, highest, why). The exponent of
 ``nonlinear_bearing_heat`` is bounded to [0.5, 3] for the calibration; on a machine whose
 spindle cooling grows with speed it settled at 0.87 and was named, fitting a flatter heat-speed
 law that no bearing friction gives. From 1.15 the law is steeper than linear by more than the
-load term alone explains."""
+load term alone explains. ``bending_um_per_K`` is bounded to [-50, 50] um/K; on an independent
+machine model ``thermal_bending`` was named with a clean column (seeds 3 and 4 of five, beside
+other effects too) at -6 to -40 um/K."""
 
 RELATIVE_FLOORS = {
     "bending_um_per_K": (
@@ -52,11 +61,10 @@ RELATIVE_FLOORS = {
 }
 """Calibrated values an effect must exceed, as a share of a baseline parameter, before the fit
 is its physics rather than a baseline law with another weighting: parameter -> (baseline
-parameter, share, why). On an independent machine model whose column lifts the head by 0.8 of
-its front face's growth and 0.2 of its rear's, ``thermal_bending`` was named on a clean machine
-(two seeds of five): that machine's own front-minus-rear law is 0.3 of its column's
-coefficient, and 0.73-1.2 with bending (overhang 300-450 mm on a 500-700 mm deep column); the
-twin's bending is 0.75-1.1 of it."""
+parameter, share, why). The independent machine model's column lifts the head by 0.8 of its
+front face's growth and 0.2 of its rear's: its own front-minus-rear law is 0.3 of its column's
+coefficient without bending and 0.73-1.2 with it (overhang 300-450 mm on a 500-700 mm deep
+column); the twin's bending is 0.75-1.1 of it."""
 
 Residuals = Mapping[str, Any]
 """Campaign -> held-out residual: Z (um, array) or temperatures (K, DataFrame)."""
