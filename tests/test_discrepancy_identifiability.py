@@ -37,6 +37,7 @@ from pipeline.discrepancy.identifiability import (
     assess_effects,
     classify,
     identifiability,
+    visibility_gate,
 )
 from pipeline.discrepancy.model import EFFECT_SPECS, EFFECTS
 from pipeline.discrepancy.report_text import markdown
@@ -345,6 +346,29 @@ def test_the_search_s_baseline_and_outcome_give_every_candidate_its_class(speed_
     alone = assess_effects(point, ["nonlinear_bearing_heat"], [], {}, SETTINGS)
     ours = classes["nonlinear_bearing_heat"].figures
     assert ours == alone["nonlinear_bearing_heat"].figures
+
+
+def _baseline_evidence(case) -> ModelEvidence:
+    """The baseline's evidence as the search holds it: held out on every campaign of ``case``."""
+    campaigns, _, fit, _ = case
+    full = FitResult(fit.bic, fit.aicc, dict(fit.params), {})
+    heldout = FitResult(fit.bic, fit.aicc, {}, {c.campaign_id: np.zeros(3) for c in campaigns})
+    return ModelEvidence(frozenset(), full, heldout)
+
+
+def test_the_search_does_not_name_an_effect_its_campaigns_cannot_show(constant_speed, speed_steps):
+    """At one speed a bearing law passing the search fitted something else; with speed steps
+    the same law may be named. A lag is named on its readings and not asked."""
+    flat = _baseline_evidence(constant_speed)
+    reason = visibility_gate(constant_speed[0], SETTINGS)(
+        "nonlinear_bearing_heat", flat, flat, flat
+    )
+    assert reason is not None and "these campaigns cannot show it" in reason
+    assert "0.00 noise sigmas" in reason
+    assert visibility_gate(constant_speed[0], SETTINGS)("sensor_lag", flat, flat, flat) is None
+    stepped = _baseline_evidence(speed_steps)
+    gate = visibility_gate(speed_steps[0], SETTINGS)
+    assert gate("nonlinear_bearing_heat", stepped, stepped, stepped) is None
 
 
 # ------------------------------------------------------------------ the report's words

@@ -593,8 +593,18 @@ def _log_round(step: int, ranked: Sequence[Candidate]) -> None:
         )
 
 
-Gate = Callable[[str, ModelEvidence, ModelEvidence], str | None]
-"""``(effect, current, augmented) -> reason``: why a passing effect stays a suspect, or None."""
+Gate = Callable[[str, ModelEvidence, ModelEvidence, ModelEvidence], str | None]
+"""``(effect, baseline, current, augmented) -> reason``: why a passing effect stays a suspect,
+or None."""
+
+
+def first_reason(*gates: Gate) -> Gate:
+    """Return the gate that gives the first reason of ``gates``, asked in order."""
+
+    def gate(effect: str, *models: ModelEvidence) -> str | None:
+        return next((r for g in gates if (r := g(effect, *models)) is not None), None)
+
+    return gate
 
 
 def _residuals(evidence: ModelEvidence) -> tuple[dict, dict]:
@@ -632,7 +642,7 @@ def _admitted(
             candidate.effect in SENSOR_ONLY_EFFECTS,
         )
         if reason is None and gate is not None:
-            reason = gate(candidate.effect, current, augmented)
+            reason = gate(candidate.effect, baseline, current, augmented)
         if reason is None:
             return candidate
         suspects[candidate.effect] = reason
@@ -822,7 +832,9 @@ def follow_up_gate(follow: FollowUp | None, ids: Sequence[str], settings: Search
     """
     new = [c for c in ids if follow is None or c not in follow.campaigns]
 
-    def gate(effect: str, current: ModelEvidence, augmented: ModelEvidence) -> str | None:
+    def gate(
+        effect: str, baseline: ModelEvidence, current: ModelEvidence, augmented: ModelEvidence
+    ) -> str | None:
         z = reduction_on(new, current.heldout.z_residual_um, augmented.heldout.z_residual_um)
         t = reduction_on(new, current.heldout.t_residual_k, augmented.heldout.t_residual_k)
         thresholds = (settings.min_heldout_reduction, settings.min_heldout_t_reduction)
@@ -833,23 +845,28 @@ def follow_up_gate(follow: FollowUp | None, ids: Sequence[str], settings: Search
 
 
 def search_twin(
-    campaigns: Sequence, settings: SearchSettings, follow: FollowUp | None = None
+    campaigns: Sequence,
+    settings: SearchSettings,
+    follow: FollowUp | None = None,
+    gate: Gate | None = None,
 ) -> SearchResult:
     """Run :func:`forward_search` on measured campaigns with the calibrated twin.
 
     The search uses the campaigns :func:`split_for_search` keeps; the baseline and the
     augmented twin, calibrated on all of those, then predict the validation campaigns
-    (:attr:`SearchResult.validation`), which no step of the search has seen. After an earlier
-    run (``follow``), a newly named effect must owe its evidence to the new campaigns
-    (:func:`follow_up_gate`).
+    (:attr:`SearchResult.validation`), which no step of the search has seen. ``gate`` is asked
+    about every passing effect; after an earlier run (``follow``), a newly named effect must
+    also owe its evidence to the new campaigns (:func:`follow_up_gate`).
     """
     roles = campaign_roles(campaigns)
     evaluator = TwinEvaluator(campaigns, roles)
     searched, held = split_for_search(campaigns, settings)
     ids = [c.campaign_id for c in searched]
     untestable = untestable_effects(settings.candidates, roles)
-    gate = follow_up_gate(follow, ids, settings) if follow is not None else None
-    result = forward_search(evaluator, ids, settings, untestable, gate)
+    later = follow_up_gate(follow, ids, settings) if follow is not None else None
+    gates = [g for g in (gate, later) if g is not None]
+    combined = first_reason(*gates) if gates else None
+    result = forward_search(evaluator, ids, settings, untestable, combined)
     if held:
         held_ids = tuple(c.campaign_id for c in held)
         # the full calibrations of the search are already fitted on every searched campaign

@@ -26,6 +26,7 @@ from pipeline.discrepancy.identifiability import (
     IdentifiabilitySettings,
     identifiability,
     searched_point,
+    visibility_gate,
 )
 from pipeline.discrepancy.localise import localise
 from pipeline.discrepancy.model import ROLE_NODES
@@ -177,7 +178,7 @@ def run(
     settings = SearchSettings.from_settings(section)
     loc_settings = section.localise
     ident_settings = IdentifiabilitySettings.from_settings(section.identifiability)
-    result = search_twin(campaigns, settings, follow)
+    result = search_twin(campaigns, settings, follow, visibility_gate(campaigns, ident_settings))
     point = searched_point(campaigns, result, ident_settings)
     classes = identifiability(campaigns, result, settings.candidates, ident_settings, point)
     floor = held_out_floor(result, point.campaigns, settings)
