@@ -13,7 +13,8 @@ install: $(STAMP)
 # uv installs the lock (pinned below; it fetches and unpacks the wheels in parallel, a fifth of
 # pip's time here); where it cannot (an index only pip is configured for), pip does. The
 # packages' bytecode is compiled by compileall on every core (pip compiles one file at a time),
-# their own test suites left out (a fifth of the files, never imported), the repository's own
+# their own test suites left out (a fifth of the files, never imported) and so are sympy and
+# cfn-lint (moto's CloudFormation checks, the only importer of sympy), the repository's own
 # code too (an editable install is not compiled): every stage is a new process, and where
 # PYTHONDONTWRITEBYTECODE is set each would compile the package again.
 OWN_CODE := pipeline schemas tests benchmarks
@@ -27,7 +28,7 @@ $(STAMP): requirements.lock pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(PIP) "pip==26.3" "uv==0.13.9"
 	$(UV) -r requirements.lock || { $(FALLBACK) $(PIP) --no-compile -r requirements.lock; }
-	$(BIN)/python -m compileall -q -j 0 -x 'site-packages/.*/tests/' $(VENV)/lib
+	$(BIN)/python -m compileall -q -j 0 -x 'site-packages/(.*/tests/|sympy/|cfnlint/)' $(VENV)/lib
 	$(UV) --no-deps -e . || { $(FALLBACK) $(PIP) --no-deps -e .; }
 	$(COMPILE_OWN)
 	touch $(STAMP)
