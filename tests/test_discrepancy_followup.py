@@ -198,63 +198,64 @@ def test_the_weak_campaigns_are_where_the_named_effects_lowered_the_residual_lea
     assert weak == ["K05", "K06", "K07", "K08"]
 
 
-class FlatterLaw(LocalMisfit):
-    """``nonlinear_bearing_heat`` fits a misfit on every campaign with a calibrated exponent
-    of ``exponent``."""
+class CalibratedAs(LocalMisfit):
+    """``effect`` fits a misfit on every campaign; its calibration gives ``values`` (name ->
+    (value, unit)) and the baseline's always gives ``baseline``."""
 
-    def __init__(self, exponent: float):
-        super().__init__({"nonlinear_bearing_heat": set(IDS)})
-        self.exponent = exponent
+    def __init__(self, effect: str, values: dict, baseline: dict | None = None):
+        super().__init__({effect: set(IDS)})
+        self.effect, self.values, self.baseline = effect, values, dict(baseline or {})
 
     def __call__(self, effects, train, test, start=None):
         fit = super().__call__(effects, train, test, start)
-        if "nonlinear_bearing_heat" in effects:
-            fit.params["bearing_exponent"] = (self.exponent, "1")
+        fit.params.update(self.baseline)
+        if self.effect in effects:
+            fit.params.update(self.values)
         return fit
+
+
+def flatter_law(exponent: float) -> CalibratedAs:
+    """``nonlinear_bearing_heat`` calibrated with the exponent ``exponent``."""
+    return CalibratedAs("nonlinear_bearing_heat", {"bearing_exponent": (exponent, "1")})
 
 
 def test_an_effect_whose_calibration_is_not_its_physics_is_a_suspect():
     """A bearing law flatter than linear is the cooling or a drive loss, not bearing friction."""
-    flat = forward_search(FlatterLaw(0.87), IDS, SETTINGS)
+    flat = forward_search(flatter_law(0.87), IDS, SETTINGS)
     assert flat.named_effects == []
     assert "bearing_exponent = 0.87 lies outside 1.15-3" in flat.suspects["nonlinear_bearing_heat"]
-    steep = forward_search(FlatterLaw(1.6), IDS, SETTINGS)
+    steep = forward_search(flatter_law(1.6), IDS, SETTINGS)
     assert steep.named_effects == ["nonlinear_bearing_heat"]
     assert implausible_reason("motor_heat", {"q_motor_W_per_krpm": (50.0, "W/krpm")}) is None
 
 
-class FrontHeavyColumn(LocalMisfit):
-    """``thermal_bending`` fits a misfit on every campaign with ``bending`` um/K beside a column
-    coefficient of 7 um/K."""
-
-    def __init__(self, bending: float):
-        super().__init__({"thermal_bending": set(IDS)})
-        self.bending = bending
-
-    def __call__(self, effects, train, test, start=None):
-        fit = super().__call__(effects, train, test, start)
-        fit.params["alpha_column_um_per_K"] = (7.0, "um/K")
-        if "thermal_bending" in effects:
-            fit.params["bending_um_per_K"] = (self.bending, "um/K")
-        return fit
+def front_heavy_column(bending: float) -> CalibratedAs:
+    """``thermal_bending`` calibrated at ``bending`` um/K beside a column coefficient of 7 um/K."""
+    return CalibratedAs(
+        "thermal_bending",
+        {"bending_um_per_K": (bending, "um/K")},
+        {"alpha_column_um_per_K": (7.0, "um/K")},
+    )
 
 
 def test_a_front_rear_law_a_lopsided_column_expansion_gives_is_not_bending():
     """Up to half the column's coefficient, unequal weights of its faces explain the law."""
-    result = forward_search(FrontHeavyColumn(2.1), IDS, SETTINGS)
+    result = forward_search(front_heavy_column(2.1), IDS, SETTINGS)
     assert result.named_effects == []
     reason = result.suspects["thermal_bending"]
     assert "is not above 0.5 x alpha_column_um_per_K = 3.5" in reason
 
 
 def test_a_front_rear_law_of_the_other_sign_is_not_bending():
-    result = forward_search(FrontHeavyColumn(-5.0), IDS, SETTINGS)
+    result = forward_search(front_heavy_column(-5.0), IDS, SETTINGS)
     assert result.named_effects == []
     assert "bending_um_per_K = -5 lies outside 0-50" in result.suspects["thermal_bending"]
 
 
 def test_a_front_rear_law_beyond_any_weighting_of_the_faces_is_bending():
-    assert forward_search(FrontHeavyColumn(6.0), IDS, SETTINGS).named_effects == ["thermal_bending"]
+    assert forward_search(front_heavy_column(6.0), IDS, SETTINGS).named_effects == [
+        "thermal_bending"
+    ]
 
 
 def _trial_doc(campaigns, named, suspects=()):
