@@ -1,14 +1,14 @@
 """End-to-end: the real `dvc repro` on a copy of the repository (demo campaigns), real MLflow.
 
-The demo pipeline runs once, in full (on a third of the demo's spindle campaigns, :data:`DEMO_KEPT`),
-against a real ``mlflow server`` (:func:`demo`); the tests of the next campaigns, a new one and a
-malformed one, share one continuation of a copy of that finished run (:func:`next_run`), as a user's
-next ``dvc repro`` does, so that only the stages the change reaches run again. That continuation
-runs while no MLflow server answers at its tracking URI (the server is down): nothing may be lost
-(the stages' outputs stay, the message says how to log later, no traceback); then the server is up
-and the execution is logged once, by ``dvc repro`` (which reruns only ``track``) and by ``thermal
-track`` (which reuses the logged run); an incomplete attempt left by a connection lost mid-way is
-deleted, not duplicated.
+The demo pipeline runs once, in full (on a third of the demo's spindle campaigns,
+:data:`DEMO_KEPT`), against a real ``mlflow server`` (:func:`demo`); the tests of the next
+campaigns, a new one and a malformed one, share one continuation of a copy of that finished run
+(:func:`next_run`), as a user's next ``dvc repro`` does, so that only the stages the change reaches
+run again. That continuation runs while no MLflow server answers at its tracking URI (the server is
+down): nothing may be lost (the stages' outputs stay, the message says how to log later, no
+traceback); then the server is up and the execution is logged once, by ``dvc repro`` (which reruns
+only ``track``) and by ``thermal track`` (which reuses the logged run); an incomplete attempt left
+by a connection lost mid-way is deleted, not duplicated.
 """
 
 from __future__ import annotations

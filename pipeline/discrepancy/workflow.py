@@ -38,7 +38,14 @@ from pipeline.discrepancy.report import (
     write_outputs,
     write_untestable,
 )
-from pipeline.discrepancy.search import SearchResult, SearchSettings, campaign_roles, search_twin
+from pipeline.discrepancy.search import (
+    SearchResult,
+    SearchSettings,
+    campaign_roles,
+    first_reason,
+    search_twin,
+)
+from pipeline.discrepancy.speed_steps import speed_step_gate
 from pipeline.io.tables import ingest
 from pipeline.settings.discrepancy import DiscrepancySettings
 from pipeline.validation.checks import validate_tables
@@ -178,7 +185,11 @@ def run(
     settings = SearchSettings.from_settings(section)
     loc_settings = section.localise
     ident_settings = IdentifiabilitySettings.from_settings(section.identifiability)
-    result = search_twin(campaigns, settings, follow, visibility_gate(campaigns, ident_settings))
+    gate = first_reason(
+        visibility_gate(campaigns, ident_settings),
+        speed_step_gate(campaigns, settings.min_heldout_reduction),
+    )
+    result = search_twin(campaigns, settings, follow, gate)
     point = searched_point(campaigns, result, ident_settings)
     classes = identifiability(campaigns, result, settings.candidates, ident_settings, point)
     floor = held_out_floor(result, point.campaigns, settings)

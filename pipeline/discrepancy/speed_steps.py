@@ -1,0 +1,186 @@
+"""Structure check of an effect that moves the spindle nose at once with the speed.
+
+Centrifugal force expands the rotating shaft and changes the bearings' contact angle with the speed
+itself, not with a temperature: the nose moves within seconds of a speed change (the twin's
+``centrifugal_growth`` term goes with the speed squared, at once). Its signature of its own is
+therefore a step of the displacement at every speed change, where the thermal drift only turns. A
+calibration can also use the term as a proxy: with a sensor that lags, the baseline's thermal
+response comes too late, and a speed-squared term, which follows the program, fills part of the gap
+on the held-out campaigns, although the measurement does not step where the speed changes.
+
+:func:`step_jumps` measures, at every speed change of a campaign, the change of the held-out Z
+residual from the last sample before the change to the first sample ``settle_s`` after the
+first sample at the new speed (the time the growth needs to settle, with some slack; the sample
+during the change may catch it half-way; a residual is measured minus twin, so a step the twin
+lacks is a step of the residual), and the same jumps wherever the speed stays constant: how much
+the residual moves in that time anyway (noise, a thermal misfit). :func:`speed_step_gate` names
+the effect only when the residual of the model without it steps at the speed changes by more
+than it moves at a constant speed (:func:`steps_measured`) and the effect removes those steps:
+their RMS, pooled over the searched campaigns, falls by at least ``min_reduction`` with it.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Mapping, Sequence
+
+import numpy as np
+from scipy.stats import f as f_distribution
+
+from pipeline.discrepancy.data import MeasuredCampaign
+from pipeline.discrepancy.search import Gate, ModelEvidence
+from pipeline.fit_statistics import root_mean_square
+
+STEP_EFFECTS = ("centrifugal_growth",)
+"""Effects whose own signature is a displacement step at every speed change."""
+
+logger = logging.getLogger(__name__)
+
+SETTLE_S = 180.0
+"""Time after a speed change at which the step is read, s: the independent machine's growth
+settles with a lag of 20-60 s, three of them at most; the twin's at once."""
+
+STEP_SIGNIFICANCE = 0.01
+"""Chance that a residual without steps shows jumps at the speed changes as large as those asked
+of a measured step (the variance-ratio test of :func:`steps_measured`)."""
+
+
+def _jump_ends(t_s: np.ndarray, k: int, settle_s: float) -> int:
+    """Index of the sample a jump starting at sample ``k - 1`` is read at."""
+    return int(np.searchsorted(t_s, t_s[k] + settle_s))
+
+
+def step_jumps(
+    campaign: MeasuredCampaign, residual_um: np.ndarray, settle_s: float = SETTLE_S
+) -> tuple[np.ndarray, np.ndarray]:
+    """Return the change of a Z residual across each speed change, and at a constant speed, um.
+
+    Parameters
+    ----------
+    campaign : MeasuredCampaign
+        Its ``t_s`` and ``rpm`` (right-continuous: the speed changes between sample ``k - 1``
+        and sample ``k`` where they differ).
+    residual_um : ndarray of shape (n,), um
+        Measured minus twin Z at the campaign's samples (NaN where not measured).
+    settle_s : float
+        A jump from sample ``k - 1`` is read at the first sample at least this long after
+        sample ``k`` (past the sample during a change, which a lag or a logger's averaging may
+        catch half-way), s.
+
+    Returns
+    -------
+    at_changes : ndarray, um
+        One jump per speed change between samples ``k - 1`` and ``k``.
+    at_constant_speed : ndarray, um
+        The jumps over the same samples wherever the speed stays constant over them: how much
+        the residual moves in that time without a step.
+    Both keep only jumps with a finite residual at both ends.
+    """
+    t_s, residual = campaign.t_s, np.asarray(residual_um, dtype=float)
+    changed = np.diff(campaign.rpm) != 0.0
+    at_changes, at_constant_speed = [], []
+    for k in range(1, len(t_s)):
+        end = _jump_ends(t_s, k, settle_s)
+        if end >= len(t_s) or not (np.isfinite(residual[k - 1]) and np.isfinite(residual[end])):
+            continue
+        jump = residual[end] - residual[k - 1]
+        if changed[k - 1]:
+            at_changes.append(jump)
+        elif not changed[k - 1 : end].any():
+            at_constant_speed.append(jump)
+    return np.asarray(at_changes, dtype=float), np.asarray(at_constant_speed, dtype=float)
+
+
+def pooled_jumps(
+    campaigns: Mapping[str, MeasuredCampaign],
+    residuals_um: Mapping[str, np.ndarray],
+    settle_s: float = SETTLE_S,
+) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`step_jumps` of every residual given, pooled (at the changes, at constant speed)."""
+    parts = [step_jumps(campaigns[cid], r, settle_s) for cid, r in residuals_um.items()]
+    return tuple(np.concatenate([p[i] for p in parts]) if parts else np.zeros(0) for i in range(2))
+
+
+def steps_measured(at_changes: np.ndarray, at_constant_speed: np.ndarray) -> float:
+    """P-value of the residual's jumps at the speed changes against those at a constant speed.
+
+    A one-sided variance-ratio (F) test of the jumps' mean squares, with as many degrees of
+    freedom as jumps: small when the residual steps at the changes by more than it moves in the
+    same time at a constant speed. The jumps at a constant speed overlap and are not quite
+    independent, which the test takes them to be: it is a yardstick, not an exact probability.
+    """
+    if len(at_changes) == 0 or len(at_constant_speed) == 0:
+        return float("nan")
+    ratio = np.mean(at_changes**2) / max(np.mean(at_constant_speed**2), 1e-30)
+    return float(f_distribution.sf(ratio, len(at_changes), len(at_constant_speed)))
+
+
+def speed_step_gate(
+    campaigns: Sequence[MeasuredCampaign], min_reduction: float, settle_s: float = SETTLE_S
+) -> Gate:
+    """Return a gate of the forward search: a speed-step effect must remove measured steps.
+
+    An effect of :data:`STEP_EFFECTS` stays a suspect unless, on the held-out Z residuals of
+    the current model (the campaigns of the held-out residuals):
+
+    1. the residual steps at the speed changes: its jumps there are larger than at a constant
+       speed over the same time (:func:`steps_measured`, p below :data:`STEP_SIGNIFICANCE`);
+    2. the effect removes them: the RMS of the jumps at the changes falls by at least
+       ``min_reduction`` (a fraction) from the current model to the model with it.
+
+    Campaigns without a speed change cannot show the signature: the effect stays a suspect.
+
+    Parameters
+    ----------
+    campaigns : sequence of MeasuredCampaign
+        Every campaign given to the search.
+    min_reduction : float
+        Smallest relative fall of the jumps' RMS, the search's ``min_heldout_reduction``.
+    settle_s : float
+        See :func:`step_jumps`, s.
+    """
+    by_id = {c.campaign_id: c for c in campaigns}
+
+    def gate(
+        effect: str, baseline: ModelEvidence, current: ModelEvidence, augmented: ModelEvidence
+    ) -> str | None:
+        if effect not in STEP_EFFECTS:
+            return None
+        steps, still = pooled_jumps(by_id, current.heldout.z_residual_um, settle_s)
+        after, _ = pooled_jumps(by_id, augmented.heldout.z_residual_um, settle_s)
+        if len(steps) == 0:
+            return (
+                "the campaigns have no speed change, where its own signature (a step of the "
+                "displacement) would show; a test with speed steps can show it"
+            )
+        p_value = steps_measured(steps, still)
+        rms = root_mean_square(steps), root_mean_square(still), root_mean_square(after)
+        logger.info(
+            "%s: held-out Z jumps at %d speed changes %.2f um RMS (%.2f at a constant speed, "
+            "p = %.2g), %.2f with it",
+            effect,
+            len(steps),
+            rms[0],
+            rms[1],
+            p_value,
+            rms[2],
+        )
+        figures = (
+            f"the held-out residual's jumps at the {len(steps)} speed changes are "
+            f"{rms[0]:.2f} um RMS, against {rms[1]:.2f} um over the same time at a constant "
+            f"speed (p = {p_value:.2g})"
+        )
+        if not p_value < STEP_SIGNIFICANCE:
+            return (
+                f"the measurement does not step where the speed changes: {figures}, so the "
+                "held-out fall it brings follows the speed program without its signature: it "
+                "is likely a proxy for a thermal effect"
+            )
+        if rms[2] <= (1.0 - min_reduction) * rms[0]:
+            return None
+        return (
+            f"it does not remove the steps of the displacement: {figures}; with it "
+            f"{rms[2]:.2f} um (a fall of at least {100 * min_reduction:.0f} % is asked)"
+        )
+
+    return gate

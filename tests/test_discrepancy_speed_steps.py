@@ -1,0 +1,111 @@
+"""The structure check of a speed-step effect: it must remove steps the measurement has."""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+
+from pipeline.discrepancy.data import MeasuredCampaign
+from pipeline.discrepancy.search import FitResult, ModelEvidence
+from pipeline.discrepancy.speed_steps import (
+    pooled_jumps,
+    speed_step_gate,
+    step_jumps,
+    steps_measured,
+)
+
+MINUTE = 60.0
+
+
+def campaign(cid: str, rpm_levels=(0.0, 4000.0, 8000.0, 0.0)) -> MeasuredCampaign:
+    """A 4-h campaign sampled every minute, one hour at each of ``rpm_levels``."""
+    t = np.arange(0.0, 240.0) * MINUTE
+    rpm = np.repeat(np.asarray(rpm_levels, dtype=float), len(t) // len(rpm_levels))
+    return MeasuredCampaign(
+        campaign_id=cid,
+        t_s=t,
+        rpm=rpm,
+        temperatures=pd.DataFrame({"T1": np.full(len(t), 20.0)}),
+        roles={"T1": "ambient"},
+        z_um=np.zeros(len(t)),
+    )
+
+
+def evidence(residuals: dict[str, np.ndarray]) -> ModelEvidence:
+    fit = FitResult(np.nan, np.nan, {}, residuals)
+    return ModelEvidence(frozenset(), fit, fit)
+
+
+def thermal_drift(c: MeasuredCampaign) -> np.ndarray:
+    """A smooth misfit that only turns at the speed changes: no step, um."""
+    return 3.0 * np.sin(c.t_s / (90.0 * MINUTE))
+
+
+def speed_step(c: MeasuredCampaign, um_per_krpm2: float = 0.2) -> np.ndarray:
+    """What an instant speed-squared growth leaves in a residual, um."""
+    return um_per_krpm2 * (c.rpm / 1000.0) ** 2
+
+
+def test_jumps_are_read_across_every_speed_change_and_at_a_constant_speed():
+    c = campaign("K01")
+    at_changes, still = step_jumps(c, speed_step(c))
+    np.testing.assert_allclose(at_changes, [3.2, 9.6, -12.8])
+    # read 3 min after the first sample at the new speed, 4 samples apart: 236 jumps, of which
+    # 3 at the changes and 9 more that span one
+    assert len(still) == 224 and np.all(still == 0.0)
+    at_changes, still = step_jumps(c, thermal_drift(c))
+    assert np.all(np.abs(at_changes) < 0.2) and np.all(np.abs(still) < 0.2)
+    gap = speed_step(c)
+    gap[59] = np.nan  # the sample before the first change not measured: that change is skipped
+    np.testing.assert_allclose(step_jumps(c, gap)[0], [9.6, -12.8])
+
+
+def noisy(c: MeasuredCampaign, seed: int, sigma_um: float = 0.3) -> np.ndarray:
+    return np.random.default_rng(seed).normal(0.0, sigma_um, len(c.t_s))
+
+
+CAMPAIGNS = [campaign("K01"), campaign("K02", (0.0, 6000.0, 3000.0, 0.0))]
+
+
+def test_steps_are_measured_only_beyond_what_the_residual_does_at_a_constant_speed():
+    by_id = {c.campaign_id: c for c in CAMPAIGNS}
+    with_steps = {c.campaign_id: thermal_drift(c) + speed_step(c) + noisy(c, 1) for c in CAMPAIGNS}
+    without = {c.campaign_id: thermal_drift(c) + noisy(c, 1) for c in CAMPAIGNS}
+    assert steps_measured(*pooled_jumps(by_id, with_steps)) < 1e-6
+    assert steps_measured(*pooled_jumps(by_id, without)) > 0.05
+
+
+def test_a_term_that_removes_measured_steps_passes():
+    current = {c.campaign_id: thermal_drift(c) + speed_step(c) + noisy(c, 1) for c in CAMPAIGNS}
+    augmented = {c.campaign_id: thermal_drift(c) + noisy(c, 2) for c in CAMPAIGNS}
+    gate = speed_step_gate(CAMPAIGNS, min_reduction=0.2)
+    baseline = evidence(current)
+    assert gate("centrifugal_growth", baseline, baseline, evidence(augmented)) is None
+
+
+def test_a_proxy_where_the_measurement_does_not_step_stays_a_suspect():
+    # the term follows the program and takes up part of a slow misfit; no step was measured
+    current = {c.campaign_id: thermal_drift(c) + noisy(c, 1) for c in CAMPAIGNS}
+    augmented = {c.campaign_id: current[c.campaign_id] - 0.02 * speed_step(c) for c in CAMPAIGNS}
+    gate = speed_step_gate(CAMPAIGNS, min_reduction=0.2)
+    models = evidence(current), evidence(current), evidence(augmented)
+    reason = gate("centrifugal_growth", *models)
+    assert reason is not None and "does not step" in reason and "6 speed changes" in reason
+    assert gate("motor_heat", *models) is None  # only speed-step effects are asked
+
+
+def test_a_term_that_leaves_the_measured_steps_stays_a_suspect():
+    current = {c.campaign_id: thermal_drift(c) + speed_step(c) + noisy(c, 1) for c in CAMPAIGNS}
+    # half the steps, of the wrong sign: the jumps grow
+    augmented = {c.campaign_id: current[c.campaign_id] + 0.5 * speed_step(c) for c in CAMPAIGNS}
+    gate = speed_step_gate(CAMPAIGNS, min_reduction=0.2)
+    reason = gate("centrifugal_growth", *(evidence(current),) * 2, evidence(augmented))
+    assert reason is not None and "does not remove the steps" in reason
+
+
+def test_without_a_speed_change_the_signature_cannot_show():
+    steady = [campaign("K01", (5000.0,) * 4)]
+    residual = {"K01": thermal_drift(steady[0])}
+    gate = speed_step_gate(steady, min_reduction=0.2)
+    reason = gate("centrifugal_growth", *(evidence(residual),) * 3)
+    assert reason is not None and "no speed change" in reason
