@@ -10,7 +10,13 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from pipeline.discrepancy.followup import FollowUp, history_entry, reduction_on, suspect_reason
+from pipeline.discrepancy.followup import (
+    FollowUp,
+    history_entry,
+    no_longer_named,
+    reduction_on,
+    suspect_reason,
+)
 from pipeline.discrepancy.own_evidence import implausible_reason, weak_campaigns
 from pipeline.discrepancy.search import FitResult, SearchSettings, follow_up_gate, forward_search
 from pipeline.stages.discrepancy import read_follow_up, write_history
@@ -138,6 +144,26 @@ def test_the_report_lists_the_suspects_with_their_reason():
     lines = _suspect_lines([{"effect": "motor_heat", "reason": "newly named by P1_01"}])
     assert "**Suspects**" in lines[1] and "- `motor_heat`: newly named by P1_01." in lines
     assert _suspect_lines([]) == []
+
+
+def test_an_effect_named_before_that_no_longer_passes_is_reported_no_longer_named():
+    from pipeline.discrepancy.report_text import _no_longer_named_lines
+
+    earlier = follow(targets=("thermal_bending",), named=("motor_heat",))
+    result = search({"thermal_bending": set(NEW)}, earlier)
+    assert result.named_effects == ["thermal_bending"]  # motor_heat is tried again and fails
+    last = {
+        c.effect: (c.heldout_reduction, c.heldout_t_reduction) for r in result.rounds for c in r
+    }
+    dropped = no_longer_named(earlier, result.named_effects, result.suspects, last)
+    assert [d["effect"] for d in dropped] == ["motor_heat"]
+    assert "no longer passes the search's rule (held-out Z -0 %" in dropped[0]["reason"]
+    held = no_longer_named(earlier, [], {"motor_heat": "its steps are not measured"}, last)
+    assert "held back: its steps are not measured" in held[0]["reason"]
+    assert no_longer_named(None, [], {}, last) == []
+    assert no_longer_named(earlier, ["motor_heat"], {}, last) == []
+    lines = _no_longer_named_lines(dropped)
+    assert "**No longer named**" in lines[1] and lines[-1].startswith("- `motor_heat`: with the")
 
 
 class Remainder:

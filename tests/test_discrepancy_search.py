@@ -568,6 +568,7 @@ def test_mlflow_run_holds_the_metrics_and_figures(tmp_path, monkeypatch):
         },
     }
     doc["suspects"] = [{"effect": "thermal_bending", "reason": "newly named by P1_01"}]
+    doc["no_longer_named"] = [{"effect": "centrifugal_growth", "reason": "not on P1_01"}]
     uri = f"sqlite:///{(tmp_path / 'mlflow.db').as_posix()}"
     monkeypatch.setenv("MLFLOW_TRACKING_URI", uri)
     run_id = log_discrepancy_run(files, doc, TrackingSettings(), "discrepancy-test")
@@ -589,6 +590,7 @@ def test_mlflow_run_holds_the_metrics_and_figures(tmp_path, monkeypatch):
     assert "discrepancy/heldout_fit.png" in names and "discrepancy/discrepancy.md" in names
     assert run.data.tags["identifiability.motor_heat"] == "named"
     assert run.data.tags["suspects"] == "thermal_bending"
+    assert run.data.tags["no_longer_named"] == "centrifugal_growth"
     assert run.data.tags["identifiability.sensor_lag"] == "not_identifiable"
     assert run.data.metrics["signal_sigma.thermal_bending"] == pytest.approx(0.31)
     assert run.data.params["proposed_test.thermal_bending"] == "heater"

@@ -7,7 +7,9 @@ headstock heater meant for ``sensor_lag`` left a misfit the search gave to ``mot
 The earlier run's outcome (:class:`FollowUp`, from its ``discrepancy.json`` or the history
 file the stage keeps) gates the search (:func:`suspect_reason`):
 
-* an effect named in the earlier run keeps its name on all the campaigns;
+* an effect named in the earlier run is not asked this, but it must pass the search on all
+  the campaigns like any other; one that no longer does is reported as no longer named
+  (:func:`no_longer_named`), with its figures on them;
 * an effect newly named must owe its evidence to the **new campaigns**: on them alone, its
   held-out Z residual (or, for an effect that qualifies on the readings, the temperatures)
   must fall by the search's own threshold; otherwise it is a *suspect*: what made it pass
@@ -177,3 +179,47 @@ def suspect_reason(
 def signed_percent(x: float | None) -> str:
     """Return a fraction as a signed whole percentage (``-4 %``), or n/a."""
     return "n/a" if x is None or not np.isfinite(x) else f"{100 * x:+.0f} %"
+
+
+def no_longer_named(
+    follow: FollowUp | None,
+    named: Sequence[str],
+    suspects: Mapping[str, str],
+    last_evidence: Mapping[str, tuple[float, float]],
+) -> list[dict[str, str]]:
+    """Return the effects the earlier run named that this run does not name, with why.
+
+    Parameters
+    ----------
+    follow : FollowUp or None
+        The earlier run (None: nothing to compare with).
+    named : sequence of str
+        The effects this run names.
+    suspects : mapping of str to str
+        This run's suspects and their reasons.
+    last_evidence : mapping of str to (float, float)
+        Effect -> its held-out Z and temperature reductions (0..1) when it was last tried in
+        this run's search.
+
+    Returns
+    -------
+    list of dict
+        ``{"effect", "reason"}`` per effect, in name order.
+    """
+    if follow is None:
+        return []
+    out = []
+    for effect in sorted(follow.named - set(named)):
+        if effect in suspects:
+            why = f"it passes the search's rule but is held back: {suspects[effect]}"
+        elif effect in last_evidence:
+            z, t = last_evidence[effect]
+            why = (
+                "with the new campaigns it no longer passes the search's rule (held-out Z "
+                f"{signed_percent(-z)}, temperatures {signed_percent(-t)} when last tried): "
+                "what the earlier campaigns showed of it does not hold on all of them"
+            )
+        else:
+            why = "this run did not try it (its sensors are missing or it left the candidates)"
+        out.append({"effect": effect, "reason": why})
+    return out

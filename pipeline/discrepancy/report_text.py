@@ -225,6 +225,19 @@ def _suspect_lines(suspects: Sequence[Mapping[str, str]]) -> list[str]:
     ]
 
 
+def _no_longer_named_lines(dropped: Sequence[Mapping[str, str]]) -> list[str]:
+    """Return the effects the earlier run named that this run does not, with why."""
+    if not dropped:
+        return []
+    return [
+        "",
+        "**No longer named** (named by the earlier run, before the new campaigns; not in the "
+        "twin now):",
+        "",
+        *(f"- `{d['effect']}`: {d['reason']}." for d in dropped),
+    ]
+
+
 def _missing_lines(doc: Mapping[str, Any]) -> list[str]:
     """Return the named effects with their evidence, the overall and per-campaign RMS."""
     named = doc["named_effects"]
@@ -246,6 +259,7 @@ def _missing_lines(doc: Mapping[str, Any]) -> list[str]:
     return [
         *lines,
         *_suspect_lines(doc.get("suspects") or []),
+        *_no_longer_named_lines(doc.get("no_longer_named") or []),
         "",
         f"Overall held-out Z residual: **{_fmt(doc['rmse_um_before'])} um** with the baseline, "
         f"**{_fmt(doc['rmse_um_after'])} um** with {_twin_plus(named, 'no effect added')}; "

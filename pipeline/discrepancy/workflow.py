@@ -21,7 +21,7 @@ from pathlib import Path
 import pandas as pd
 
 from pipeline.discrepancy.data import MeasuredCampaign, campaigns_from_tables
-from pipeline.discrepancy.followup import FollowUp
+from pipeline.discrepancy.followup import FollowUp, no_longer_named
 from pipeline.discrepancy.identifiability import (
     IdentifiabilitySettings,
     identifiability,
@@ -213,6 +213,12 @@ def run(
         campaign_ids=[c.campaign_id for c in campaigns],
         quarantined=quarantined or [],
         identifiability=entries,
+    )
+    last_tried = {
+        c.effect: (c.heldout_reduction, c.heldout_t_reduction) for r in result.rounds for c in r
+    }
+    doc["no_longer_named"] = no_longer_named(
+        follow, result.named_effects, result.suspects, last_tried
     )
     files = write_outputs(out_dir, doc, campaigns, result, before)
     logger.info(

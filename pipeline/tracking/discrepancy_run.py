@@ -27,13 +27,15 @@ logger = logging.getLogger(__name__)
 
 
 def _run_tags(doc: Mapping[str, Any]) -> dict[str, str]:
-    """Return the MLflow run's tags: stage, status, synthetic, named effects, why untestable."""
+    """Return the MLflow run's tags: stage, status, synthetic, effects' fates, why untestable."""
     tags = {
         "stage": "discrepancy",
         "status": str(doc.get("status", STATUS_TESTED)),
         "synthetic": str(bool(doc["synthetic"])).lower(),
         "named_effects": ",".join(doc["named_effects"]) or "none",
         "suspects": ",".join(s["effect"] for s in doc.get("suspects") or []) or "none",
+        "no_longer_named": ",".join(d["effect"] for d in doc.get("no_longer_named") or [])
+        or "none",
     }
     if doc.get("status") == STATUS_UNTESTABLE:
         tags["mlflow.note.content"] = f"Untestable: {doc['reason']}"
