@@ -203,6 +203,39 @@ def test_a_heater_on_the_column_rear_separates_bending_from_the_column_s_growth(
     assert all(e["role"] in SENSOR_ROLES and e["power_W"] > 0 for e in entry["heat_loads"])
 
 
+def test_the_air_s_daily_cycle_is_what_shows_ambient_variation(flat):
+    """The air barely moves in a test of a few hours and the plans are simulated at a constant
+    air, so no spindle program or heater shows ``ambient_variation``; its grid adds warm-up
+    runs logged through half and all of a day, simulated with the air swinging by the largest
+    range one campaign recorded. The same plan at a constant air shows nothing."""
+    point = flat[0]
+    campaigns = point.campaigns
+    swing = tp.air_swing_k(campaigns)
+    ambient = [s for c in campaigns for s in c.sensors_with_role("ambient")]
+    assert ambient and swing >= 0.0
+    wider = [replace(campaigns[0], temperatures=campaigns[0].temperatures.copy())]
+    wider[0].temperatures[ambient[0]] += np.linspace(0.0, 1.5, len(wider[0].t_s))
+    assert tp.air_swing_k(wider) == pytest.approx(1.5 * 0.98, abs=0.05)  # 1st-99th percentile
+    daily = [
+        p for p in tp.candidate_plans(wider, "ambient_variation", point.roles) if p.air_swing_k
+    ]
+    assert [p.duration_h for p in daily] == list(tp.AIR_CYCLE_DURATIONS_H)
+    assert all(p.air_swing_k == tp.air_swing_k(wider) for p in daily)
+    for effect in ("thermal_bending", "motor_heat", "sensor_lag"):
+        assert not any(p.air_swing_k for p in tp.candidate_plans(wider, effect, point.roles))
+    t = np.array([0.0, 6.0, 12.0, 24.0]) * 3600.0
+    np.testing.assert_allclose(tp.daily_air(t, 20.0, 2.0), [20.0, 21.0, 22.0, 20.0], atol=1e-12)
+    day = replace(daily[-1], air_swing_k=2.0)
+    with_cycle = _plan_signal(point, day, "ambient_variation")
+    still_air = _plan_signal(point, replace(day, air_swing_k=0.0), "ambient_variation")
+    assert with_cycle > SETTINGS.min_signal_sigma > 20 * still_air, (with_cycle, still_air)
+    entry = day.to_dict(with_cycle)
+    assert entry["air_swing_k"] == 2.0 and entry["duration_h"] == tp.DAY_H
+    proposed = tp.ProposedTest("ambient_variation", day, _figures(with_cycle), None, 0.1, 1.5, 22)
+    text = tp.plan_text(proposed)
+    assert "2.0 K over the day" in text and "cool of the morning" in text
+
+
 # ------------------------------------------------------------------ cost ordering
 
 

@@ -18,7 +18,13 @@ under which the effect would be identifiable (:func:`propose_tests`):
    spindle does not drive separates what the spindle's heat ties together (a sensor's delay
    and its node's heat capacity); two loads whose ratio changes separate what one load ties
    together (the column's front-to-rear difference, which bends it, and its mean rise, which
-   the baseline's expansion follows). A plan records what it is meant to separate.
+   the baseline's expansion follows). A plan records what it is meant to separate. For an
+   effect driven by the workshop air (:data:`AIR_CYCLE_EFFECTS`), no spindle program helps:
+   the air of a test of a few hours barely moves, and the plans are simulated at a constant
+   air. Its plans log a warm-up run and then the machine at rest through half or all of a
+   day (:func:`daily_air_plans`), simulated with the air following a daily cycle of the
+   largest range one campaign recorded (:func:`air_swing_k`; a day spans at least what a few
+   hours did, so the signal is not overstated).
 2. **The simulated test.** Each plan is one campaign simulated noise-free by the planning
    twin (:func:`~pipeline.discrepancy.plan_twin.plan_twin`: the baseline refitted with its
    priors, so that what the campaigns leave loose sits at typical values; a node the added
@@ -155,6 +161,18 @@ PULSE_MIN = 15.0
 while the part stays in the envelope; the smallest such pulse on a part the campaigns never
 heated is the calibration step of :func:`propose_test`."""
 
+AIR_CYCLE_EFFECTS = frozenset({"ambient_variation"})
+"""Effects whose signal is the air's own variation: their plans span the daily cycle."""
+
+AIR_CYCLE_DURATIONS_H = (12.0, 24.0)
+"""Durations of the plans that log the daily cycle of the air, h: its rise, and all of it."""
+
+AIR_CYCLE_WARMUP_MIN = 120.0
+"""Spindle run at the top speed at the start of those plans, min (the machine at rest after)."""
+
+DAY_H = 24.0
+"""Period of the workshop air's cycle, h."""
+
 MAX_PLANS = 150
 """Most plans tried per effect (the full grid has at most 22 programs, 11 with an added sensor,
 35 heater plans per heated role and 12 plans loading two parts)."""
@@ -187,6 +205,9 @@ class TestPlan:
     separates : str
         What the plan is meant to tell the effect apart from (:data:`SEPARATES`), "" for a
         plan that only makes the effect larger.
+    air_swing_k : float
+        Peak-to-peak range of the daily air cycle the plan is simulated with, K
+        (:func:`daily_air`); 0: the air constant.
     """
 
     __test__ = False  # not a pytest class
@@ -199,6 +220,7 @@ class TestPlan:
     own_interval: bool = True
     heat_loads: tuple[HeatLoad, ...] = ()
     separates: str = ""
+    air_swing_k: float = 0.0
 
     @property
     def cost(self) -> float:
@@ -224,6 +246,7 @@ class TestPlan:
             "cost_h": float(self.cost),
             "name": self.name,
             "separates": self.separates,
+            "air_swing_k": float(f"{self.air_swing_k:.3g}"),
             "expected_signal_sigma": float(f"{signal_sigma:.4g}"),
         }
 
@@ -379,6 +402,55 @@ def paired_heater_plans(effect: str, roles: Sequence[str], interval_s: float) ->
     return plans
 
 
+def air_swing_k(campaigns: Sequence[MeasuredCampaign]) -> float:
+    """Return the largest range of the air reading within one campaign, K (0 without one).
+
+    The range runs from the 1st to the 99th percentile of each ambient sensor's readings, so
+    a single spike does not set it.
+    """
+    ranges = [0.0]
+    for c in campaigns:
+        for sensor in c.sensors_with_role("ambient"):
+            values = c.temperatures[sensor].to_numpy(dtype=float)
+            values = values[np.isfinite(values)]
+            if values.size:
+                low, high = np.percentile(values, [1.0, 99.0])
+                ranges.append(float(high - low))
+    return max(ranges)
+
+
+def daily_air(t_s: np.ndarray, ambient_c: float, swing_k: float) -> np.ndarray:
+    """Return the air of a plan: ``swing_k`` peak to peak over a day, from its low, degC.
+
+    ``ambient_c + swing_k (1 - cos(2 pi t / day)) / 2``: the test starts at the cool of the
+    morning, the air peaks after half a day.
+    """
+    phase = 2.0 * np.pi * np.asarray(t_s, dtype=float) / (DAY_H * 3600.0)
+    return ambient_c + 0.5 * swing_k * (1.0 - np.cos(phase))
+
+
+def daily_air_plans(high: float, swing_k: float, interval_s: float) -> list[TestPlan]:
+    """Return the plans that log the air's daily cycle (:data:`AIR_CYCLE_DURATIONS_H`).
+
+    Each runs the spindle at ``high`` (rpm) for :data:`AIR_CYCLE_WARMUP_MIN`, then logs the
+    machine at rest, sampled every ``interval_s`` (s), simulated with an air swing of
+    ``swing_k`` (K).
+    """
+    program = Program((Segment(0.0, AIR_CYCLE_WARMUP_MIN, high),), key="rpm")
+    return [
+        TestPlan(
+            f"one run at {high:.0f} rpm for {AIR_CYCLE_WARMUP_MIN:g} min, then the machine at "
+            f"rest through the day's air cycle, {duration:g} h",
+            program,
+            duration,
+            interval_s,
+            separates="the baseline's constant air",
+            air_swing_k=swing_k,
+        )
+        for duration in AIR_CYCLE_DURATIONS_H
+    ]
+
+
 def own_interval_s(campaigns: Sequence[MeasuredCampaign]) -> float:
     """Return the campaigns' sampling interval: the median step of their instants, s."""
     return float(np.median(np.concatenate([np.diff(c.t_s) for c in campaigns])))
@@ -412,6 +484,9 @@ def candidate_plans(
     heated = [r for r in HEAT_LOAD_ROLES.get(effect, ()) if r in roles]
     plans += paired_heater_plans(effect, heated, own)
     plans += heater_plans(high, heated, own, SEPARATES.get(effect, ""))
+    swing = air_swing_k(campaigns)
+    if effect in AIR_CYCLE_EFFECTS and swing > 0.0:
+        plans += daily_air_plans(high, swing, own)
     return plans[:MAX_PLANS]
 
 
@@ -480,15 +555,22 @@ def plan_campaign(
     """Return the plan's campaign with every sensor at ``ambient_c`` (degC), and its twin.
 
     The sensors are ``sensors`` (name -> role) and one ``added_<role>`` per role the plan adds;
-    the twin is built for their roles and the plan's heat loads.
+    the twin is built for their roles and the plan's heat loads. With the plan's
+    ``air_swing_k``, the ambient sensors read :func:`daily_air` instead.
     """
     names = {**dict(sensors), **{f"added_{r}": r for r in plan.add_sensors}}
     t = np.arange(0.0, plan.duration_h * 3600.0 + 0.5, plan.sample_interval_s)
+    air = daily_air(t, ambient_c, plan.air_swing_k)
     blank = MeasuredCampaign(
         campaign_id=f"plan {plan.name}",
         t_s=t,
         rpm=plan.program.value_at(t),
-        temperatures=pd.DataFrame({s: np.full(t.size, ambient_c) for s in names}),
+        temperatures=pd.DataFrame(
+            {
+                s: air if role == "ambient" else np.full(t.size, ambient_c)
+                for s, role in names.items()
+            }
+        ),
         roles=names,
         z_um=np.zeros(t.size),
         program=plan.program,
@@ -647,6 +729,11 @@ def _program_words(plan: TestPlan) -> str:
     if plan.heat_loads:
         loads = "; ".join(_load_words(load) for load in plan.heat_loads)
         words += f", and record the heat load under `heat_loads:` in campaign.yaml ({loads})"
+    if plan.air_swing_k:
+        words += (
+            f"; start in the cool of the morning: the twin assumes the workshop air swings by "
+            f"{plan.air_swing_k:.1f} K over the day (the largest range one campaign recorded)"
+        )
     if plan.separates:
         words += f"; the test is meant to tell it apart from {plan.separates}"
     return words
@@ -686,6 +773,7 @@ def plan_text(proposed: ProposedTest) -> str:
         "speed steps, stops, sampling interval"
         + (", added sensors" if proposed.sensors_tried else "")
         + (", heat loads" if proposed.heaters_tried else "")
+        + (", a day's air cycle" if proposed.effect in AIR_CYCLE_EFFECTS else "")
     )
     head = (
         f"None of the {proposed.n_plans} test plans tried ({tried}) would make {e} visible "
