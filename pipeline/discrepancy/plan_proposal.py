@@ -143,9 +143,10 @@ can be put on comes first (the motor casing; a bearing housing sits inside the h
 SEPARATES = {
     "thermal_bending": "the column's expansion, the baseline's law on the column's mean rise",
     "sensor_lag": "the heat capacity of the part the sensor reads, in the baseline",
+    "ambient_variation": "the baseline's constant air",
 }
-"""What a heater plan is meant to tell each effect apart from (the law of the baseline that
-shares its signature under the spindle's heat)."""
+"""What a heater plan, or a plan logging a day of air, is meant to tell each effect apart from
+(the law of the baseline that shares its signature under the spindle's heat or a still air)."""
 
 PAIRED_ROLES = {"thermal_bending": ("column_front", "column_rear")}
 """Parts loaded differently by the plans of :func:`paired_heater_plans`, per effect: one heater
@@ -429,12 +430,14 @@ def daily_air(t_s: np.ndarray, ambient_c: float, swing_k: float) -> np.ndarray:
     return ambient_c + 0.5 * swing_k * (1.0 - np.cos(phase))
 
 
-def daily_air_plans(high: float, swing_k: float, interval_s: float) -> list[TestPlan]:
+def daily_air_plans(
+    high: float, swing_k: float, interval_s: float, separates: str = ""
+) -> list[TestPlan]:
     """Return the plans that log the air's daily cycle (:data:`AIR_CYCLE_DURATIONS_H`).
 
     Each runs the spindle at ``high`` (rpm) for :data:`AIR_CYCLE_WARMUP_MIN`, then logs the
     machine at rest, sampled every ``interval_s`` (s), simulated with an air swing of
-    ``swing_k`` (K).
+    ``swing_k`` (K); ``separates`` as :func:`heater_plans`.
     """
     program = Program((Segment(0.0, AIR_CYCLE_WARMUP_MIN, high),), key="rpm")
     return [
@@ -444,7 +447,7 @@ def daily_air_plans(high: float, swing_k: float, interval_s: float) -> list[Test
             program,
             duration,
             interval_s,
-            separates="the baseline's constant air",
+            separates=separates,
             air_swing_k=swing_k,
         )
         for duration in AIR_CYCLE_DURATIONS_H
@@ -484,9 +487,8 @@ def candidate_plans(
     heated = [r for r in HEAT_LOAD_ROLES.get(effect, ()) if r in roles]
     plans += paired_heater_plans(effect, heated, own)
     plans += heater_plans(high, heated, own, SEPARATES.get(effect, ""))
-    swing = air_swing_k(campaigns)
-    if effect in AIR_CYCLE_EFFECTS and swing > 0.0:
-        plans += daily_air_plans(high, swing, own)
+    if effect in AIR_CYCLE_EFFECTS and (swing := air_swing_k(campaigns)) > 0.0:
+        plans += daily_air_plans(high, swing, own, SEPARATES.get(effect, ""))
     return plans[:MAX_PLANS]
 
 
