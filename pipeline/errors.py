@@ -26,3 +26,7 @@ class InputDataError(UserError, ValueError):
 
 class ParamsError(UserError, KeyError, ValueError):
     """``params.yaml`` is missing, unreadable, or a section or value is wrong."""
+
+
+class ClusterUnreachableError(UserError, ConnectionError):
+    """The Dask scheduler the environment names does not answer."""

@@ -20,6 +20,7 @@ from typing import IO, Any
 from joblib import Parallel, delayed
 from tqdm import tqdm
 
+from pipeline import cluster
 from pipeline.warnings_capture import WarningCounts, absorb, captured
 
 LOGGER = logging.getLogger(__name__)
@@ -144,7 +145,9 @@ def run_jobs(
 
     The jobs start in this process, one after the other; once the rest of them is projected to
     take :data:`SERIAL_UNDER_S` or more, the rest runs in ``n_jobs`` worker processes (at once,
-    when an earlier call of this process started them). Each job's warnings are captured where
+    when an earlier call of this process started them). Where a Dask cluster is named
+    (:mod:`pipeline.cluster`), every job of a loop with ``n_jobs`` > 1 runs on its workers,
+    which stay up from one stage to the next. Each job's warnings are captured where
     it runs and added to the capture open here (:func:`pipeline.warnings_capture.absorb`), so
     none is printed from a worker.
 
@@ -153,7 +156,8 @@ def run_jobs(
     jobs : iterable of tuple
         ``joblib.delayed(function)(*args, **kwargs)`` calls.
     n_jobs : int
-        Worker processes at most; 1 runs every job in this process.
+        Worker processes at most (a Dask cluster uses all its workers); 1 runs every job in
+        this process.
     label, unit : str
         What :class:`Progress` shows.
     logger : logging.Logger, optional
@@ -179,10 +183,11 @@ def run_jobs(
         rest = [delayed(_call_captured)(f, a, k) for f, a, k in jobs[len(results) :]]
         if rest:
             _WORKERS["started"] = True
-            for result, counts in Parallel(n_jobs=n_jobs, return_as="generator")(rest):
-                absorb(counts)
-                results.append(result)
-                progress.update()
+            with cluster.backend():
+                for result, counts in Parallel(n_jobs=n_jobs, return_as="generator")(rest):
+                    absorb(counts)
+                    results.append(result)
+                    progress.update()
     return results
 
 
@@ -190,7 +195,7 @@ def _workers_pay(n_jobs: int, started: float, done: int, total: int) -> bool:
     """Whether the rest of the jobs should go to the worker processes (see :func:`run_jobs`)."""
     if n_jobs == 1:
         return False
-    if _WORKERS["started"]:
+    if _WORKERS["started"] or cluster.scheduler_address() is not None:
         return True
     projected = (time.monotonic() - started) / done * (total - done) if done else 0.0
     return projected >= SERIAL_UNDER_S

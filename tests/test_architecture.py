@@ -33,11 +33,12 @@ FOUNDATION = {
     "fit_statistics",
     "warnings_capture",
     "progress",
+    "cluster",
     "settings",
 }
 """Modules every package may import: errors, paths, params, the figure toolkit, the schemas,
 the shared statistics (RMS, information criteria), the warnings' counts, the progress display,
-the typed params.yaml sections."""
+where the parallel jobs run, the typed params.yaml sections."""
 
 ALLOWED = {
     "schemas": set(),
@@ -48,6 +49,7 @@ ALLOWED = {
     "fit_statistics": set(),
     "warnings_capture": set(),
     "progress": set(),
+    "cluster": set(),
     "settings": set(),
     "validation": set(),
     "io": {"validation", "thermal"},  # the heat-load parser (pipeline/thermal/loads.py)

@@ -1,14 +1,17 @@
 """End-to-end: the real `dvc repro` on a copy of the repository (demo campaigns), real MLflow.
 
 The demo pipeline runs once, in full (on a third of the demo's spindle campaigns,
-:data:`DEMO_KEPT`), against a real ``mlflow server`` (:func:`demo`); the tests of the next
-campaigns, a new one and a malformed one, share one continuation of a copy of that finished run
-(:func:`next_run`), as a user's next ``dvc repro`` does, so that only the stages the change reaches
-run again. That continuation runs while no MLflow server answers at its tracking URI (the server is
-down): nothing may be lost (the stages' outputs stay, the message says how to log later, no
-traceback); then the server is up and the execution is logged once, by ``dvc repro`` (which reruns
-only ``track``) and by ``thermal track`` (which reuses the logged run); an incomplete attempt left
-by a connection lost mid-way is deleted, not duplicated.
+:data:`DEMO_KEPT`), against a real ``mlflow server`` (:func:`demo`) set up as a team runs it: its
+runs in a PostgreSQL server and its artifacts in an S3 server (``docs/team-server.md``), or, where
+PostgreSQL's binaries are absent, in SQLite and a folder (the PostgreSQL test then reports itself
+skipped). Its ``evaluate`` runs once more on a real Dask cluster, to the same scores. The tests of
+the next campaigns, a new one and a malformed one, share one continuation of a copy of that finished
+run (:func:`next_run`), as a user's next ``dvc repro`` does, so that only the stages the change
+reaches run again. That continuation runs while no MLflow server answers at its tracking URI (the
+server is down): nothing may be lost (the stages' outputs stay, the message says how to log later,
+no traceback); then the server is up and the execution is logged once, by ``dvc repro`` (which
+reruns only ``track``) and by ``thermal track`` (which reuses the logged run); an incomplete attempt
+left by a connection lost mid-way is deleted, not duplicated.
 """
 
 from __future__ import annotations
@@ -22,17 +25,29 @@ from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
+import boto3
 import numpy as np
 import pandas as pd
+import psycopg
 import pytest
 import yaml
+from distributed import Client
 from mlflow.entities import RunStatus
 from mlflow.tracking import MlflowClient
 
+from pipeline import cluster
 from pipeline.tracking import records, store
+from tests.helpers.dask_cluster import running_dask_cluster
 from tests.helpers.mlflow_server import running_mlflow_server
 from tests.helpers.processes import free_port
 from tests.helpers.repository import copy_repository
+from tests.helpers.s3_server import S3_CREDENTIALS
+from tests.helpers.team_server import (
+    BUCKET,
+    TeamServer,
+    postgres_binaries,
+    running_team_server,
+)
 
 pytestmark = pytest.mark.slow
 
@@ -74,6 +89,7 @@ class Demo:
     work: Path
     uri: str
     output: str
+    team: TeamServer | None
 
 
 DEMO_CANDIDATES = {
@@ -109,8 +125,12 @@ def demo(tmp_path_factory):
         if campaign.name[0] in "KV" and campaign.name not in DEMO_KEPT:
             shutil.rmtree(campaign)
     _fewer_candidates(work, DEMO_CANDIDATES)
-    with running_mlflow_server(tmp / "server") as uri:
-        yield Demo(work, uri, _repro(work, _env(uri)))
+    if postgres_binaries() is None:
+        with running_mlflow_server(tmp / "server") as uri:
+            yield Demo(work, uri, _repro(work, _env(uri)), None)
+        return
+    with running_team_server(tmp / "server") as team:
+        yield Demo(work, team.uri, _repro(work, _env(team.uri)), team)
 
 
 def _continue_from(demo: Demo, destination: Path) -> Path:
@@ -495,3 +515,57 @@ def test_every_score_reaches_a_real_mlflow_server_once_and_the_champion_loads(de
     assert len(again) == len(runs)
     discrepancy = client.get_experiment_by_name(params["discrepancy"]["experiment"])
     assert len(client.search_runs([discrepancy.experiment_id])) == 1
+
+
+def test_on_a_real_dask_cluster_the_scores_are_the_local_runs(demo, tmp_path):
+    work = _continue_from(demo, tmp_path / "repo")
+    with running_dask_cluster(tmp_path, n_workers=2) as address:
+        env = {**_env(demo.uri), cluster.SCHEDULER_VARIABLE: address}
+        output = _run([str(work / "bin" / "thermal"), "evaluate"], work, env)
+        with Client(address, timeout=10) as client:
+            ran = client.run_on_scheduler(
+                lambda dask_scheduler: sorted(dask_scheduler.task_prefixes)
+            )
+            workers = client.run(os.getpid)
+    assert f"parallel jobs run on the Dask cluster {address} (2 workers)" in output
+    assert any("_call_captured" in prefix for prefix in ran), ran
+    assert len(set(workers.values())) == 2
+    rows = [*KEYS, "scheme", "train_unit", "test_campaign", "role"]
+    local, distributed = (
+        _scores(folder).sort_values(rows).reset_index(drop=True) for folder in (demo.work, work)
+    )
+    assert len(local) > 100
+    pd.testing.assert_frame_equal(distributed, local, rtol=1e-6)
+
+
+def test_the_demo_logged_to_a_team_server_on_postgresql_and_s3(demo):
+    if demo.team is None:
+        pytest.skip("PostgreSQL's initdb and pg_ctl are absent (Debian's package: postgresql)")
+    client = MlflowClient(tracking_uri=demo.uri)
+    runs = client.search_runs(
+        [e.experiment_id for e in client.search_experiments()], max_results=1000
+    )
+    # the runs are rows of the PostgreSQL database, the artifacts objects in the S3 store
+    with psycopg.connect(demo.team.database) as connection, connection.cursor() as cursor:
+        cursor.execute("SELECT run_uuid FROM runs WHERE lifecycle_stage = 'active'")
+        stored = {row[0] for row in cursor.fetchall()}
+        cursor.execute("SELECT name, version FROM model_versions")
+        versions = cursor.fetchall()
+    assert stored == {r.info.run_id for r in runs}
+    record = json.loads((demo.work / "reports" / "mlflow_run.json").read_text())
+    champion = record["champions"]["Z"]
+    assert (champion["registered_model"], int(champion["version"])) in versions
+    s3 = boto3.client("s3", endpoint_url=demo.team.s3_endpoint, **_s3_keys())
+    listed = s3.list_objects_v2(Bucket=BUCKET, Prefix="mlartifacts/", MaxKeys=1000)
+    names = [item["Key"] for item in listed.get("Contents", [])]
+    assert any(name.endswith("/scores.json") for name in names), names[:20]
+    assert any(name.endswith("/MLmodel") for name in names), names[:20]
+    assert any(name.endswith("/bundle.json") for name in names), names[:20]
+
+
+def _s3_keys() -> dict[str, str]:
+    return {
+        "aws_access_key_id": S3_CREDENTIALS["AWS_ACCESS_KEY_ID"],
+        "aws_secret_access_key": S3_CREDENTIALS["AWS_SECRET_ACCESS_KEY"],
+        "region_name": S3_CREDENTIALS["AWS_DEFAULT_REGION"],
+    }

@@ -17,8 +17,9 @@ import pytest
 import statsmodels.api as sm
 from joblib import delayed
 
-from pipeline import progress
+from pipeline import cluster, progress
 from pipeline.cli import COMMANDS
+from pipeline.errors import ClusterUnreachableError
 from pipeline.models.registry import make_model
 from pipeline.progress import QUIET_FOR_S, Progress, run_jobs
 from pipeline.protocol.champion import choose_champion
@@ -28,6 +29,7 @@ from pipeline.protocol.units import campaign_series, training_units
 from pipeline.reporting.comparison import score_table
 from pipeline.tracking import records
 from pipeline.warnings_capture import captured, summarise_warnings
+from tests.helpers.processes import free_port
 
 DL, MLR = Candidate("dl", "all"), Candidate("mlr", "all")
 
@@ -147,6 +149,19 @@ def test_a_short_loop_runs_in_this_process_and_a_long_one_goes_to_the_workers(mo
     assert pids[0] == os.getpid() and os.getpid() not in pids[1:]
     assert progress._WORKERS["started"] is True
     assert os.getpid() not in run_jobs([delayed(_pid_after)(0.0)], 2, "again")
+    assert run_jobs([delayed(_pid_after)(0.0)], 1, "serial") == [os.getpid()]
+
+
+def test_a_dask_scheduler_that_does_not_answer_stops_the_loop_with_what_to_do(monkeypatch):
+    address = f"tcp://127.0.0.1:{free_port()}"
+    monkeypatch.setenv(cluster.SCHEDULER_VARIABLE, address)
+    monkeypatch.setattr(cluster, "CONNECT_TIMEOUT_S", 1.0)
+    with pytest.raises(ClusterUnreachableError) as raised:
+        run_jobs([delayed(_pid_after)(0.0) for _ in range(3)], 2, "cluster")
+    message = str(raised.value)
+    assert f"{cluster.SCHEDULER_VARIABLE}={address}" in message
+    assert f"dask worker {address}" in message and "unset" in message
+    # one job process: the loop runs here, whatever cluster is named
     assert run_jobs([delayed(_pid_after)(0.0)], 1, "serial") == [os.getpid()]
 
 

@@ -107,7 +107,10 @@ def _wait_healthy(
 
 @contextmanager
 def running_mlflow(
-    arguments: list[str], folder: Path, timeout_s: float = HEALTH_TIMEOUT_S
+    arguments: list[str],
+    folder: Path,
+    timeout_s: float = HEALTH_TIMEOUT_S,
+    env: dict[str, str] | None = None,
 ) -> Iterator[str]:
     """Run ``mlflow <arguments>`` on a free 127.0.0.1 port until the ``with`` block ends.
 
@@ -123,6 +126,9 @@ def running_mlflow(
         Working folder of the process (and of its log).
     timeout_s : float
         How long to wait for ``/health`` to answer 200, in seconds.
+    env : dict of str to str, optional
+        Variables the server gets beside the caller's others (e.g. its artifact store's
+        ``MLFLOW_S3_ENDPOINT_URL`` and credentials).
 
     Yields
     ------
@@ -137,8 +143,9 @@ def running_mlflow(
     port = free_port()
     base_url = f"http://127.0.0.1:{port}"
     host = ["--host", "127.0.0.1", "--port", str(port), "--workers", "1"]
+    extra = env or {}
     env = {k: v for k, v in os.environ.items() if not k.startswith("MLFLOW_")}
-    env[JOB_EXECUTION_SWITCH] = "false"
+    env.update({**extra, JOB_EXECUTION_SWITCH: "false"})
     log = Path(folder) / "mlflow.log"
     with log.open("wb") as output:
         process = subprocess.Popen(  # noqa: S603
