@@ -6,7 +6,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: install run test test-fast bench trials trials-quick demo-check day-two-check ui-check lint simulate clean
+.PHONY: install run test test-fast bench bench-scale trials trials-quick demo-check day-two-check ui-check lint simulate clean
 
 install: $(STAMP)
 
@@ -52,6 +52,11 @@ test-fast: install
 
 bench: install
 	PATH="$(CURDIR)/$(BIN):$$PATH" $(BIN)/python -m benchmarks.bench
+
+# Each stage's time and peak memory for 1, 2, 4 machines x 6, 12, 24 campaigns of the workshop
+# twin, locally and on a local Dask cluster, and the growth exponents (reports/bench_scale.json)
+bench-scale: install
+	PATH="$(CURDIR)/$(BIN):$$PATH" $(BIN)/python -m benchmarks.bench_scale --dask
 
 # Every hidden-effect case over seeds 1-5 (8 campaigns each) on both machines (the twin and
 # benchmarks/independent_machine.py), then the trial tests (the twin, seed 1, every case, the

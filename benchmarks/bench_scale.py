@@ -1,0 +1,246 @@
+"""Scale: each stage's time and peak memory as campaigns and machines grow (``make bench-scale``).
+
+For every size (machines x campaigns per machine, by default 1, 2, 4 x 6, 12, 24) the workshop
+twin (:mod:`pipeline.twin.workshop`: 16 unnamed sensors, X/Y/Z probes, warm starts) writes the
+campaigns into a copy of the repository whose demo campaigns are removed: each machine
+(``workshop-1``, ``workshop-2``, ...) gets one two-day run of six back-to-back campaigns per
+season (spring, summer, autumn, winter, in that order), each run with its own seed. Each
+stage's command (``dvc.yaml``, in order) then runs alone in a process that reads its wall time
+and its peak resident memory (the largest process of the stage, its joblib workers included:
+``getrusage(RUSAGE_CHILDREN)``), logging to a local MLflow store in the copy.
+
+The growth exponents are least-squares slopes on log-log axes: of each stage's time on the
+campaigns per machine (one exponent per machine count) and on the machines (one per campaign
+count). Prints the table and the exponents and writes them to ``reports/bench_scale.json``.
+``--dask`` runs the same sizes with the fits on a local Dask cluster (a scheduler and two
+workers on 127.0.0.1, :mod:`pipeline.cluster`). A size whose stage fails is reported with the
+stage's message and the remaining stages of that size are not run.
+
+Machines are noisy: compare the exponents and the ratios within one run, not seconds across
+runs.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+from collections.abc import Iterator
+from contextlib import contextmanager
+from dataclasses import replace
+from datetime import datetime
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+from pipeline.cluster import SCHEDULER_VARIABLE
+from pipeline.twin.workshop import simulate_workshop, workshop_plan
+from pipeline.twin.writer import write_campaign
+from tests.helpers.dask_cluster import running_dask_cluster
+from tests.helpers.repository import copy_repository
+
+MACHINES = (1, 2, 4)
+CAMPAIGNS = (6, 12, 24)
+RUN_STARTS = (
+    datetime(2025, 4, 7, 7, 0),
+    datetime(2025, 7, 7, 7, 0),
+    datetime(2025, 10, 6, 7, 0),
+    datetime(2026, 1, 12, 7, 0),
+)
+"""One workshop run per season, spring to winter: 6, 12 and 24 campaigns span 1, 2 and 4
+seasons, so the ranking scheme is the one a user's data of that length would get."""
+RUN_CAMPAIGNS = 6
+INTERVAL_S = 60.0
+"""The workshop logger at 60 s: a third of the default's rows, the same cost structure."""
+OUT = Path("reports/bench_scale.json")
+
+_MEASURE = (
+    "import json, resource, subprocess, sys, time\n"
+    "begin = time.perf_counter()\n"
+    "with open(sys.argv[1], 'wb') as log:\n"
+    "    code = subprocess.run(sys.argv[2:], stdout=log, stderr=subprocess.STDOUT).returncode\n"
+    "peak = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024.0\n"
+    "print(json.dumps({'code': code, 'seconds': time.perf_counter() - begin, 'peak_mib': peak}))\n"
+)
+"""Runs one stage's command in a fresh process and prints its time (s) and peak RSS (MiB)."""
+
+
+def write_fleet(raw: Path, machines: int, campaigns: int) -> list[str]:
+    """Write ``machines`` x ``campaigns`` workshop campaigns into ``raw``; return their ids."""
+    if campaigns % RUN_CAMPAIGNS or campaigns // RUN_CAMPAIGNS > len(RUN_STARTS):
+        raise ValueError(
+            f"campaigns per machine: a multiple of {RUN_CAMPAIGNS} up to "
+            f"{RUN_CAMPAIGNS * len(RUN_STARTS)}, not {campaigns}"
+        )
+    ids = []
+    base = workshop_plan(INTERVAL_S)
+    for m in range(1, machines + 1):
+        for r, start in enumerate(RUN_STARTS[: campaigns // RUN_CAMPAIGNS], start=1):
+            slots = tuple(replace(s, campaign_id=f"M{m}R{r}{s.campaign_id}") for s in base.slots)
+            plan = replace(
+                base, start=start, slots=slots, run_id=f"scale-{m}-{r}", machine=f"workshop-{m}"
+            )
+            for campaign in simulate_workshop(plan, seed=1000 * m + r).campaigns:
+                write_campaign(campaign, raw)
+                ids.append(campaign.info.campaign_id)
+    return ids
+
+
+def run_stage(command: list[str], cwd: Path, env: dict[str, str], log: Path) -> dict:
+    """Run one stage's command; return its ``seconds``, ``peak_mib`` and exit ``code``."""
+    result = subprocess.run(
+        [sys.executable, "-c", _MEASURE, str(log), *command],
+        cwd=cwd,
+        env=env,
+        capture_output=True,
+        text=True,
+        check=True,
+    )
+    return json.loads(result.stdout.strip().splitlines()[-1])
+
+
+def keep_candidates(work: Path, models: list[str] | None) -> None:
+    """Keep only these models of ``params.yaml`` ``evaluate.candidates`` (None: all of them)."""
+    if not models:
+        return
+    params = yaml.safe_load((work / "params.yaml").read_text())
+    shipped = params["evaluate"]["candidates"]
+    unknown = sorted(set(models) - set(shipped))
+    if unknown:
+        raise ValueError(f"--candidates: {unknown} not in params.yaml ({sorted(shipped)})")
+    params["evaluate"]["candidates"] = {m: shipped[m] for m in shipped if m in models}
+    (work / "params.yaml").write_text(yaml.safe_dump(params, sort_keys=False))
+
+
+def measure_size(
+    root: Path, folder: Path, size: tuple[int, int], env: dict, models: list[str] | None
+) -> dict:
+    """Run every stage on one size (machines, campaigns per machine); return the figures.
+
+    The campaigns are written into a fresh copy of ``root``.
+    """
+    machines, campaigns = size
+    work = copy_repository(root, folder / f"m{machines}c{campaigns}")
+    raw = work / "data" / "raw"
+    shutil.rmtree(raw)
+    raw.mkdir()
+    write_fleet(raw, machines, campaigns)
+    keep_candidates(work, models)
+    env = {**env, "MLFLOW_TRACKING_URI": f"sqlite:///{work / 'mlflow.db'}"}
+    stages = yaml.safe_load((work / "dvc.yaml").read_text())["stages"]
+    figures = {"machines": machines, "campaigns_per_machine": campaigns, "stages": {}}
+    for name, stage in stages.items():
+        log = work / f"stage-{name}.log"
+        measured = run_stage(stage["cmd"].split(), work, env, log)
+        if measured.pop("code") != 0:
+            figures["failed"] = {"stage": name, "output": log.read_text()[-2000:]}
+            break
+        figures["stages"][name] = measured
+    return figures
+
+
+def slope(x: list[float], y: list[float]) -> float | None:
+    """Least-squares slope of log(y) on log(x); None with fewer than two sizes."""
+    if len(x) < 2:
+        return None
+    return float(np.polyfit(np.log(x), np.log(y), 1)[0])
+
+
+def exponents(sizes: list[dict]) -> dict:
+    """Return every stage's growth exponents: in campaigns (per machine count), in machines.
+
+    Each over the sizes that ran the stage; in machines, one per campaign count.
+    """
+    done = [s for s in sizes if "failed" not in s]
+    stages = list(dict.fromkeys(name for s in done for name in s["stages"]))
+    result: dict = {"campaigns": {}, "machines": {}}
+    for key, fixed, along in (
+        ("campaigns", "machines", "campaigns_per_machine"),
+        ("machines", "campaigns_per_machine", "machines"),
+    ):
+        for value in sorted({s[fixed] for s in done}):
+            row = [s for s in done if s[fixed] == value]
+            result[key][str(value)] = {
+                name: slope(
+                    [s[along] for s in row if name in s["stages"]],
+                    [s["stages"][name]["seconds"] for s in row if name in s["stages"]],
+                )
+                for name in stages
+            }
+    return result
+
+
+def report_lines(figures: dict) -> list[str]:
+    """Return the table of seconds and MiB per stage and size, then the exponents."""
+    lines = []
+    for backend, run in figures.items():
+        lines.append(f"backend: {backend}")
+        for size in run["sizes"]:
+            head = f"{size['machines']} machine(s) x {size['campaigns_per_machine']} campaigns"
+            lines.append(f"  {head}")
+            for name, stage in size["stages"].items():
+                lines.append(
+                    f"    {name:<18}{stage['seconds']:>9.1f} s{stage['peak_mib']:>9.0f} MiB"
+                )
+            if "failed" in size:
+                last = size["failed"]["output"].strip().splitlines()[-1:] or [""]
+                lines.append(f"    {size['failed']['stage']} FAILED: {last[0]}")
+        for key, by_value in run["exponents"].items():
+            for value, by_stage in by_value.items():
+                shown = ", ".join(
+                    f"{name} {e:.2f}" for name, e in by_stage.items() if e is not None
+                )
+                fixed = "machines" if key == "campaigns" else "campaigns per machine"
+                lines.append(f"  time ~ {key}^e at {fixed} = {value}: {shown or 'n/a'}")
+    return lines
+
+
+@contextmanager
+def _cluster(folder: Path, use: bool) -> Iterator[str | None]:
+    """Yield a local Dask cluster's address while the block runs (``use``), else None."""
+    if use:
+        with running_dask_cluster(folder, n_workers=2) as address:
+            yield address
+    else:
+        yield None
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Measure every size on this repository; print and save the figures."""
+    parser = argparse.ArgumentParser(
+        prog="python -m benchmarks.bench_scale", description=__doc__.splitlines()[0]
+    )
+    parser.add_argument("--machines", type=int, nargs="+", default=list(MACHINES))
+    parser.add_argument("--campaigns", type=int, nargs="+", default=list(CAMPAIGNS))
+    parser.add_argument("--dask", action="store_true", help="also on a local Dask cluster")
+    parser.add_argument(
+        "--candidates", nargs="+", help="only these models of evaluate.candidates (default: all)"
+    )
+    parser.add_argument("--out", type=Path, default=OUT)
+    args = parser.parse_args(argv)
+    bin_dir = Path(sys.executable).parent
+    env = {**os.environ, "PATH": f"{bin_dir}{os.pathsep}{os.environ.get('PATH', '')}"}
+    figures = {}
+    with tempfile.TemporaryDirectory(prefix="thermal-bench-scale-") as tmp:
+        for backend in ("local", "dask") if args.dask else ("local",):
+            with _cluster(Path(tmp), backend == "dask") as address:
+                run_env = {**env, SCHEDULER_VARIABLE: address} if address else env
+                sizes = [
+                    measure_size(Path.cwd(), Path(tmp) / backend, (m, c), run_env, args.candidates)
+                    for m in args.machines
+                    for c in args.campaigns
+                ]
+            figures[backend] = {"sizes": sizes, "exponents": exponents(sizes)}
+    sys.stdout.write("\n".join(report_lines(figures)) + "\n")
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    args.out.write_text(json.dumps(figures, indent=2) + "\n")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

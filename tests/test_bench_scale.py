@@ -1,0 +1,40 @@
+"""The scale benchmark's fleet writer and growth exponents (``make bench-scale`` runs the rest)."""
+
+from __future__ import annotations
+
+import pytest
+import yaml
+
+from benchmarks.bench_scale import exponents, write_fleet
+
+
+def _size(machines: int, campaigns: int, seconds: float) -> dict:
+    return {
+        "machines": machines,
+        "campaigns_per_machine": campaigns,
+        "stages": {"evaluate": {"seconds": seconds, "peak_mib": 100.0}},
+    }
+
+
+def test_the_exponents_are_the_slopes_of_time_on_log_log_axes():
+    sizes = [_size(m, c, 2.0 * m * c**1.5) for m in (1, 2, 4) for c in (6, 12, 24)]
+    sizes.append({**_size(8, 6, 1.0), "failed": {"stage": "validate", "output": "refused"}})
+    found = exponents(sizes)
+    assert set(found["campaigns"]) == {"1", "2", "4"}  # the failed size counts nowhere
+    for by_stage in found["campaigns"].values():
+        assert by_stage["evaluate"] == pytest.approx(1.5)
+    for by_stage in found["machines"].values():
+        assert by_stage["evaluate"] == pytest.approx(1.0)
+
+
+def test_the_fleet_has_one_machine_name_per_machine_and_a_season_per_run(tmp_path):
+    ids = write_fleet(tmp_path, machines=2, campaigns=12)
+    assert len(ids) == len(set(ids)) == 24
+    meta = [yaml.safe_load((tmp_path / i / "campaign.yaml").read_text()) for i in ids]
+    assert {m["machine"] for m in meta} == {"workshop-1", "workshop-2"}
+    seasons = {
+        m["machine"]: {c["season"] for c in meta if c["machine"] == m["machine"]} for m in meta
+    }
+    assert all(len(found) == 2 for found in seasons.values())
+    with pytest.raises(ValueError, match="multiple of 6"):
+        write_fleet(tmp_path, machines=1, campaigns=10)
