@@ -268,7 +268,7 @@ def test_the_motor_loss_is_sized_by_the_rise_it_gives_its_node(speed_steps):
     campaigns, model, fit, roles = speed_steps
     values = {k: v for k, (v, _) in fit.params.items()}
     point = baseline_point(campaigns, values, roles)
-    (spec,) = EFFECT_SPECS["motor_heat"].params
+    spec = next(p for p in EFFECT_SPECS["motor_heat"].params if p.name == "q_motor_W_per_krpm")
     for rise in (0.02, 0.5, 50.0):
         settings = replace(
             SETTINGS, plausible={**SETTINGS.plausible, "motor_rise_K_per_krpm": rise}

@@ -123,7 +123,7 @@ def test_an_effect_adds_its_parameters_with_units_and_bounds():
         "nonlinear_bearing_heat": [("bearing_exponent", "1")],
         "sensor_lag": [("sensor_lag_s", "s")],
         "thermal_bending": [("bending_um_per_K", "um/K")],
-        "motor_heat": [("q_motor_W_per_krpm", "W/krpm")],
+        "motor_heat": [("q_motor_W_per_krpm", "W/krpm"), ("motor_exponent", "1")],
     }
     assert set(expected) == set(EFFECTS)
     for effect, names in expected.items():
@@ -138,6 +138,8 @@ def test_an_effect_adds_its_parameters_with_units_and_bounds():
     assert (lag.lower, lag.upper) == (60.0, 7200.0)
     exponent = build_model(ALL_ROLES, frozenset({"nonlinear_bearing_heat"})).param_specs[-1]
     assert (exponent.lower, exponent.upper) == (0.5, 3.0)
+    motor = build_model(ALL_ROLES, frozenset({"motor_heat"})).param_specs[-1]
+    assert (motor.lower, motor.initial, motor.upper) == (1.0, 1.0, 3.0)
     # baseline: no effect parameter, every name carries its unit
     assert all(p.effect is None for p in base.param_specs)
     assert all(

@@ -113,7 +113,8 @@ def _heat(params: _GeneratorParams, rpm: np.ndarray) -> np.ndarray:
         q[:, net.index(node)] += (1.0 - share) * watts
         q[:, net.index("spindle_shaft")] += share * watts
     if "q_motor_W_per_krpm" in p:
-        q[:, net.index("motor")] += p["q_motor_W_per_krpm"] * r
+        ref = REFERENCE_RPM / 1000.0
+        q[:, net.index("motor")] += p["q_motor_W_per_krpm"] * ref * (r / ref) ** p["motor_exponent"]
     return q
 
 

@@ -404,6 +404,15 @@ EFFECT_SPECS = {
                 "motor_heat",
                 "spindle-motor loss into the motor node per 1000 rpm",
             ),
+            ParamSpec(
+                "motor_exponent",
+                "1",
+                1.0,
+                3.0,
+                1.0,
+                "motor_heat",
+                "exponent b of the motor loss ~ rpm^b",
+            ),
         ),
     ),
 }
@@ -423,7 +432,13 @@ EFFECT_SPECS = {
   lag they cut the held-out Z RMS by 39 % and were named (seed 1, centrifugal growth hidden);
 - ``thermal_bending``: ``bending_um_per_K`` in [-50, 50] um/K on the column front-rear rise
   difference;
-- ``motor_heat``: ``q_motor_W_per_krpm`` in [0, 200] W per 1000 rpm into the motor node.
+- ``motor_heat``: ``q_motor_W_per_krpm`` in [0, 200] W per 1000 rpm into the motor node, at
+  :data:`REFERENCE_RPM`, and ``motor_exponent`` in [1, 3] (q ~ rpm^b, as the bearing law). A
+  motor's no-load loss is iron loss, hysteresis growing with the supply frequency and eddy
+  currents with its square (Steinmetz; Bertotti, 1988, "General properties of power losses in
+  soft ferromagnetic materials", IEEE Transactions on Magnetics 24(1)), plus windage growing
+  faster still: b = 1 is the slowest such law, and it starts there, the linear law the
+  effect had before the exponent.
 """
 
 
@@ -690,7 +705,8 @@ class TwinModel:
 
         Column 0 takes the bearing law (rpm / 1000, or its nonlinear form): each bearing
         source's ``q`` enters its node, a share ``bearing_heat_to_shaft`` of it the shaft;
-        column 1 takes rpm / 1000 into the motor node (``motor_heat``), both K/s per krpm;
+        column 1 takes the motor law (rpm / 1000, or rpm^b) into the motor node (``motor_heat``),
+        both K/s per krpm;
         column ``2 + j`` takes the external load on :attr:`load_nodes` ``[j]``, K/s per W.
         """
         idx = self.node_index
@@ -709,7 +725,7 @@ class TwinModel:
         return heat
 
     def system(self, p: dict[str, float]) -> LinearSystem:
-        """State space ``dx/dt = A x + B u``, ``u = [T_amb, bearing law, rpm / 1000, loads]``.
+        """State space ``dx/dt = A x + B u``, ``u = [T_amb, bearing law, motor law, loads]``.
 
         States are the nodes, then one lag state per sensed node with ``sensor_lag``.
         """
@@ -798,6 +814,12 @@ class TwinModel:
             return ref * (r / ref) ** p["bearing_exponent"]
         return r
 
+    @staticmethod
+    def _motor_law(rpm: np.ndarray, p: dict[str, np.ndarray]) -> np.ndarray:
+        """Motor loss law, equal to rpm / 1000 at :data:`REFERENCE_RPM` (krpm)."""
+        ref = REFERENCE_RPM / 1000.0
+        return ref * (rpm / 1000.0 / ref) ** p["motor_exponent"]
+
     def _ambient(self, prep: _Prepared) -> np.ndarray:
         """Air at the grid: measured with ``ambient_variation`` (if complete), else constant."""
         if "ambient_variation" in self.effects and np.all(np.isfinite(prep.ambient_grid)):
@@ -857,7 +879,7 @@ class TwinModel:
             U[:, :k, c, 0] = amb[:-1]
             U[:, :k, c, 1] = self._bearing_law(pr.rpm_steps[None, :], p)
             if motor:
-                U[:, :k, c, 2] = pr.rpm_steps / 1000.0
+                U[:, :k, c, 2] = self._motor_law(pr.rpm_steps[None, :], p)
             U[:, :k, c, 3:] = pr.load_steps.T
             dU[:k, c, 0] = np.diff(amb)
             if pr.x0 is None:

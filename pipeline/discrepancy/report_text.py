@@ -17,6 +17,7 @@ from typing import Any
 import numpy as np
 
 from pipeline.discrepancy.followup import signed_percent
+from pipeline.discrepancy.model import REFERENCE_RPM
 
 TITLE = "# Where the twin and the measurements disagree"
 """First line of both reports."""
@@ -85,7 +86,7 @@ def _pct(x: float | None) -> str:
 
 
 def _motor_rise(params: Mapping[str, Any]) -> float | None:
-    """Steady rise of the motor node over its surroundings per 1000 rpm, K (None if n/a)."""
+    """Steady rise of the motor node per 1000 rpm at the reference speed, K (None if n/a)."""
     names = ("q_motor_W_per_krpm", "h_motor_W_per_K", "G_motor_headstock_W_per_K")
     values = [(params.get(n) or {}).get("value") for n in names]
     if any(v is None for v in values):
@@ -178,7 +179,8 @@ def _step_lines(step: Mapping[str, Any], min_z_reduction: float) -> list[str]:
         lines.append(
             "  - read the motor loss together with the node's cooling: the temperatures "
             "fix the motor node's steady rise over its surroundings, q / (h + G) = "
-            f"{_fmt(rise, 3)} K per 1000 rpm, and its time constant, not q, h and its "
+            f"{_fmt(rise, 3)} K per 1000 rpm at {REFERENCE_RPM:.0f} rpm, and its time "
+            "constant, not q, h and its "
             "heat capacity one by one (they scale together while its link to the "
             "headstock is weak)"
         )

@@ -71,6 +71,7 @@ PLAUSIBLE = {
     "sensor_lag_s": 600.0,
     "bending_um_per_K": 5.0,
     "motor_rise_K_per_krpm": 0.5,
+    "motor_exponent": 1.0,
 }
 """Default plausible size of each effect (``params.yaml`` overrides, with sources): the value of
 its parameter, in its unit, or for a heat sized by its rise (:data:`RISE_SIZED`) that rise."""
