@@ -45,8 +45,8 @@ from tests.helpers.s3_server import S3_CREDENTIALS
 from tests.helpers.team_server import (
     BUCKET,
     TeamServer,
-    postgres_binaries,
     running_team_server,
+    unavailable_reason,
 )
 
 pytestmark = pytest.mark.slow
@@ -125,7 +125,7 @@ def demo(tmp_path_factory):
         if campaign.name[0] in "KV" and campaign.name not in DEMO_KEPT:
             shutil.rmtree(campaign)
     _fewer_candidates(work, DEMO_CANDIDATES)
-    if postgres_binaries() is None:
+    if unavailable_reason() is not None:
         with running_mlflow_server(tmp / "server") as uri:
             yield Demo(work, uri, _repro(work, _env(uri)), None)
         return
@@ -535,12 +535,14 @@ def test_on_a_real_dask_cluster_the_scores_are_the_local_runs(demo, tmp_path):
         _scores(folder).sort_values(rows).reset_index(drop=True) for folder in (demo.work, work)
     )
     assert len(local) > 100
-    pd.testing.assert_frame_equal(distributed, local, rtol=1e-6)
+    # the file keeps 6 significant digits; the local run's first jobs ran in the stage's own
+    # process (its BLAS threads), so a last digit may differ by summation order
+    pd.testing.assert_frame_equal(distributed, local, rtol=2e-5)
 
 
 def test_the_demo_logged_to_a_team_server_on_postgresql_and_s3(demo):
     if demo.team is None:
-        pytest.skip("PostgreSQL's initdb and pg_ctl are absent (Debian's package: postgresql)")
+        pytest.skip(unavailable_reason())
     client = MlflowClient(tracking_uri=demo.uri)
     runs = client.search_runs(
         [e.experiment_id for e in client.search_experiments()], max_results=1000

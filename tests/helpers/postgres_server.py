@@ -2,10 +2,10 @@
 
 Usage (in a test marked ``@pytest.mark.slow``)::
 
-    from tests.helpers.postgres_server import postgres_binaries, running_postgres
+    from tests.helpers.postgres_server import running_postgres, unavailable_reason
 
-    if postgres_binaries() is None:
-        pytest.skip(...)
+    if unavailable_reason() is not None:
+        pytest.skip(unavailable_reason())
     with running_postgres(database="mlflow") as url:  # "postgresql://mlflow@127.0.0.1:<port>/mlflow"
         ...
 
@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import glob
 import os
+import pwd
 import shutil
 import subprocess
 import tempfile
@@ -30,6 +31,20 @@ from tests.helpers.processes import ServerError, free_port, log_tail
 
 ROLE = "mlflow"
 """The superuser ``initdb`` makes, and the owner of the test's database."""
+SERVER_ACCOUNT = "postgres"
+"""The system account the server's commands run as under root."""
+
+
+def unavailable_reason() -> str | None:
+    """Return why no PostgreSQL server can be started here, or None when one can."""
+    if postgres_binaries() is None:
+        return "PostgreSQL's initdb and pg_ctl are absent (Debian's package: postgresql)"
+    if os.geteuid() == 0:
+        try:
+            pwd.getpwnam(SERVER_ACCOUNT)
+        except KeyError:
+            return f"PostgreSQL refuses root and there is no {SERVER_ACCOUNT!r} account to run as"
+    return None
 
 
 def postgres_binaries() -> Path | None:
@@ -56,7 +71,8 @@ def running_postgres(database: str = "mlflow", timeout_s: float = 60.0) -> Itera
     Raises
     ------
     ServerError
-        If the binaries are absent, or a command fails (with the end of the server's log).
+        If no server can be started here (:func:`unavailable_reason`), or a command fails (with
+        the end of the server's log).
     """
     binaries = postgres_binaries()
     if binaries is None:
@@ -64,7 +80,7 @@ def running_postgres(database: str = "mlflow", timeout_s: float = 60.0) -> Itera
             "PostgreSQL's initdb was found neither on PATH nor in /usr/lib/postgresql"
         )
     folder = Path(tempfile.mkdtemp(prefix="thermal-tests-postgres-"))
-    user = "postgres" if os.geteuid() == 0 else None
+    user = SERVER_ACCOUNT if os.geteuid() == 0 else None
     if user:
         shutil.chown(folder, user=user, group=user)
     port = free_port()
