@@ -13,7 +13,8 @@ The growth exponents are least-squares slopes on log-log axes: of each stage's t
 campaigns per machine (one exponent per machine count) and on the machines (one per campaign
 count). Prints the table and the exponents and writes them to ``reports/bench_scale.json``.
 ``--dask`` runs the same sizes with the fits on a local Dask cluster (a scheduler and two
-workers on 127.0.0.1, :mod:`pipeline.cluster`). A size whose stage fails is reported with the
+workers on 127.0.0.1, :mod:`pipeline.cluster`); there the peak memory is the stage's own
+process, the workers' not counted. A size whose stage fails is reported with the
 stage's message and the remaining stages of that size are not run.
 
 Machines are noisy: compare the exponents and the ratios within one run, not seconds across
