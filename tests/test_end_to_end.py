@@ -3,7 +3,7 @@
 The demo pipeline runs once, in full (on a third of the demo's spindle campaigns,
 :data:`DEMO_KEPT`), against a real ``mlflow server`` (:func:`demo`) set up as a team runs it: its
 runs in a PostgreSQL server and its artifacts in an S3 server (``docs/team-server.md``), or, where
-PostgreSQL's binaries are absent, in SQLite and a folder (the PostgreSQL test then reports itself
+no PostgreSQL server can be started, in SQLite and a folder (the PostgreSQL test then reports itself
 skipped). Its ``evaluate`` runs once more on a real Dask cluster, to the same scores. The tests of
 the next campaigns, a new one and a malformed one, share one continuation of a copy of that finished
 run (:func:`next_run`), as a user's next ``dvc repro`` does, so that only the stages the change
@@ -25,7 +25,6 @@ from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
-import boto3
 import numpy as np
 import pandas as pd
 import psycopg
@@ -39,15 +38,11 @@ from pipeline import cluster
 from pipeline.tracking import records, store
 from tests.helpers.dask_cluster import running_dask_cluster
 from tests.helpers.mlflow_server import running_mlflow_server
+from tests.helpers.postgres_server import unavailable_reason
 from tests.helpers.processes import free_port
 from tests.helpers.repository import copy_repository
-from tests.helpers.s3_server import S3_CREDENTIALS
-from tests.helpers.team_server import (
-    BUCKET,
-    TeamServer,
-    running_team_server,
-    unavailable_reason,
-)
+from tests.helpers.s3_server import s3_client
+from tests.helpers.team_server import BUCKET, TeamServer, running_team_server
 
 pytestmark = pytest.mark.slow
 
@@ -557,17 +552,9 @@ def test_the_demo_logged_to_a_team_server_on_postgresql_and_s3(demo):
     record = json.loads((demo.work / "reports" / "mlflow_run.json").read_text())
     champion = record["champions"]["Z"]
     assert (champion["registered_model"], int(champion["version"])) in versions
-    s3 = boto3.client("s3", endpoint_url=demo.team.s3_endpoint, **_s3_keys())
+    s3 = s3_client(demo.team.s3_endpoint)
     listed = s3.list_objects_v2(Bucket=BUCKET, Prefix="mlartifacts/", MaxKeys=1000)
     names = [item["Key"] for item in listed.get("Contents", [])]
     assert any(name.endswith("/scores.json") for name in names), names[:20]
     assert any(name.endswith("/MLmodel") for name in names), names[:20]
     assert any(name.endswith("/bundle.json") for name in names), names[:20]
-
-
-def _s3_keys() -> dict[str, str]:
-    return {
-        "aws_access_key_id": S3_CREDENTIALS["AWS_ACCESS_KEY_ID"],
-        "aws_secret_access_key": S3_CREDENTIALS["AWS_SECRET_ACCESS_KEY"],
-        "region_name": S3_CREDENTIALS["AWS_DEFAULT_REGION"],
-    }

@@ -442,6 +442,12 @@ EFFECT_SPECS = {
 """
 
 
+def _speed_power_law(rpm: np.ndarray, exponent: np.ndarray) -> np.ndarray:
+    """Heat law ``ref (r / ref)^exponent`` in krpm, equal to rpm / 1000 at :data:`REFERENCE_RPM`."""
+    ref = REFERENCE_RPM / 1000.0
+    return ref * (rpm / 1000.0 / ref) ** exponent
+
+
 # ------------------------------------------------------------------------------- Z laws
 
 
@@ -808,17 +814,9 @@ class TwinModel:
     # ------------------------------------------------------------------ simulation
 
     def _bearing_law(self, rpm: np.ndarray, p: dict[str, np.ndarray]) -> np.ndarray:
-        r = rpm / 1000.0
         if "nonlinear_bearing_heat" in self.effects:
-            ref = REFERENCE_RPM / 1000.0
-            return ref * (r / ref) ** p["bearing_exponent"]
-        return r
-
-    @staticmethod
-    def _motor_law(rpm: np.ndarray, p: dict[str, np.ndarray]) -> np.ndarray:
-        """Motor loss law, equal to rpm / 1000 at :data:`REFERENCE_RPM` (krpm)."""
-        ref = REFERENCE_RPM / 1000.0
-        return ref * (rpm / 1000.0 / ref) ** p["motor_exponent"]
+            return _speed_power_law(rpm, p["bearing_exponent"])
+        return rpm / 1000.0
 
     def _ambient(self, prep: _Prepared) -> np.ndarray:
         """Air at the grid: measured with ``ambient_variation`` (if complete), else constant."""
@@ -879,7 +877,7 @@ class TwinModel:
             U[:, :k, c, 0] = amb[:-1]
             U[:, :k, c, 1] = self._bearing_law(pr.rpm_steps[None, :], p)
             if motor:
-                U[:, :k, c, 2] = self._motor_law(pr.rpm_steps[None, :], p)
+                U[:, :k, c, 2] = _speed_power_law(pr.rpm_steps[None, :], p["motor_exponent"])
             U[:, :k, c, 3:] = pr.load_steps.T
             dU[:k, c, 0] = np.diff(amb)
             if pr.x0 is None:

@@ -180,9 +180,8 @@ def _step_lines(step: Mapping[str, Any], min_z_reduction: float) -> list[str]:
             "  - read the motor loss together with the node's cooling: the temperatures "
             "fix the motor node's steady rise over its surroundings, q / (h + G) = "
             f"{_fmt(rise, 3)} K per 1000 rpm at {REFERENCE_RPM:.0f} rpm, and its time "
-            "constant, not q, h and its "
-            "heat capacity one by one (they scale together while its link to the "
-            "headstock is weak)"
+            "constant, not q, h and its heat capacity one by one (they scale together while "
+            "its link to the headstock is weak)"
         )
     return lines
 

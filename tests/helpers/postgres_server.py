@@ -74,11 +74,10 @@ def running_postgres(database: str = "mlflow", timeout_s: float = 60.0) -> Itera
         If no server can be started here (:func:`unavailable_reason`), or a command fails (with
         the end of the server's log).
     """
+    reason = unavailable_reason()
+    if reason is not None:
+        raise ServerError(reason)
     binaries = postgres_binaries()
-    if binaries is None:
-        raise ServerError(
-            "PostgreSQL's initdb was found neither on PATH nor in /usr/lib/postgresql"
-        )
     folder = Path(tempfile.mkdtemp(prefix="thermal-tests-postgres-"))
     user = SERVER_ACCOUNT if os.geteuid() == 0 else None
     if user:
@@ -97,36 +96,14 @@ def running_postgres(database: str = "mlflow", timeout_s: float = 60.0) -> Itera
             )
 
     options = f"-p {port} -h 127.0.0.1 -k {folder}"
+    initdb, pg_ctl, createdb = (str(binaries / tool) for tool in ("initdb", "pg_ctl", "createdb"))
     try:
-        run([str(binaries / "initdb"), "-D", str(data), "-U", ROLE, "--auth=trust", "-E", "UTF8"])
-        run(
-            [
-                str(binaries / "pg_ctl"),
-                "-D",
-                str(data),
-                "-o",
-                options,
-                "-l",
-                str(log),
-                "-w",
-                "start",
-            ]
-        )
+        run([initdb, "-D", str(data), "-U", ROLE, "--auth=trust", "-E", "UTF8"])
+        run([pg_ctl, "-D", str(data), "-o", options, "-l", str(log), "-w", "start"])
         try:
-            run(
-                [
-                    str(binaries / "createdb"),
-                    "-h",
-                    "127.0.0.1",
-                    "-p",
-                    str(port),
-                    "-U",
-                    ROLE,
-                    database,
-                ]
-            )
+            run([createdb, "-h", "127.0.0.1", "-p", str(port), "-U", ROLE, database])
             yield f"postgresql://{ROLE}@127.0.0.1:{port}/{database}"
         finally:
-            run([str(binaries / "pg_ctl"), "-D", str(data), "-m", "fast", "-w", "stop"])
+            run([pg_ctl, "-D", str(data), "-m", "fast", "-w", "stop"])
     finally:
         shutil.rmtree(folder, ignore_errors=True)

@@ -25,6 +25,7 @@ from contextlib import contextmanager
 from pathlib import Path
 
 import boto3
+from botocore.client import BaseClient
 
 from tests.helpers.processes import free_port, stop_group
 
@@ -34,6 +35,17 @@ S3_CREDENTIALS = {
     "AWS_DEFAULT_REGION": "us-east-1",
 }
 """What a client sends the local server (moto accepts any key)."""
+
+
+def s3_client(endpoint: str) -> BaseClient:
+    """Return a boto3 S3 client of the local server at ``endpoint`` (:data:`S3_CREDENTIALS`)."""
+    return boto3.client(
+        "s3",
+        endpoint_url=endpoint,
+        aws_access_key_id=S3_CREDENTIALS["AWS_ACCESS_KEY_ID"],
+        aws_secret_access_key=S3_CREDENTIALS["AWS_SECRET_ACCESS_KEY"],
+        region_name=S3_CREDENTIALS["AWS_DEFAULT_REGION"],
+    )
 
 
 @contextmanager
@@ -62,13 +74,7 @@ def running_s3_server(tmp_path: Path, bucket: str, timeout_s: float = 60.0) -> I
         )
     try:
         _wait(endpoint, process, log, timeout_s)
-        client = boto3.client(
-            "s3",
-            endpoint_url=endpoint,
-            aws_access_key_id=S3_CREDENTIALS["AWS_ACCESS_KEY_ID"],
-            aws_secret_access_key=S3_CREDENTIALS["AWS_SECRET_ACCESS_KEY"],
-            region_name=S3_CREDENTIALS["AWS_DEFAULT_REGION"],
-        )
+        client = s3_client(endpoint)
         client.create_bucket(Bucket=bucket)
         yield endpoint
     finally:

@@ -1,6 +1,7 @@
 """A team's tracking server for tests: ``mlflow server`` on PostgreSQL with artifacts in S3.
 
-Usage (in a test marked ``@pytest.mark.slow``; skip it where :func:`unavailable_reason` says why)::
+Usage (in a test marked ``@pytest.mark.slow``; skip it where
+``tests.helpers.postgres_server.unavailable_reason`` says why)::
 
     from tests.helpers.team_server import running_team_server
 
@@ -21,13 +22,11 @@ from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
-from tests.helpers.postgres_server import running_postgres, unavailable_reason
+from tests.helpers.postgres_server import running_postgres
 from tests.helpers.processes import running_mlflow
 from tests.helpers.s3_server import S3_CREDENTIALS, running_s3_server
 
 BUCKET = "mlflow-artifacts"
-
-__all__ = ["BUCKET", "TeamServer", "running_team_server", "unavailable_reason"]
 
 
 @dataclass(frozen=True)
