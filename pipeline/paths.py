@@ -30,8 +30,8 @@ AXIS_SLOPES = SEPARATED / "axis_slopes.parquet"
 
 MODELS = Path("data/models")
 CHAMPION = MODELS / "champion"
-"""One folder per displacement axis: ``<axis>/estimator.joblib``, ``champion.json``,
-``input_example.csv``, ``heldout.parquet``."""
+"""One folder per machine and displacement axis: ``<machine>/<axis>/estimator.joblib``,
+``champion.json``, ``input_example.csv``, ``heldout.parquet``."""
 CHAMPION_ESTIMATOR_FILE = "estimator.joblib"
 CHAMPION_CARD_FILE = "champion.json"
 CHAMPION_EXAMPLE_FILE = "input_example.csv"
@@ -61,18 +61,29 @@ PROMOTION = REPORTS / "promotion"
 PROMOTION_DECISION = PROMOTION / "promotion.json"
 PROMOTION_REPORT = PROMOTION / "promotion.md"
 DISCREPANCY = REPORTS / "discrepancy"
-DISCREPANCY_DOCUMENT = DISCREPANCY / "discrepancy.json"
+"""One folder per machine (``<machine>/``, the machine as ``pipeline.machines.machine_key``
+writes it): ``discrepancy.json``, ``discrepancy.md``, the figures."""
+DISCREPANCY_FILE = "discrepancy.json"
 DISCREPANCY_RECORD = REPORTS / "discrepancy_run.json"
-"""The discrepancy stage's MLflow run id (not cached by DVC: it changes every execution)."""
+"""The discrepancy stage's MLflow run id of each machine (not cached by DVC: it changes every
+execution)."""
 DISCREPANCY_HISTORY = REPORTS / "discrepancy_history.json"
-"""What the discrepancy stage's next run needs of this one (kept by DVC between runs)."""
+"""What the discrepancy stage's next run needs of this one, per machine (kept by DVC between
+runs)."""
+
+
+def discrepancy_document(machine_key: str) -> Path:
+    """Return ``reports/discrepancy/<machine>/discrepancy.json``."""
+    return DISCREPANCY / machine_key / DISCREPANCY_FILE
+
 
 METRICS = Path("metrics")
 CROSS_SEASON_METRICS = METRICS / "cross_season.json"
 FITTED_MODELS = REPORTS / "fitted_models.json"
 
 AXIS_MODEL_REPORT = REPORTS / "axis_model.json"
-AXIS_MODEL_PLOT = REPORTS / "axis_model.png"
+AXIS_MODEL_PLOTS = REPORTS / "axis_model"
+"""One figure per machine: ``<machine>.png``."""
 AXIS_MODEL_METRICS = METRICS / "axis_model.json"
 
 COMPENSATION_BUNDLES = MODELS / "compensation"

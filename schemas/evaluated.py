@@ -35,9 +35,11 @@ class CrossSeasonScoresModel(StrictModel):
     standard deviation with n - 1 (the PCDL paper's S), undefined (NaN) for one sample;
     ``uncompensated_rms_um`` the RMS of the thermal error itself on the same samples (what no
     compensation leaves) and ``eta`` = 1 - rmse_um / uncompensated_rms_um, the compensation
-    ratio (NaN when the error is zero).
+    ratio (NaN when the error is zero). ``machine``, the machine the scores are of, is written
+    by the ``evaluate`` stage beside each machine's rows.
     """
 
+    machine: Series[str] | None
     axis: Series[str]
     model: Series[str]
     selection: Series[str]

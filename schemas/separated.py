@@ -20,7 +20,8 @@ from schemas.vocabulary import SEASONS, SPLITS
 class SpindleThermalErrorModel(SamplesModel):
     """``spindle_thermal_error.parquet``: one row per (axis, aligned sample) of a spindle campaign.
 
-    The samples columns plus ``axis`` (the displacement axis of the row), ``run_id`` (the first
+    The samples columns plus ``machine`` (the machine of the campaign: each machine is
+    separated on its own), ``axis`` (the displacement axis of the row), ``run_id`` (the first
     campaign of the run the campaign belongs to) and ``run_elapsed_s`` (s since that run's
     start), ``campaign_start`` (the campaign's ``start``: the time order of the forward
     scheme), the campaign's split and season, ``warm_start`` (the campaign does not start from
@@ -31,6 +32,7 @@ class SpindleThermalErrorModel(SamplesModel):
     increases within each (axis, campaign).
     """
 
+    machine: Series[str]
     axis: Series[str]
     run_id: Series[str]
     run_elapsed_s: Series[float]
@@ -56,9 +58,10 @@ class AxisSlopesModel(pa.DataFrameModel):
     After the geometric error (cold pass polynomial over position) is removed, the thermal
     positioning error of a pass is fitted by a line over position (the patent's slope method):
     ``e(x) = intercept_um + slope_um_per_mm * x``. Temperatures at the pass (degC) follow as
-    extra columns, named as in campaign.yaml.
+    extra columns, named as in campaign.yaml. ``machine``: each machine is separated on its own.
     """
 
+    machine: Series[str]
     campaign_id: Series[str]
     axis_name: Series[str]
     split: Series[str] = pa.Field(isin=SPLITS)

@@ -35,10 +35,11 @@ FOUNDATION = {
     "progress",
     "cluster",
     "settings",
+    "machines",
 }
 """Modules every package may import: errors, paths, params, the figure toolkit, the schemas,
 the shared statistics (RMS, information criteria), the warnings' counts, the progress display,
-where the parallel jobs run, the typed params.yaml sections."""
+where the parallel jobs run, the typed params.yaml sections, machines as partitions."""
 
 ALLOWED = {
     "schemas": set(),
@@ -51,6 +52,7 @@ ALLOWED = {
     "progress": set(),
     "cluster": set(),
     "settings": set(),
+    "machines": {"errors"},
     "validation": set(),
     "io": {"validation", "thermal"},  # the heat-load parser (pipeline/thermal/loads.py)
     "importers": {"io", "cli"},  # `thermal import <source>` reuses the command dispatcher

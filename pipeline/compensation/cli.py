@@ -8,10 +8,12 @@ Examples::
     thermal compensate --source opc.tcp://10.0.0.5:4840 --sink opc.tcp://10.0.0.5:4840 \
         --registry --nodes nodes.yaml
 
-Models: each axis' bundle under ``data/models/compensation/<axis>/`` (written by ``dvc
-repro``), ``--bundle DIR`` for bundles copied elsewhere, or ``--registry``: the version of
-``<registered model>-<axis>`` under the alias ``champion`` (its run's ``compensation/bundle``
-artifacts), from ``$MLFLOW_TRACKING_URI`` or ``params.yaml`` ``tracking``. Limits and fallback
+Models: each axis' bundle of the machine under ``data/models/compensation/<machine>/<axis>/``
+(written by ``dvc repro``), ``--bundle DIR`` for bundles copied elsewhere, or ``--registry``: the
+version of ``<registered model>-<machine>-<axis>`` under the alias ``champion`` (its run's
+``compensation/bundle`` artifacts), from ``$MLFLOW_TRACKING_URI`` or ``params.yaml``
+``tracking``. ``--machine`` names the machine compensated; it may be left out when the pipeline
+(or the registry) has one machine only. Limits and fallback
 timing: ``params.yaml`` ``compensation`` (``--params``), else the defaults
 (:class:`pipeline.settings.compensation.CompensationSettings`). Every event goes to ``--log``
 (JSON lines).
@@ -33,11 +35,12 @@ from pipeline.compensation.opcua import NodeMap, OpcUaSink, OpcUaSource
 from pipeline.compensation.runtime import CompensationRuntime, EventLog, Reading, Source
 from pipeline.config import load_section
 from pipeline.errors import MissingInputError, ParamsError
+from pipeline.machines import machine_key, one_machine
 from pipeline.settings.base import load_settings, parse_section
 from pipeline.settings.compensation import CompensationSettings
 from pipeline.settings.track import TrackSettings
 from pipeline.settings.tracking import TrackingSettings
-from pipeline.tracking.champion_model import download_bundle, registered_axes
+from pipeline.tracking.champion_model import download_bundle, registered_targets
 from pipeline.tracking.location import resolve_tracking_uri
 
 LOGGER = logging.getLogger(__name__)
@@ -60,6 +63,7 @@ def _parse_args(argv: list[str] | None) -> argparse.Namespace:
     models = parser.add_mutually_exclusive_group()
     models.add_argument("--bundle", action="append", type=Path, help="a bundle folder (repeat)")
     models.add_argument("--registry", action="store_true", help="the registry's @champion")
+    parser.add_argument("--machine", help="the machine compensated (needed when there are several)")
     parser.add_argument("--axis", action="append", help="only these axes (repeat)")
     parser.add_argument("--alias", default="champion", help="registry alias (champion)")
     parser.add_argument("--nodes", type=Path, help="OPC UA node map (YAML)")
@@ -96,30 +100,49 @@ def load_bundles(args: argparse.Namespace, workdir: Path) -> list[AxisBundle]:
     if args.bundle:
         bundles = [read_bundle(folder) for folder in args.bundle]
     elif args.registry:
-        tracking, track = TrackingSettings(), TrackSettings()
-        if args.params.is_file():
-            tracking = load_settings(TrackingSettings, "tracking", args.params)
-            track = load_settings(TrackSettings, "track", args.params)
-        prefix = track.registered_model
-        uri = resolve_tracking_uri(tracking)
-        axes = args.axis or registered_axes(uri, prefix)
-        bundles = [
-            read_bundle(download_bundle(uri, f"{prefix}-{axis}", args.alias, workdir / axis))
-            for axis in axes
-        ]
+        bundles = registry_bundles(args, workdir)
     else:
-        axes = bundle_axes(paths.COMPENSATION_BUNDLES)
+        machine = one_machine(args.machine, pipeline_machines(), "the pipeline's bundles")
+        root = paths.COMPENSATION_BUNDLES / machine_key(machine)
+        axes = bundle_axes(root)
         if not axes:
             raise MissingInputError(
-                f"no bundle under {paths.COMPENSATION_BUNDLES}; run `dvc repro` first, or "
-                "give --bundle DIR or --registry"
+                f"no bundle under {root}; run `dvc repro` first, or give --bundle DIR or --registry"
             )
-        bundles = [read_bundle(paths.COMPENSATION_BUNDLES / axis) for axis in axes]
+        bundles = [read_bundle(root / axis) for axis in axes]
     if args.axis:
         bundles = [b for b in bundles if b.axis in args.axis]
     if not bundles:
         raise MissingInputError(f"no bundle for axis {args.axis}")
     return bundles
+
+
+def pipeline_machines() -> list[str]:
+    """Return the machines with a bundle under ``data/models/compensation/``, by folder name."""
+    root = paths.COMPENSATION_BUNDLES
+    return sorted(p.name for p in root.iterdir() if p.is_dir()) if root.is_dir() else []
+
+
+def registry_bundles(args: argparse.Namespace, workdir: Path) -> list[AxisBundle]:
+    """Download the bundle of each axis of the machine's ``--alias`` versions in the registry."""
+    tracking, track = TrackingSettings(), TrackSettings()
+    if args.params.is_file():
+        tracking = load_settings(TrackingSettings, "tracking", args.params)
+        track = load_settings(TrackSettings, "track", args.params)
+    uri = resolve_tracking_uri(tracking)
+    targets = registered_targets(uri, track.registered_model)
+    machine = one_machine(args.machine, sorted({t[0] for t in targets}), f"the registry at {uri}")
+    names = {axis: name for owner, axis, name in targets if owner == machine}
+    axes = args.axis or sorted(names)
+    missing = [axis for axis in axes if axis not in names]
+    if missing:
+        raise MissingInputError(
+            f"machine {machine} has no registered model for axis {', '.join(missing)} in {uri} "
+            f"(axes: {', '.join(sorted(names)) or 'none'})"
+        )
+    return [
+        read_bundle(download_bundle(uri, names[axis], args.alias, workdir / axis)) for axis in axes
+    ]
 
 
 def _connected(kind, url: str, nodes: NodeMap):

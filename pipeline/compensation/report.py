@@ -8,6 +8,7 @@ import pandas as pd
 
 from pipeline.compensation.bundle import AxisBundle
 from pipeline.compensation.replay import AxisProof
+from pipeline.machines import machine_key
 
 
 def _um(value) -> str:
@@ -98,21 +99,30 @@ def render_report(document: dict, budget: pd.DataFrame, tables: dict[str, pd.Dat
         "runtime.",
         "",
     ]
-    for axis, record in document["axes"].items():
-        lines += [f"## Axis {axis}", "", record["headline"] + ".", ""]
+    for machine, entry in document["machines"].items():
+        lines += machine_markdown(machine, entry, tables.get(machine) or {})
+    if not budget.empty:
+        lines += ["## Sensors a machine can afford", "", budget.to_markdown(index=False), ""]
+    return "\n".join(lines) + "\n"
+
+
+def machine_markdown(machine: str, entry: dict, tables: dict[str, pd.DataFrame]) -> list[str]:
+    """Return one machine's sections: each axis' headline, replay proof, fallbacks, exports."""
+    lines = []
+    for axis, record in entry["axes"].items():
+        lines += [f"## Machine {machine}, axis {axis}", "", record["headline"] + ".", ""]
         if axis in tables:
             lines += proof_markdown(axis, tables[axis])
         lines += fallback_markdown(record.get("fallbacks") or [])
         tempcomp = record.get("tempcomp") or {}
         lines += [
             "",
-            f"Controller exports in `reports/compensation/{axis}/`: coefficients "
+            f"Controller exports in `reports/compensation/{machine_key(machine)}/{axis}/`: "
+            "coefficients "
             + ("(linear model)" if record["linear"] else "none (the model is not linear)")
             + "; Heidenhain TEMPCOMP: "
             + str(tempcomp.get("formula") or tempcomp.get("reason") or "-")
             + ".",
             "",
         ]
-    if not budget.empty:
-        lines += ["## Sensors a machine can afford", "", budget.to_markdown(index=False), ""]
-    return "\n".join(lines) + "\n"
+    return lines

@@ -678,20 +678,31 @@ def _draw_axis(fig: Figure, ax, table: pd.DataFrame) -> None:
     ax.legend(fontsize=8)
     first = table.iloc[0]
     speed = f" + speed responses {first['speed_inputs']}" if first["speed_inputs"] else ""
-    text = f"axis {first['axis']}: {first['model']}{speed}, held out by {first['scheme']}"
+    machine = f"machine {first['machine']}, " if "machine" in table else ""
+    text = f"{machine}axis {first['axis']}: {first['model']}{speed}, held out by {first['scheme']}"
     width = ax.get_position().width * fig.get_figwidth()
     ax.set_title(
         wrap_text(fig, text, PANEL_TITLE_FONTSIZE, 0.9 * width), fontsize=PANEL_TITLE_FONTSIZE
     )
 
 
+def _panel_names(table: pd.DataFrame) -> pd.Series:
+    """Return each row's panel: its axis, after its machine when the table has one."""
+    if not len(table):
+        return pd.Series(dtype=object)
+    if "machine" not in table:
+        return table["axis"].astype(str)
+    return table["machine"].astype(str) + " " + table["axis"].astype(str)
+
+
 def budget_figure(table: pd.DataFrame, path: Path | str) -> Figure:
-    """Draw the held-out RMS against k (one panel per axis) and write it as a PNG.
+    """Draw the held-out RMS against k (one panel per machine and axis) and write it as a PNG.
 
     Parameters
     ----------
     table : DataFrame
-        :func:`sensor_budget` (one or several axes, concatenated).
+        :func:`sensor_budget` (one or several axes, concatenated; with a ``machine`` column,
+        of several machines).
     path : Path or str
         PNG written (parent folders created).
 
@@ -699,11 +710,12 @@ def budget_figure(table: pd.DataFrame, path: Path | str) -> Figure:
     -------
     Figure
     """
-    axes_names = list(dict.fromkeys(table["axis"])) if len(table) else []
+    names = _panel_names(table)
+    axes_names = list(dict.fromkeys(names)) if len(table) else []
     fig = new_figure(9.0, 1.0 + 4.6 * max(len(axes_names), 1))
     panels = fig.subplots(max(len(axes_names), 1), 1, squeeze=False)[:, 0]
     for ax, axis in zip(panels, axes_names, strict=False):
-        _draw_axis(fig, ax, table[table["axis"] == axis])
+        _draw_axis(fig, ax, table[names == axis])
     if not axes_names:
         panels[0].set_axis_off()
         panels[0].text(0.5, 0.5, "no sensor budget: the champion uses no sensor", ha="center")
@@ -711,7 +723,7 @@ def budget_figure(table: pd.DataFrame, path: Path | str) -> Figure:
     fig.suptitle(wrap_text(fig, title, TITLE_FONTSIZE), fontsize=TITLE_FONTSIZE)
     fig.canvas.draw()
     for ax, axis in zip(panels, axes_names, strict=False):
-        n = max(int((table["axis"] == axis).sum()) - 1, 1)
+        n = max(int((names == axis).sum()) - 1, 1)
         fit_tick_labels(fig, ax.xaxis, ax.bbox.width / n)
     save_figure(fig, Path(path))
     return fig

@@ -47,6 +47,7 @@ from pipeline.discrepancy.search import (
 )
 from pipeline.discrepancy.speed_steps import speed_step_gate
 from pipeline.io.tables import ingest
+from pipeline.machines import resolved_names
 from pipeline.settings.discrepancy import DiscrepancySettings
 from pipeline.validation.checks import validate_tables
 from pipeline.validation.gaps import apply_gaps
@@ -60,7 +61,9 @@ logger = logging.getLogger(__name__)
 def read_raw(
     raw_dir: Path, max_alignment_gap_s: float, limits: ValidationLimits
 ) -> tuple[list[MeasuredCampaign], list[str], bool]:
-    """Ingest and validate a raw folder; return its valid spindle campaigns.
+    """Ingest and validate a raw folder of one machine; return its valid spindle campaigns.
+
+    A folder of several machines is read machine by machine with :func:`read_raw_tables`.
 
     Parameters
     ----------
@@ -80,6 +83,36 @@ def read_raw(
         Campaigns left out, each logged with its problems.
     synthetic : bool
         True if any kept campaign is flagged ``synthetic`` in its campaign.yaml.
+
+    Raises
+    ------
+    ValueError
+        When the valid campaigns are of more than one machine.
+    """
+    campaigns, samples, quarantined = read_raw_tables(raw_dir, max_alignment_gap_s, limits)
+    machines = sorted(set(campaigns["machine"]))
+    if len(machines) > 1:
+        raise ValueError(
+            f"{raw_dir} holds the campaigns of {len(machines)} machines ({', '.join(machines)}): "
+            "compare one machine's campaigns at a time (thermal discrepancy --raw does so)"
+        )
+    measured, synthetic = spindle_campaigns(campaigns, samples)
+    return measured, quarantined, synthetic
+
+
+def read_raw_tables(
+    raw_dir: Path, max_alignment_gap_s: float, limits: ValidationLimits
+) -> tuple[pd.DataFrame, pd.DataFrame, list[str]]:
+    """Ingest and validate a raw folder; return its valid spindle campaigns' tables.
+
+    Parameters are those of :func:`read_raw`.
+
+    Returns
+    -------
+    campaigns, samples : DataFrame
+        As ``data/validated/spindle/{campaigns,samples}.parquet`` (``machine`` resolved).
+    quarantined : list of str
+        Campaigns left out, each logged with its problems.
     """
     tables = ingest(Path(raw_dir), max_alignment_gap_s)
     result = validate_tables(
@@ -94,9 +127,9 @@ def read_raw(
             raw_dir,
         )
     samples = apply_gaps(tables["samples"], result.gaps)
-    spindle = select_valid(tables["campaigns"], samples, tables["laser"], result.valid)["spindle"]
-    campaigns, synthetic = spindle_campaigns(spindle["campaigns"], spindle["samples"])
-    return campaigns, list(result.quarantined), synthetic
+    campaigns = tables["campaigns"].assign(machine=resolved_names(tables["campaigns"]))
+    spindle = select_valid(campaigns, samples, tables["laser"], result.valid)["spindle"]
+    return spindle["campaigns"], spindle["samples"], list(result.quarantined)
 
 
 def spindle_campaigns(

@@ -427,9 +427,14 @@ def ranked_summary(summary: pd.DataFrame, decisions: list[Decision]) -> pd.DataF
 
 
 def empty_scores() -> pd.DataFrame:
-    """Return the long score table with its columns and no row."""
+    """Return one machine's long score table with its columns and no row.
+
+    The optional ``machine`` column is the stage's, written beside each machine's scores.
+    """
     columns = CrossSeasonScoresModel.to_schema().columns
-    return pd.DataFrame({name: pd.Series(dtype=str(col.dtype)) for name, col in columns.items()})
+    return pd.DataFrame(
+        {name: pd.Series(dtype=str(col.dtype)) for name, col in columns.items() if col.required}
+    )
 
 
 def champion_metrics(card: dict) -> dict:

@@ -77,6 +77,8 @@ class GateDecision:
         The new campaigns scored.
     unscored : dict of str to str
         New campaigns that could not be compared -> why.
+    machine : str
+        The machine the axis is of (``""``: not given).
     """
 
     axis: str
@@ -89,6 +91,12 @@ class GateDecision:
     margin: float = 0.0
     campaigns: list[CampaignComparison] = field(default_factory=list)
     unscored: dict[str, str] = field(default_factory=dict)
+    machine: str = ""
+
+    @property
+    def name(self) -> str:
+        """``machine axis`` (the axis alone when the machine is not given)."""
+        return f"{self.machine} {self.axis}".strip()
 
     @property
     def promoted(self) -> bool:
@@ -271,21 +279,21 @@ def render_report(decisions: list[GateDecision], title: str = "Promotion gate") 
     if not decisions:
         return "\n".join([*lines, "No axis has a champion to register.", ""])
     lines += [
-        "| axis | decision | champion now | challenger | new campaigns | champion RMS (um) "
-        "| challenger RMS (um) | no compensation (um) |",
+        "| machine, axis | decision | champion now | challenger | new campaigns "
+        "| champion RMS (um) | challenger RMS (um) | no compensation (um) |",
         "|---|---|---|---|---|---|---|---|",
     ]
     for d in decisions:
         means = d.means()
         now = d.challenger_version if d.promoted else d.current_version
         lines.append(
-            f"| {d.axis} | **{d.action}** | v{now or '-'} | v{d.challenger_version or '-'} "
+            f"| {d.name} | **{d.action}** | v{now or '-'} | v{d.challenger_version or '-'} "
             f"({d.challenger_label or '-'}) | {len(d.campaigns)} | {_cell(means['current'])} | "
             f"{_cell(means['challenger'])} | {_cell(means['none'])} |"
         )
     lines.append("")
     for d in decisions:
-        lines += [f"## Axis {d.axis}: {d.action}", "", d.reason[0].upper() + d.reason[1:] + ".", ""]
+        lines += [f"## {d.name}: {d.action}", "", d.reason[0].upper() + d.reason[1:] + ".", ""]
         if d.current_version:
             lines.append(
                 f"Champion before: v{d.current_version} ({d.current_label or '-'}); challenger: "

@@ -1,6 +1,6 @@
 """The figure of the linear-axis composite model: measured vs modelled error, and residuals.
 
-Written by the ``model_axis`` stage to ``reports/axis_model.png``.
+Written by the ``model_axis`` stage to ``reports/axis_model/<machine>.png``.
 """
 
 from __future__ import annotations

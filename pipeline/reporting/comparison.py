@@ -8,6 +8,7 @@ from dataclasses import dataclass
 
 import pandas as pd
 
+from pipeline.machines import axis_label, registered_name
 from pipeline.protocol.champion import NO_COMPENSATION, Decision, eligible
 from pipeline.protocol.units import PROTOCOL_NAMES, CampaignSeries
 
@@ -131,14 +132,15 @@ Twin used: {source}.
 """
 
 
-def _decision_text(axis: str, decision: Decision, card: Mapping) -> str:
+def _decision_text(machine: str, axis: str, decision: Decision, card: Mapping) -> str:
     if decision.compensate:
+        name = registered_name("thermal-error-spindle", machine, axis)
         return (
             f"Champion: **{decision.label}** on {', '.join(card['inputs']) or 'no input'}. "
             f"{decision.reason[0].upper()}{decision.reason[1:]}. Fitted on all training "
             f"campaigns and registered in MLflow by the `track` stage as "
-            f"a new version of `<track.registered_model>-{axis}` (by default "
-            f"`thermal-error-spindle-{axis}`); it takes the alias `champion` when the promotion "
+            f"a new version of `<track.registered_model>-<machine>-{axis}` (by default "
+            f"`{name}`); it takes the alias `champion` when the promotion "
             "gate finds it better than the current one (`reports/promotion/promotion.md`)."
         )
     return (
@@ -243,6 +245,7 @@ class AxisContext:
 
     Attributes
     ----------
+    machine : str
     axis : str
     summary : DataFrame
         The axis' rows of :func:`pipeline.protocol.scoring.candidate_summary` (um).
@@ -261,6 +264,7 @@ class AxisContext:
         column); None leaves the column out.
     """
 
+    machine: str
     axis: str
     summary: pd.DataFrame
     decision: Decision
@@ -337,11 +341,11 @@ def axis_section(
     twin = twin_text if any(c.summary["model"] == "twin") else ""
     protocol = _protocol_text(c.decision, c.series, c.card)
     heatmap_lines = "\n".join(f"![{path}]({path})" for path in figures.heatmaps)
-    return f"""## Axis {c.axis}
+    return f"""## Machine {c.machine}, axis {c.axis}
 
 {n_train} training and {n_validation} validation campaigns. {protocol}
 
-{_decision_text(c.axis, c.decision, c.card)}
+{_decision_text(c.machine, c.axis, c.decision, c.card)}
 
 {_validation_text(c.summary, c.decision, c.series)}
 
@@ -360,7 +364,7 @@ def axis_section(
 
 {selection_table(c.selected)}
 
-![stability](selection/stability_{c.axis}.png)
+![stability](selection/stability_{axis_label(c.machine, c.axis)}.png)
 
 ### Held-out predictions
 
@@ -387,22 +391,11 @@ def _speed_text(separation: Mapping) -> str:
     )
 
 
-def render(
-    sections: Sequence[str], separation: Mapping, synthetic: bool, axes: Sequence[str]
-) -> str:
-    """Render the whole report as Markdown."""
-    origin = (
-        "**These figures come from SYNTHETIC campaigns written by the physical twin "
-        "(`thermal simulate`), not from measurements.**"
-        if synthetic
-        else "These figures come from the measured campaigns in `data/raw/`."
-    )
-    settings = separation.get("settings") or {}
-    reference = (
-        "the first sample"
-        if settings.get("cold_reference", "first_sample") == "first_sample"
-        else f"the mean of the first {settings.get('cold_n')} samples"
-    )
+def machine_intro(machine: str, separation: Mapping, axes: Sequence[str]) -> str:
+    """Return the heading and paragraph that open one machine's part of the report.
+
+    ``separation``: the machine's entry of ``spindle_runs.json`` (runs, warm starts, note).
+    """
     note = separation.get("note")
     note = f"\n**Nothing to model**: {note}.\n" if note else ""
     warm = [c for c, info in separation.get("campaigns", {}).items() if info.get("warm_start")]
@@ -415,28 +408,57 @@ def render(
         if runs
         else "Every campaign is its own run."
     )
+    return f"""## Machine {machine}
+{note}
+Axes: {", ".join(axes) or "none"}. Modelled on its own campaigns only. {run_text}
+"""
+
+
+def render(
+    sections: Sequence[str], separation: Mapping, synthetic: bool, machines: Sequence[str]
+) -> str:
+    """Render the whole report as Markdown.
+
+    ``sections``: each machine's :func:`machine_intro` followed by its axes' sections;
+    ``separation``: ``spindle_runs.json`` (its ``machines``, or ``note`` when there is none).
+    """
+    origin = (
+        "**These figures come from SYNTHETIC campaigns written by the physical twin "
+        "(`thermal simulate`), not from measurements.**"
+        if synthetic
+        else "These figures come from the measured campaigns in `data/raw/`."
+    )
+    records = list((separation.get("machines") or {}).values())
+    settings = (records[0] if records else separation).get("settings") or {}
+    reference = (
+        "the first sample"
+        if settings.get("cold_reference", "first_sample") == "first_sample"
+        else f"the mean of the first {settings.get('cold_n')} samples"
+    )
+    note = separation.get("note")
+    note = f"\n**Nothing to model**: {note}.\n" if note else ""
     return f"""# Model comparison
 
 Generated by `thermal evaluate` (DVC stage `evaluate`); do not edit. {origin}
 {note}
-Axes: {", ".join(axes) or "none"}. The thermal error of a campaign is its displacement minus its
-value at the reference of its run, {reference} of the run (the cold state when the run starts
-cold); the temperature rises use the same reference. {run_text} {_speed_text(separation)}
+Machines: {", ".join(machines) or "none"}; each is modelled on its own campaigns (a sensor of one
+machine is not a sensor of another). The thermal error of a campaign is its displacement minus
+its value at the reference of its run, {reference} of the run (the cold state when the run starts
+cold); the temperature rises use the same reference. {_speed_text({"settings": settings})}
 
-**How a model is chosen.** Each axis' champion is chosen on the training campaigns only, by the
-score of the kind of fit that is registered: built on several campaigns, applied to the
-campaigns it did not see (leave-one-season-out when the training campaigns span two seasons,
-else leave-one-campaign-out). **held-out RMS**: mean over the held-out campaigns of the RMS of
-the residual (counts offsets; um); **held-out S**: the same with the residual standard
-deviation (the PCDL paper's score, blind to offsets); **eta** = 1 - RMS(residual) / RMS(no
-compensation) on the same samples, summarised as 1 - mean RMS / mean uncompensated RMS;
-**coverage**: the share of the held-out samples `none` was scored on that a model predicted (an
-input missing in a campaign leaves it unpredicted). `none` (no compensation) is a candidate: a
-model must cover the held-out samples and reach the eta margin of `params.yaml`
-`evaluate.champion`, or the champion is `none`. Validation campaigns never choose;
-**validation RMS / eta**: the model built on all training campaigns, applied to them. The PCDL
-paper's own protocol stays beside it: **fit S** on the campaign a model was built on,
-**one-campaign RMS / S** its mean on every other training campaign.
+**How a model is chosen.** The champion of each machine and axis is chosen on its training campaigns
+only, by the score of the kind of fit that is registered: built on several campaigns, applied to the
+campaigns it did not see (leave-one-season-out when the training campaigns span two seasons, else
+leave-one-campaign-out). **held-out RMS**: mean over the held-out campaigns of the RMS of the
+residual (counts offsets; um); **held-out S**: the same with the residual standard deviation (the
+PCDL paper's score, blind to offsets); **eta** = 1 - RMS(residual) / RMS(no compensation) on the
+same samples, summarised as 1 - mean RMS / mean uncompensated RMS; **coverage**: the share of the
+held-out samples `none` was scored on that a model predicted (an input missing in a campaign leaves
+it unpredicted). `none` (no compensation) is a candidate: a model must cover the held-out samples
+and reach the eta margin of `params.yaml` `evaluate.champion`, or the champion is `none`. Validation
+campaigns never choose; **validation RMS / eta**: the model built on all training campaigns, applied
+to them. The PCDL paper's own protocol stays beside it: **fit S** on the campaign a model was built
+on, **one-campaign RMS / S** its mean on every other training campaign.
 
 Mode `static`: from the machine's inputs only. Models on the error's own history are scored
 twice: `one_step` uses the measured error up to the previous sample (only possible on a machine

@@ -14,6 +14,7 @@ import numpy as np
 import pandas as pd
 
 from pipeline import paths, plots
+from pipeline.machines import MACHINE_COLUMN, axis_label, machine_key
 from pipeline.protocol.evaluation import CANDIDATE, AxisComparison, AxisEvaluation, label
 from pipeline.protocol.scoring import score_matrix
 from pipeline.protocol.units import CampaignSeries
@@ -56,7 +57,8 @@ def write_matrices(scores: pd.DataFrame, title_suffix: str) -> list[str]:
     Parameters
     ----------
     scores : DataFrame
-        The long score table (``reports/cross_season_scores.csv``): ``axis``, ``model``,
+        The long score table (``reports/cross_season_scores.csv``): ``machine``, ``axis``,
+        ``model``,
         ``selection``, ``mode``, ``scheme``, ``train_unit``, ``test_campaign``, ``test_split``,
         ``test_season``, ``role``, ``resid_std_um`` and ``rmse_um`` (um).
     title_suffix : str
@@ -72,7 +74,7 @@ def write_matrices(scores: pd.DataFrame, title_suffix: str) -> list[str]:
     paths.MATRICES.mkdir(parents=True, exist_ok=True)
     for path in paths.MATRICES.glob("*.png"):
         path.unlink()
-    keys_all = ["axis", *CANDIDATE]
+    keys_all = [MACHINE_COLUMN, "axis", *CANDIDATE]
     for keys, group in cross.groupby(keys_all, sort=True):
         for column in ("resid_std_um", "rmse_um"):
             matrix = score_matrix(group, column)
@@ -81,12 +83,13 @@ def write_matrices(scores: pd.DataFrame, title_suffix: str) -> list[str]:
                 names=[*keys_all, "score", "train_unit"],
             )
             frames.append(matrix)
-        out = paths.MATRICES / f"{'__'.join(keys)}.png"
+        out = paths.MATRICES / f"{'__'.join([machine_key(keys[0]), *keys[1:]])}.png"
         campaigns = group.drop_duplicates("test_campaign")
         in_sample = group.assign(fit=(group["role"] == "fit").astype(float))
         figure = plots.score_heatmap_figure(
             {"RMS of the residual (um)": score_matrix(group, "rmse_um")},
-            f"Axis {keys[0]}, candidate {' / '.join(keys[1:])}: built on each training unit, "
+            f"Machine {keys[0]}, axis {keys[1]}, candidate {' / '.join(keys[2:])}: built on each "
+            "training unit, "
             f"applied to every campaign ({title_suffix})",
             seasons=dict(zip(campaigns["test_campaign"], campaigns["test_season"], strict=True)),
             validation=set(campaigns.loc[campaigns["test_split"] == "validation", "test_campaign"]),
@@ -109,6 +112,7 @@ class AxisReport:
 
 
 def report_axis(
+    machine: str,
     item: AxisEvaluation,
     comparison: AxisComparison,
     summary: pd.DataFrame,
@@ -121,14 +125,16 @@ def report_axis(
 ) -> AxisReport:
     """One axis' report section, its held-out figure and its rows of the DVC plot tables.
 
-    Formats what the protocol computed: the evaluation (``item``, champion decided) and its
-    comparison of the best model with the plain baseline (``comparison``).
+    Formats what the protocol computed for one axis of ``machine``: the evaluation (``item``,
+    champion decided) and its comparison of the best model with the plain baseline
+    (``comparison``); ``summary``, ``selected`` and ``separation`` are the machine's.
     """
+    name = axis_label(machine, item.axis)
     rows = summary[summary["axis"] == item.axis]
     decision = item.decision
     first, second = comparison.best, comparison.plain
     panels = prediction_panels(item.series, comparison)
-    figure = paths.COMPARISON_FIGURES / f"heldout_{item.axis}.png"
+    figure = paths.COMPARISON_FIGURES / f"heldout_{name}.png"
     labels = (
         f"best model: {label(first)}",
         "no plain baseline" if second is None else f"plain: {label(second)}",
@@ -139,9 +145,10 @@ def report_axis(
         else "each training campaign, predicted by the fit that left it out"
     )
     seasons = {s.campaign_id: s.season for s in item.series}
-    title = f"Axis {item.axis}: {where} ({origin})"
+    title = f"Machine {machine}, axis {item.axis}: {where} ({origin})"
     plots.save_figure(plots.predicted_vs_measured_figure(panels, labels, title, seasons), figure)
     context = comparison_report.AxisContext(
+        machine,
         item.axis,
         rows,
         decision,
@@ -156,12 +163,13 @@ def report_axis(
     figures = comparison_report.AxisFigures(
         figure.relative_to(paths.REPORTS).as_posix(),
         labels,
-        [h for h in heatmaps if h.startswith(f"matrices/{item.axis}__")],
+        [h for h in heatmaps if h.startswith(f"matrices/{machine_key(machine)}__{item.axis}__")],
     )
     plot_rows = [
         {
+            MACHINE_COLUMN: machine,
             "axis": item.axis,
-            "candidate": f"{item.axis}: {label(row)}",
+            "candidate": f"{machine} {item.axis}: {label(row)}",
             "heldout_rms_um": row.get(decision.column) if decision.column else np.nan,
             "eta": row.get(f"{item.protocol}_eta") if item.protocol else np.nan,
         }
@@ -170,7 +178,7 @@ def report_axis(
     predictions = [
         frame.rename(columns={"first_um": "predicted_um"})
         .drop(columns="second_um")
-        .assign(axis=item.axis, campaign_id=campaign)
+        .assign(machine=machine, axis=item.axis, campaign_id=campaign)
         for campaign, frame in panels.items()
     ]
     section = comparison_report.axis_section(context, separation, figures, twin_text)

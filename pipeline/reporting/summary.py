@@ -35,7 +35,7 @@ def champion_line(card: dict) -> str:
 
 
 def summary_lines(root: Path) -> list[str]:
-    """Lines describing the outputs found under ``root`` (the repository)."""
+    """Lines describing the outputs found under ``root`` (the repository), machine by machine."""
     lines = ["", "Results of dvc repro:"]
     report = root / paths.VALIDATION_REPORT
     if report.is_file():
@@ -45,39 +45,11 @@ def summary_lines(root: Path) -> list[str]:
             f"{len(validation['quarantined'])} quarantined "
             f"{', '.join(validation['quarantined'])}"
         )
-    for path in sorted((root / paths.CHAMPION).glob(f"*/{paths.CHAMPION_CARD_FILE}")):
-        lines.append(
-            f"  champion {path.parent.name:<7} " + champion_line(json.loads(path.read_text()))
-        )
-    lines += compensation_lines(root)
-    axis = root / paths.AXIS_MODEL_METRICS
-    if axis.is_file():
-        figures = json.loads(axis.read_text())
-        lines.append(
-            f"  axis model       {paths.AXIS_MODEL_REPORT}: validation residual "
-            f"{_um(figures.get('residual_min_um'))} to {_um(figures.get('residual_max_um'))} um"
-        )
-    discrepancy = root / paths.DISCREPANCY_DOCUMENT
-    if discrepancy.is_file():
-        doc = json.loads(discrepancy.read_text())
-        val = doc.get("validation") or {}
-        if doc.get("status") == "untestable":
-            lines.append(
-                f"  twin vs data     {paths.DISCREPANCY}/discrepancy.md: untestable "
-                f"({doc.get('reason', 'no reason given')})"
-            )
-        else:
-            lines.append(
-                f"  twin vs data     {paths.DISCREPANCY}/discrepancy.md: named "
-                f"{', '.join(doc['named_effects']) or 'nothing'}; held-out Z "
-                f"{_um(doc['rmse_um_before'])} -> {_um(doc['rmse_um_after'])} um"
-                + (
-                    f", validation Z {_um(val.get('rmse_um_before'))} -> "
-                    f"{_um(val.get('rmse_um_after'))} um"
-                    if val
-                    else ""
-                )
-            )
+    compensation = _machines(root / paths.COMPENSATION_SUMMARY)
+    axis_models = _machines(root / paths.AXIS_MODEL_METRICS)
+    for machine in machine_folders(root):
+        lines.append(f"  machine {machine}")
+        lines += machine_lines(root, machine, compensation.get(machine), axis_models.get(machine))
     lines += [
         f"  comparison       {paths.MODEL_COMPARISON} (every model, scores, heat-maps, plots)",
         f"  selection        {paths.SELECTION}/ (sensitive points, evidence, stability)",
@@ -87,56 +59,107 @@ def summary_lines(root: Path) -> list[str]:
         f"  axis separation  {paths.AXIS_SLOPES}, {paths.SEPARATION_PLOTS}/*.png",
         "  plots            .venv/bin/dvc plots show  (writes dvc_plots/index.html)",
     ]
-    record = root / paths.TRACKING_RECORD
-    uri, runs_page = LOCAL_STORE, ""
-    if record.is_file():
-        tracking = json.loads(record.read_text())
-        uri = tracking.get("tracking_uri", uri)
-        if tracking.get("experiment_id") is not None:
-            runs_page = runs_page_path(str(tracking["experiment_id"]))
-        ranked = sorted(k for k in (tracking.get("views") or {}) if k.startswith("ranked-"))
-        if ranked:  # each axis' candidates ranked, scores as columns (a shared view)
-            runs_page = tracking["views"][ranked[0]]
-        lines.append(
-            f"  MLflow           experiment '{tracking.get('experiment')}', parent run "
-            f"{tracking.get('parent_run_id')} at {uri}"
-        )
-        for axis, champion in (tracking.get("champions") or {}).items():
-            if champion.get("uri"):
-                lines.append(f'  model {axis:<10} mlflow.pyfunc.load_model("{champion["uri"]}")')
-        lines += gate_lines(tracking.get("promotion") or [])
-    if uri.startswith("sqlite:"):
-        lines += [
-            "",
-            f"Open the MLflow UI (then browse http://127.0.0.1:5000{runs_page}):",
-            f"  .venv/bin/mlflow ui --backend-store-uri {uri} --port 5000",
-        ]
-    else:
-        lines += ["", f"Open the MLflow UI of your tracking server: {uri.rstrip('/')}{runs_page}"]
-    return lines
-
-
-def compensation_lines(root: Path) -> list[str]:
-    """One line per axis on the replay proof (``reports/compensation/compensation.md``)."""
-    summary = root / paths.COMPENSATION_SUMMARY
-    if not summary.is_file():
-        return []
-    document = json.loads(summary.read_text())
-    lines = [
-        f"  replay {axis:<9} {record['headline']} ({paths.COMPENSATION_REPORT})"
-        for axis, record in (document.get("axes") or {}).items()
-    ]
-    budget = root / paths.SENSOR_BUDGET
-    if budget.is_file():
+    if (root / paths.SENSOR_BUDGET).is_file():
         lines.append(
             f"  sensor budget    {paths.SENSOR_BUDGET}, {paths.SENSOR_BUDGET_PLOT} (best model "
             "with k sensors, held-out RMS)"
         )
-    lines.append(
-        f"  compensate       .venv/bin/thermal compensate --source csv:<logger file> --sink "
-        f"csv:<offsets.csv>  (bundles in {paths.COMPENSATION_BUNDLES}/)"
-    )
+    if compensation:
+        lines.append(
+            f"  compensate       .venv/bin/thermal compensate --source csv:<logger file> --sink "
+            f"csv:<offsets.csv>{' --machine <machine>' if len(compensation) > 1 else ''}  "
+            f"(bundles in {paths.COMPENSATION_BUNDLES}/)"
+        )
+    return lines + tracking_lines(root)
+
+
+def _machines(path: Path) -> dict:
+    """Return the ``machines`` entry of a stage's JSON output (empty without the file)."""
+    return (json.loads(path.read_text()).get("machines") or {}) if path.is_file() else {}
+
+
+def machine_folders(root: Path) -> list[str]:
+    """Return the machines with an output: the champions' and the discrepancy's folders."""
+    found = {p.name for p in (root / paths.CHAMPION).glob("*") if p.is_dir()}
+    found |= {p.parent.name for p in (root / paths.DISCREPANCY).glob(f"*/{paths.DISCREPANCY_FILE}")}
+    return sorted(found)
+
+
+def machine_lines(
+    root: Path, key: str, compensation: dict | None, axis_model: dict | None
+) -> list[str]:
+    """One machine's lines: champions, replay proofs, axis model, twin against its data.
+
+    ``key``: the machine's folder name; ``compensation`` and ``axis_model``: its entries.
+    """
+    lines = [
+        f"    champion {path.parent.name:<7} " + champion_line(json.loads(path.read_text()))
+        for path in sorted((root / paths.CHAMPION / key).glob(f"*/{paths.CHAMPION_CARD_FILE}"))
+    ]
+    lines += [
+        f"    replay {axis:<9} {record['headline']} ({paths.COMPENSATION_REPORT})"
+        for axis, record in ((compensation or {}).get("axes") or {}).items()
+    ]
+    if axis_model:
+        lines.append(
+            f"    axis model     {paths.AXIS_MODEL_REPORT}: validation residual "
+            f"{_um(axis_model.get('residual_min_um'))} to "
+            f"{_um(axis_model.get('residual_max_um'))} um"
+        )
+    discrepancy = root / paths.discrepancy_document(key)
+    if discrepancy.is_file():
+        lines.append("    " + twin_line(key, json.loads(discrepancy.read_text())))
     return lines
+
+
+def twin_line(key: str, doc: dict) -> str:
+    """One line on the twin against a machine's campaigns (its ``discrepancy.md``)."""
+    where = f"{paths.DISCREPANCY}/{key}/discrepancy.md"
+    if doc.get("status") == "untestable":
+        return f"twin vs data   {where}: untestable ({doc.get('reason', 'no reason given')})"
+    val = doc.get("validation") or {}
+    return (
+        f"twin vs data   {where}: named {', '.join(doc['named_effects']) or 'nothing'}; "
+        f"held-out Z {_um(doc['rmse_um_before'])} -> {_um(doc['rmse_um_after'])} um"
+        + (
+            f", validation Z {_um(val.get('rmse_um_before'))} -> {_um(val.get('rmse_um_after'))} um"
+            if val
+            else ""
+        )
+    )
+
+
+def tracking_lines(root: Path) -> list[str]:
+    """Where the MLflow runs and registered models are, each machine's gate, the UI command."""
+    record = root / paths.TRACKING_RECORD
+    uri, runs_page, lines = LOCAL_STORE, "", []
+    if record.is_file():
+        tracking = json.loads(record.read_text())
+        uri = tracking.get("tracking_uri", uri)
+        for machine, entry in (tracking.get("machines") or {}).items():
+            if not runs_page and entry.get("experiment_id") is not None:
+                runs_page = runs_page_path(str(entry["experiment_id"]))
+            ranked = sorted(k for k in (entry.get("views") or {}) if k.startswith("ranked-"))
+            if ranked and "viewStateShareKey" not in runs_page:
+                runs_page = entry["views"][ranked[0]]  # candidates ranked, scores as columns
+            lines.append(
+                f"  MLflow           machine {machine}: experiment "
+                f"'{tracking.get('experiment')}', parent run {entry.get('parent_run_id')} at {uri}"
+            )
+            for axis, champion in (entry.get("champions") or {}).items():
+                if champion.get("uri"):
+                    lines.append(
+                        f'  model {axis:<10} mlflow.pyfunc.load_model("{champion["uri"]}")'
+                    )
+            lines += gate_lines(entry.get("promotion") or [])
+    if uri.startswith("sqlite:"):
+        return [
+            *lines,
+            "",
+            f"Open the MLflow UI (then browse http://127.0.0.1:5000{runs_page}):",
+            f"  .venv/bin/mlflow ui --backend-store-uri {uri} --port 5000",
+        ]
+    return [*lines, "", f"Open the MLflow UI of your tracking server: {uri.rstrip('/')}{runs_page}"]
 
 
 def gate_lines(decisions: list[dict]) -> list[str]:

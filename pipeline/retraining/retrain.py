@@ -132,7 +132,11 @@ def main(argv: list[str] | None = None) -> int:
     reproduce(dvc)
     text, decision = report(pulled, args.report, args.json)
     sys.stdout.write(text + "\n")
-    errors = [axis["axis"] for axis in decision["axes"] if axis["action"] == "error"]
+    errors = [
+        f"{axis.get('machine', '')} {axis['axis']}".strip()
+        for axis in decision["axes"]
+        if axis["action"] == "error"
+    ]
     if errors:
         LOGGER.error("the gate could not score axis %s: see %s", ", ".join(errors), args.report)
         return 1

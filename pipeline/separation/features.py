@@ -36,11 +36,13 @@ from __future__ import annotations
 
 import math
 import re
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
+
+from pipeline.machines import by_machine
 
 COLD_REFERENCES = ("first_sample", "mean_first_n")
 FEATURE_KINDS = ("temperature_rise", "absolute")
@@ -611,6 +613,24 @@ def input_names(columns: Sequence[str], features: str) -> list[str]:
         sensors = [s for s in sensors if s in columns]
     speed = [c for c in columns if is_speed_feature(c)]
     return [*natural_sorted(sensors), *speed]
+
+
+def input_columns(columns: Sequence[str]) -> set[str]:
+    """Columns of a separated table that are a machine's own inputs: sensors, rises, speeds."""
+    sensors = {str(c).removeprefix("rise_") for c in columns if str(c).startswith("rise_")}
+    rises = {f"rise_{s}" for s in sensors}
+    return {c for c in columns if c in sensors or c in rises or is_speed_feature(c)}
+
+
+def separated_by_machine(table: pd.DataFrame) -> Iterator[tuple[str, pd.DataFrame]]:
+    """Yield each machine of a separated table and its rows alone, by name.
+
+    A table of several machines holds the union of their sensor and speed columns; each
+    machine's rows come without the input columns only the other machines fill
+    (:func:`pipeline.machines.machine_rows`).
+    """
+    inputs = input_columns(list(table.columns))
+    yield from by_machine(table, [c for c in table.columns if c not in inputs])
 
 
 def natural_sorted(names: Sequence[str]) -> list[str]:

@@ -1,23 +1,25 @@
 """DVC stage ``compensation``: from each axis' champion to what the machine runs, and its proof.
 
-Reads each axis' champion (``data/models/champion/<axis>/``: card, estimator, held-out
-predictions and fits), the separated thermal error
+Reads each machine and axis' champion (``data/models/champion/<machine>/<axis>/``: card,
+estimator, held-out predictions and fits), the separated thermal error
 (``data/separated/spindle_thermal_error.parquet``), the selections made on each training unit
-(``reports/selection/selected.json``) and the linear-axis model (``reports/axis_model.json``).
-For each axis it writes
+(``reports/selection/selected.json``) and the linear-axis model (``reports/axis_model.json``),
+each machine's part on its own. For each machine and axis it writes
 
-- the runtime's bundle (``data/models/compensation/<axis>/``,
+- the runtime's bundle (``data/models/compensation/<machine>/<axis>/``,
   :mod:`pipeline.compensation.bundle`): the champion, one fallback per sensor it reads
   (:func:`pipeline.compensation.sensor_budget.fallback_fits`), the range of every input seen in
   training and the input checks of the ``validate`` stage;
-- the controller exports (``reports/compensation/<axis>/``, :mod:`pipeline.compensation.exports`):
+- the controller exports (``reports/compensation/<machine>/<axis>/``,
+  :mod:`pipeline.compensation.exports`):
   ``coefficients.json`` for models linear in their inputs, ``controller.json`` (the Heidenhain
   ``TEMPCOMP`` formula or why none fits, the SINUMERIK K0 / tan beta / P0 mapping);
 - the proof on replay (:mod:`pipeline.compensation.replay`): ``proof.csv``, ``trace.csv`` and
   one figure per held-out campaign;
 
-and, over all axes, ``reports/compensation/compensation.{json,md}``,
-``metrics/compensation.json`` and the sensor budget (``reports/sensor_budget.{csv,png}``).
+and, over all machines and axes, ``reports/compensation/compensation.{json,md}`` and
+``metrics/compensation.json`` (``{"machines": {machine: ...}}``) and the sensor budget
+(``reports/sensor_budget.{csv,png}``, a ``machine`` column).
 """
 
 from __future__ import annotations
@@ -27,6 +29,7 @@ import json
 import logging
 import shutil
 from dataclasses import dataclass, replace
+from pathlib import Path
 
 import joblib
 import pandas as pd
@@ -52,8 +55,9 @@ from pipeline.compensation.report import render_report, summary_record
 from pipeline.compensation.sensor_budget import budget_figure, fallback_fits, sensor_budget
 from pipeline.config import DEFAULT_PARAMS
 from pipeline.errors import MissingInputError
+from pipeline.machines import machine_key, with_machine
 from pipeline.protocol.units import series_by_axis, training_units
-from pipeline.separation.features import InputSpec
+from pipeline.separation.features import InputSpec, separated_by_machine
 from pipeline.settings.base import load_settings
 from pipeline.settings.compensation import CompensationSettings
 from pipeline.settings.evaluate import EvaluateSettings
@@ -77,18 +81,22 @@ def _parse_args(argv: list[str] | None) -> argparse.Namespace:
     return parser.parse_args(argv)
 
 
-def champion_axes() -> list[str]:
-    """Axes with a saved champion, sorted."""
-    if not paths.CHAMPION.is_dir():
+def champion_axes(machine: str) -> list[str]:
+    """Axes of the machine with a saved champion, sorted."""
+    root = paths.CHAMPION / machine_key(machine)
+    if not root.is_dir():
         return []
-    return sorted(
-        p.name for p in paths.CHAMPION.iterdir() if (p / paths.CHAMPION_CARD_FILE).is_file()
-    )
+    return sorted(p.name for p in root.iterdir() if (p / paths.CHAMPION_CARD_FILE).is_file())
 
 
-def axis_bundle(axis: str, rows: pd.DataFrame, fallbacks: list, checks: InputChecks) -> AxisBundle:
-    """Return the runtime's bundle of an axis: champion, fallbacks, training ranges, checks."""
-    folder = paths.CHAMPION / axis
+def axis_bundle(
+    folder: Path, rows: pd.DataFrame, fallbacks: list, checks: InputChecks
+) -> AxisBundle:
+    """Return the runtime's bundle of an axis: champion, fallbacks, training ranges, checks.
+
+    ``folder``: the axis' champion (``data/models/champion/<machine>/<axis>/``).
+    """
+    axis = folder.name
     card = json.loads((folder / paths.CHAMPION_CARD_FILE).read_text(encoding="utf-8"))
     spec = InputSpec.from_dict(card["input_spec"])
     protocol_score = (card.get("scores") or {}).get(f"{card.get('protocol')}_Mn_rms_um")
@@ -145,14 +153,14 @@ def controller_document(
     }
 
 
-def write_linear_axes(axis_model: dict | None) -> dict:
+def write_linear_axes(machine: str, axis_model: dict | None) -> dict:
     """Write the SINUMERIK mapping of each laser-measured linear axis; return them by axis."""
     mappings = {}
     for axis in (axis_model or {}).get("axis") or []:
         mapping = sinumerik_mapping(axis_model, str(axis))
         if mapping is None:
             continue
-        out = paths.COMPENSATION_REPORTS / f"linear_{axis}"
+        out = paths.COMPENSATION_REPORTS / machine_key(machine) / f"linear_{axis}"
         out.mkdir(parents=True, exist_ok=True)
         (out / "sinumerik.json").write_text(json.dumps(mapping, indent=2) + "\n")
         mappings[str(axis)] = mapping
@@ -160,12 +168,16 @@ def write_linear_axes(axis_model: dict | None) -> dict:
 
 
 def write_axis(
-    bundle: AxisBundle, proof: AxisProof, axis_model: dict | None, settings: CompensationSettings
+    machine: str,
+    bundle: AxisBundle,
+    proof: AxisProof,
+    axis_model: dict | None,
+    settings: CompensationSettings,
 ) -> dict:
     """Write an axis' bundle, exports, proof table, traces and figures; return its record."""
     axis = bundle.axis
-    write_bundle(paths.COMPENSATION_BUNDLES / axis, bundle)
-    out = paths.COMPENSATION_REPORTS / axis
+    write_bundle(paths.COMPENSATION_BUNDLES / machine_key(machine) / axis, bundle)
+    out = paths.COMPENSATION_REPORTS / machine_key(machine) / axis
     out.mkdir(parents=True)
     form = linear_form(bundle.champion.estimator, bundle.champion.spec)
     coefficients = coefficients_document(
@@ -183,8 +195,9 @@ def write_axis(
 
 @dataclass(frozen=True)
 class AxisWork:
-    """One axis' inputs to the stage: its series, training units, rows and selections."""
+    """One axis' inputs to the stage: its machine, series, training units, rows and selections."""
 
+    machine: str
     axis: str
     series: list
     units: list
@@ -201,22 +214,80 @@ def compensate_axis(
     n_jobs: int,
 ) -> tuple[dict, pd.DataFrame, pd.DataFrame]:
     """Build, write and prove one axis' compensation; return its record, proof and budget."""
-    folder = paths.CHAMPION / work.axis
+    folder = paths.CHAMPION / machine_key(work.machine) / work.axis
     card = json.loads((folder / paths.CHAMPION_CARD_FILE).read_text(encoding="utf-8"))
     scheme = card.get("protocol")
     fallbacks = fallback_fits(
         work.series, work.units, card, model_params, scheme, work.selected, n_jobs=n_jobs
     )
-    bundle = axis_bundle(work.axis, work.rows, fallbacks, checks)
+    bundle = axis_bundle(folder, work.rows, fallbacks, checks)
     fits = joblib.load(folder / paths.HELDOUT_FITS_FILE)
     heldout = pd.read_parquet(folder / paths.CHAMPION_HELDOUT_FILE)
     proof = replay_axis(bundle, work.rows, fits, heldout, settings)
-    record = write_axis(bundle, proof, axis_model, settings)
+    record = write_axis(work.machine, bundle, proof, axis_model, settings)
     record["fallbacks"] = [fallback_record(item) for item in fallbacks]
     budget = sensor_budget(
         work.series, work.units, card, model_params, scheme, work.selected, n_jobs=n_jobs
     )
     return record, proof.table, budget
+
+
+@dataclass(frozen=True)
+class StageSettings:
+    """What every machine's compensation is built with."""
+
+    settings: CompensationSettings
+    checks: InputChecks
+    protocol: ProtocolSettings
+    features: str
+    model_params: dict
+    n_jobs: int
+
+
+def compensate_machine(
+    machine: str, table: pd.DataFrame, selected: dict, axis_model: dict | None, stage: StageSettings
+) -> tuple[dict, pd.DataFrame, dict[str, pd.DataFrame]]:
+    """Build, write and prove the compensation of every axis of one machine.
+
+    Returns
+    -------
+    record : dict
+        ``{"axes": {axis: record}, "linear_axes": {axis: SINUMERIK mapping}}``.
+    budget : DataFrame
+        The machine's sensor budget, a leading ``machine`` column.
+    tables : dict of str to DataFrame
+        Axis -> its replay proof table.
+    """
+    series = series_by_axis(table, stage.features)
+    records, budgets, tables = {}, [], {}
+    for axis in champion_axes(machine):
+        units = training_units(series[axis], stage.protocol)
+        rows = table[table["axis"] == axis]
+        work = AxisWork(machine, axis, series[axis], units, rows, selected)
+        records[axis], tables[axis], budget = compensate_axis(
+            work, stage.checks, stage.settings, axis_model, stage.model_params, stage.n_jobs
+        )
+        budgets.append(with_machine(budget, machine))
+        LOGGER.info("machine %s, axis %s: %s", machine, axis, records[axis]["headline"])
+    linear = write_linear_axes(machine, axis_model)
+    budget = pd.concat(budgets, ignore_index=True) if budgets else pd.DataFrame()
+    return {"axes": records, "linear_axes": linear}, budget, tables
+
+
+def read_inputs() -> tuple[pd.DataFrame, dict, dict]:
+    """Read the separated table, the selections and the axis models, by machine."""
+    if not paths.SPINDLE_THERMAL_ERROR.is_file():
+        raise MissingInputError(
+            f"{paths.SPINDLE_THERMAL_ERROR} not found; run `dvc repro separate_spindle` first"
+        )
+    table = pd.read_parquet(paths.SPINDLE_THERMAL_ERROR)
+    selected = json.loads(paths.SELECTED.read_text(encoding="utf-8")).get("machines", {})
+    axis_models = (
+        json.loads(paths.AXIS_MODEL_REPORT.read_text(encoding="utf-8")).get("machines", {})
+        if paths.AXIS_MODEL_REPORT.is_file()
+        else {}
+    )
+    return table, selected, axis_models
 
 
 @summarise_warnings()
@@ -225,45 +296,43 @@ def main(argv: list[str] | None = None) -> int:
     args = _parse_args(argv)
     settings = load_settings(CompensationSettings, "compensation", args.params)
     limits = load_settings(ValidateSettings, "validate", args.params).limits()
-    checks = InputChecks.from_limits(limits, settings.range_margin_degC)
     evaluate = load_settings(EvaluateSettings, "evaluate", args.params)
-    protocol = load_settings(ProtocolSettings, "protocol", args.params)
-    features = load_settings(SelectSettings, "select", args.params).features
-    if not paths.SPINDLE_THERMAL_ERROR.is_file():
-        raise MissingInputError(
-            f"{paths.SPINDLE_THERMAL_ERROR} not found; run `dvc repro separate_spindle` first"
-        )
-    table = pd.read_parquet(paths.SPINDLE_THERMAL_ERROR)
-    selected = json.loads(paths.SELECTED.read_text(encoding="utf-8")).get("axes", {})
-    axis_model = (
-        json.loads(paths.AXIS_MODEL_REPORT.read_text(encoding="utf-8"))
-        if paths.AXIS_MODEL_REPORT.is_file()
-        else None
+    stage = StageSettings(
+        settings,
+        InputChecks.from_limits(limits, settings.range_margin_degC),
+        load_settings(ProtocolSettings, "protocol", args.params),
+        load_settings(SelectSettings, "select", args.params).features,
+        evaluate.model_params,
+        evaluate.n_jobs,
     )
-    series = series_by_axis(table, features)
-    model_params, n_jobs = evaluate.model_params, evaluate.n_jobs
-    records, budgets, tables = {}, [], {}
+    table, selected, axis_models = read_inputs()
     for stale in (paths.COMPENSATION_REPORTS, paths.COMPENSATION_BUNDLES):
         if stale.is_dir():
             shutil.rmtree(stale)
     paths.COMPENSATION_REPORTS.mkdir(parents=True)
-    for axis in champion_axes():
-        units = training_units(series[axis], protocol)
-        work = AxisWork(axis, series[axis], units, table[table["axis"] == axis], selected)
-        records[axis], tables[axis], budget = compensate_axis(
-            work, checks, settings, axis_model, model_params, n_jobs
+    machines, budgets, tables = {}, [], {}
+    rows_of = dict(separated_by_machine(table))
+    for machine in sorted(set(rows_of) | set(axis_models)):
+        rows = rows_of.get(machine, table[:0])
+        machines[machine], budget, tables[machine] = compensate_machine(
+            machine,
+            rows,
+            (selected.get(machine) or {}).get("axes", {}),
+            axis_models.get(machine),
+            stage,
         )
         budgets.append(budget)
-        LOGGER.info("axis %s: %s", axis, records[axis]["headline"])
     budget = pd.concat(budgets, ignore_index=True) if budgets else pd.DataFrame()
-    paths.COMPENSATION_REPORTS.mkdir(parents=True, exist_ok=True)
     paths.METRICS.mkdir(parents=True, exist_ok=True)
     budget.to_csv(paths.SENSOR_BUDGET, index=False, float_format="%.4f")
     budget_figure(budget, paths.SENSOR_BUDGET_PLOT)
-    linear = write_linear_axes(axis_model)
-    document = {"settings": settings.model_dump(), "axes": records, "linear_axes": linear}
+    document = {"settings": settings.model_dump(), "machines": machines}
     paths.COMPENSATION_SUMMARY.write_text(json.dumps(document, indent=2, default=str) + "\n")
     paths.COMPENSATION_REPORT.write_text(render_report(document, budget, tables))
-    metrics = {axis: record["proof"] for axis, record in records.items()}
-    paths.COMPENSATION_METRICS.write_text(json.dumps(metrics, indent=2, sort_keys=True) + "\n")
+    metrics = {
+        machine: {axis: record["proof"] for axis, record in entry["axes"].items()}
+        for machine, entry in machines.items()
+    }
+    text = json.dumps({"machines": metrics}, indent=2, sort_keys=True) + "\n"
+    paths.COMPENSATION_METRICS.write_text(text)
     return 0

@@ -4,8 +4,9 @@
 (``data/validated/spindle/``, the quarantined ones named in ``reports/validation.json``); with
 ``--raw PATH`` it reads any folder of campaigns in the raw contract instead, with the same ingest
 and validation code in memory (campaigns with a problem are quarantined and left out, as in the
-validate stage). It keeps the spindle-drift campaigns with a Z displacement, then (see
-:mod:`pipeline.discrepancy.workflow`)
+validate stage). Each machine is compared with its own twin (:mod:`pipeline.machines`), its
+outputs in ``<out>/<machine>/``: for each, it keeps the spindle-drift campaigns with a Z
+displacement, then (see :mod:`pipeline.discrepancy.workflow`)
 
 1. calibrates the baseline twin (:mod:`pipeline.discrepancy.model`) and localises its residuals
    by phase, speed level and ambient trend (:mod:`pipeline.discrepancy.localise`);
@@ -13,7 +14,8 @@ validate stage). It keeps the spindle-drift campaigns with a Z displacement, the
    (:mod:`pipeline.discrepancy.search`);
 3. writes ``<out>/discrepancy.json``, ``<out>/discrepancy.md``, ``<out>/localisation.csv`` and
    the figures (:mod:`pipeline.discrepancy.report`);
-4. logs an MLflow run with the same files (:mod:`pipeline.tracking.discrepancy_run`).
+4. logs an MLflow run with the same files (:mod:`pipeline.tracking.discrepancy_run`), one per
+   machine.
 
 When the campaigns cannot be compared with the twin -- fewer than two valid spindle-drift
 campaigns with a Z displacement, or no sensor with a structure role (the twin's nodes are
@@ -43,19 +45,21 @@ from pipeline.discrepancy.data import MeasuredCampaign
 from pipeline.discrepancy.followup import FollowUp, history_entry
 from pipeline.discrepancy.report import STATUS_TESTED
 from pipeline.discrepancy.workflow import (
-    read_raw,
+    read_raw_tables,
     run,
     run_untestable,
     spindle_campaigns,
     untestable_reason,
 )
 from pipeline.errors import MissingInputError
+from pipeline.machines import MACHINE_COLUMN, UNNAMED, machine_key
 from pipeline.settings.base import load_settings
 from pipeline.settings.discrepancy import DiscrepancySettings
 from pipeline.settings.ingest import IngestSettings
 from pipeline.settings.tracking import TrackingSettings
 from pipeline.settings.validate import ValidateSettings
 from pipeline.tracking.discrepancy_run import log_discrepancy_run
+from pipeline.validation.tables import drop_empty_columns
 from pipeline.warnings_capture import summarise_warnings
 
 logger = logging.getLogger(__name__)
@@ -63,17 +67,15 @@ logger = logging.getLogger(__name__)
 DEFAULT_OUT = paths.REPORTS / "discrepancy"
 
 
-def read_validated() -> tuple[list[MeasuredCampaign], list[str], bool]:
-    """Read the ``validate`` stage's spindle campaigns and the campaigns it quarantined.
+def read_validated() -> tuple[pd.DataFrame, pd.DataFrame, list[str]]:
+    """Read the ``validate`` stage's spindle tables and the campaigns it quarantined.
 
     Returns
     -------
-    campaigns : list of MeasuredCampaign
-        Valid spindle-drift campaigns with a Z displacement.
+    campaigns, samples : DataFrame
+        ``data/validated/spindle/{campaigns,samples}.parquet``.
     quarantined : list of str
         Campaigns the validate stage left out (``reports/validation.json``).
-    synthetic : bool
-        True if any campaign is flagged ``synthetic`` in its campaign.yaml.
     """
     folder = paths.VALIDATED_SPINDLE
     needed = [folder / paths.CAMPAIGNS_FILE, folder / paths.SAMPLES_FILE, paths.VALIDATION_REPORT]
@@ -84,13 +86,22 @@ def read_validated() -> tuple[list[MeasuredCampaign], list[str], bool]:
             "or give a raw folder with --raw"
         )
     report = json.loads(paths.VALIDATION_REPORT.read_text(encoding="utf-8"))
-    campaigns, synthetic = spindle_campaigns(pd.read_parquet(needed[0]), pd.read_parquet(needed[1]))
-    return campaigns, list(report["summary"]["quarantined"]), synthetic
+    quarantined = list(report["summary"]["quarantined"])
+    return pd.read_parquet(needed[0]), pd.read_parquet(needed[1]), quarantined
 
 
-@summarise_warnings()
-def main(argv: list[str] | None = None) -> int:
-    """Run the stage; return 0 (also when untestable), 1 when the raw folder cannot be read."""
+def machine_campaigns(
+    campaigns: pd.DataFrame, samples: pd.DataFrame, machine: str
+) -> tuple[list[MeasuredCampaign], bool]:
+    """One machine's spindle-drift campaigns with a Z displacement, and whether synthetic."""
+    own = campaigns.loc[campaigns[MACHINE_COLUMN].astype(str) == machine].reset_index(drop=True)
+    ids = set(own["campaign_id"].astype(str))
+    rows = samples.loc[samples["campaign_id"].astype(str).isin(ids)].reset_index(drop=True)
+    return spindle_campaigns(own, drop_empty_columns(rows))
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """Return the command's options."""
     parser = argparse.ArgumentParser(
         prog="thermal discrepancy", description=__doc__.splitlines()[0]
     )
@@ -101,7 +112,9 @@ def main(argv: list[str] | None = None) -> int:
         help="read and validate this raw campaign folder in memory (default: the validate "
         f"stage's {paths.VALIDATED_SPINDLE} and {paths.VALIDATION_REPORT})",
     )
-    parser.add_argument("--out", type=Path, default=DEFAULT_OUT, help="output folder")
+    parser.add_argument(
+        "--out", type=Path, default=DEFAULT_OUT, help="output folder (one folder per machine)"
+    )
     parser.add_argument(
         "--params", type=Path, default=DEFAULT_PARAMS, help="params file (default params.yaml)"
     )
@@ -117,69 +130,97 @@ def main(argv: list[str] | None = None) -> int:
         "--run-record",
         type=Path,
         default=None,
-        help=f"where to write the MLflow run id (default {paths.DISCREPANCY_RECORD} when --out "
+        help=f"where to write the MLflow run ids (default {paths.DISCREPANCY_RECORD} when --out "
         "is the default, else none)",
     )
-    args = parser.parse_args(argv)
+    return parser
+
+
+@summarise_warnings()
+def main(argv: list[str] | None = None) -> int:
+    """Run the stage; return 0 (also when untestable), 1 when the raw folder cannot be read."""
+    args = build_parser().parse_args(argv)
     section = load_settings(DiscrepancySettings, "discrepancy", args.params)
     logged = not args.no_mlflow and section.mlflow
     tracking = load_settings(TrackingSettings, "tracking", args.params) if logged else None
     if args.raw is None:
-        campaigns, quarantined, synthetic = read_validated()
+        campaigns, samples, quarantined = read_validated()
     else:
         gap = load_settings(IngestSettings, "ingest", args.params).max_alignment_gap_s
         limits = load_settings(ValidateSettings, "validate", args.params).limits()
         try:
-            campaigns, quarantined, synthetic = read_raw(args.raw, gap, limits)
+            campaigns, samples, quarantined = read_raw_tables(args.raw, gap, limits)
         except (ValueError, FileNotFoundError) as err:
             logger.error("%s", err)
             return 1
-    reason = untestable_reason(campaigns)
-    common = {"quarantined": quarantined, "synthetic": synthetic}
     history = args.history or (paths.DISCREPANCY_HISTORY if args.out == DEFAULT_OUT else None)
-    if reason is not None:
-        doc, files = run_untestable(campaigns, reason, args.out, **common)
-    else:
-        doc, files = run(campaigns, section, args.out, follow=read_follow_up(history), **common)[1:]
-    write_history(history, doc)
-    if tracking is not None:
-        try:
-            doc["mlflow_run_id"] = log_discrepancy_run(files, doc, tracking, section.experiment)
-        except Exception as err:  # the report stands without the tracking record
-            logger.warning("MLflow logging failed (%s); the report files are written", err)
+    follow = read_history(history)
+    entries, run_ids = {}, {}
+    for machine in sorted(set(campaigns[MACHINE_COLUMN].astype(str))) or [UNNAMED]:
+        measured, synthetic = machine_campaigns(campaigns, samples, machine)
+        doc, files = compare_machine(
+            measured,
+            section,
+            args.out / machine_key(machine),
+            follow.get(machine),
+            {"quarantined": quarantined, "synthetic": synthetic},
+        )
+        doc["machine"] = machine
+        entries[machine] = history_of(doc)
+        if tracking is not None:
+            try:
+                doc["mlflow_run_id"] = log_discrepancy_run(files, doc, tracking, section.experiment)
+            except Exception as err:  # the report stands without the tracking record
+                logger.warning("MLflow logging failed (%s); the report files are written", err)
+        run_ids[machine] = doc.get("mlflow_run_id")
+    if history is not None:
+        history.parent.mkdir(parents=True, exist_ok=True)
+        text = json.dumps({"machines": entries}, indent=2) + "\n"
+        history.write_text(text, encoding="utf-8")
     record = args.run_record or (paths.DISCREPANCY_RECORD if args.out == DEFAULT_OUT else None)
     if record is not None:
-        write_run_record(record, doc.get("mlflow_run_id"))
+        write_run_record(record, run_ids)
     return 0
 
 
-def read_follow_up(path: Path | None) -> FollowUp | None:
-    """Return the earlier run's outcome kept in ``path``, None without one."""
+def compare_machine(
+    campaigns: list[MeasuredCampaign],
+    section: DiscrepancySettings,
+    out: Path,
+    follow: FollowUp | None,
+    common: dict,
+) -> tuple[dict, list[Path]]:
+    """Compare one machine's campaigns with its twin; return ``discrepancy.json`` and the files."""
+    reason = untestable_reason(campaigns)
+    if reason is not None:
+        return run_untestable(campaigns, reason, out, **common)
+    return run(campaigns, section, out, follow=follow, **common)[1:]
+
+
+def read_history(path: Path | None) -> dict[str, FollowUp]:
+    """Return each machine's earlier outcome kept in ``path`` (empty without one)."""
     if path is None or not path.is_file():
-        return None
-    return FollowUp.from_document(json.loads(path.read_text(encoding="utf-8")))
+        return {}
+    entries = json.loads(path.read_text(encoding="utf-8")).get("machines") or {}
+    found = {machine: FollowUp.from_document(entry) for machine, entry in entries.items()}
+    return {machine: follow for machine, follow in found.items() if follow is not None}
 
 
-def write_history(path: Path | None, doc: dict) -> None:
-    """Keep what the next run needs of this one (:func:`history_entry`) in ``path``.
+def history_of(doc: dict) -> dict:
+    """Return what the next run needs of this machine's run (:func:`history_entry`).
 
-    An untestable run keeps only its status (the file is a DVC output, so it is written): the
-    next run that can search starts afresh.
+    An untestable run keeps only its status: the next run that can search starts afresh.
     """
-    if path is None:
-        return
     tested = doc.get("status") == STATUS_TESTED
-    entry = history_entry(doc) if tested else {"status": doc.get("status")}
-    path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(json.dumps(entry, indent=2) + "\n", encoding="utf-8")
+    return history_entry(doc) if tested else {"status": doc.get("status")}
 
 
-def write_run_record(path: Path, run_id: str | None) -> None:
-    """Write where this execution's MLflow run is (``{"run_id": ...}``; null if none logged).
+def write_run_record(path: Path, run_ids: dict[str, str | None]) -> None:
+    """Write where this execution's MLflow runs are (``{"machines": {machine: run id}}``).
 
-    The run id changes with every execution, so it is kept out of the report folder (a DVC
-    output that later stages depend on); the track stage reads it to link the discrepancy run
+    The run ids change with every execution, so they are kept out of the report folder (a DVC
+    output that later stages depend on); the track stage reads them to link the discrepancy run
     and the pipeline run of the same ``dvc repro`` both ways.
     """
     path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(json.dumps({"run_id": run_id}, indent=2) + "\n", encoding="utf-8")
+    path.write_text(json.dumps({"machines": run_ids}, indent=2) + "\n", encoding="utf-8")

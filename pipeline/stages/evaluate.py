@@ -1,18 +1,22 @@
-"""DVC stage ``evaluate``: every candidate of every axis, built on each training unit, scored.
+"""DVC stage ``evaluate``: every candidate of every machine and axis, built on each unit, scored.
 
-Reads ``data/separated/spindle_thermal_error.parquet`` (one block of rows per displacement axis),
-``data/separated/spindle_runs.json`` (runs, references, speed responses) and the inputs chosen
-in ``reports/selection/selected.json``. For each axis, runs each candidate (model x selection,
-see :mod:`pipeline.protocol.candidates`; ``none``, no compensation, is one of them; the physical
-twin ``twin``, see :mod:`pipeline.protocol.twin_candidate`, which also reads
-``data/validated/spindle/campaigns.parquet`` and ``reports/discrepancy/discrepancy.json``, or
-is skipped with the reason) on each training unit (:mod:`pipeline.protocol.units`) and scores
-it on every campaign (:mod:`pipeline.protocol.cross_season`, :mod:`pipeline.protocol.scoring`),
-then chooses the axis' champion on the selection protocol (:mod:`pipeline.protocol.champion`).
-Writes the long score table, one row of scores per candidate, ``metrics/cross_season.json`` (a DVC
-metric), the fitted-model record read by ``track``, the matrices (CSV, one heat-map per candidate),
-``reports/model_comparison.md`` with its figures, each axis' champion
-(``data/models/champion/<axis>/``) and two DVC plot tables.
+Reads ``data/separated/spindle_thermal_error.parquet`` (one block of rows per machine and
+displacement axis), ``data/separated/spindle_runs.json`` (runs, references, speed responses) and the
+inputs chosen in ``reports/selection/selected.json``. Each machine is evaluated on its own rows
+(:mod:`pipeline.machines`): its scores are those of the machine alone. For each machine and axis,
+runs each candidate (model x selection, see :mod:`pipeline.protocol.candidates`; ``none``, no
+compensation, is one of them; the physical twin ``twin``, see
+:mod:`pipeline.protocol.twin_candidate`, which also reads
+``data/validated/spindle/campaigns.parquet`` and the machine's
+``reports/discrepancy/<machine>/discrepancy.json``, or is skipped with the reason) on each training
+unit (:mod:`pipeline.protocol.units`) and scores it on every campaign
+(:mod:`pipeline.protocol.cross_season`, :mod:`pipeline.protocol.scoring`), then chooses the axis'
+champion on the selection protocol (:mod:`pipeline.protocol.champion`). Writes the long score table,
+one row of scores per candidate (a leading ``machine`` column), ``metrics/cross_season.json`` (a DVC
+metric, ``{"machines": {machine: ...}}``), the fitted-model record read by ``track`` (the same
+nesting), the matrices (CSV, one heat-map per candidate), ``reports/model_comparison.md`` with its
+figures, each machine and axis' champion (``data/models/champion/<machine>/<axis>/``) and two DVC
+plot tables.
 """
 
 from __future__ import annotations
@@ -20,6 +24,7 @@ from __future__ import annotations
 import argparse
 import json
 import logging
+import shutil
 from dataclasses import dataclass
 
 import joblib
@@ -27,6 +32,7 @@ import pandas as pd
 
 from pipeline import paths
 from pipeline.errors import MissingInputError
+from pipeline.machines import MACHINE_COLUMN, machine_key, with_machine
 from pipeline.protocol.evaluation import (
     AxisComparison,
     AxisEvaluation,
@@ -55,7 +61,7 @@ from pipeline.protocol.units import (
 )
 from pipeline.reporting import comparison as comparison_report
 from pipeline.reporting.evaluation import report_axis, write_matrices
-from pipeline.separation.features import check_feature_kind
+from pipeline.separation.features import check_feature_kind, separated_by_machine
 from pipeline.settings.base import load_settings
 from pipeline.settings.evaluate import EvaluateSettings
 from pipeline.settings.protocol import ProtocolSettings
@@ -65,18 +71,27 @@ from pipeline.warnings_capture import summarise_warnings
 LOGGER = logging.getLogger(__name__)
 
 
-def write_champions(champions: dict[str, Champion]) -> None:
-    """Save each axis' champion: estimator, card, input example, held-out predictions and fits.
+def champion_folder(machine: str, axis: str):
+    """``data/models/champion/<machine>/<axis>/`` (the machine as :func:`machine_key` writes it)."""
+    return paths.CHAMPION / machine_key(machine) / axis
 
-    Folders of axes that no longer have a champion are removed.
+
+def write_champions(champions: dict[tuple[str, str], Champion]) -> None:
+    """Save each machine and axis' champion: estimator, card, input example, held-out fits.
+
+    Folders of machines and axes that no longer have a champion are removed.
     """
-    for stale in paths.CHAMPION.glob("*") if paths.CHAMPION.is_dir() else []:
-        if stale.is_dir() and stale.name not in champions:
-            for file in stale.iterdir():
-                file.unlink()
-            stale.rmdir()
-    for axis, champion in champions.items():
-        folder = paths.CHAMPION / axis
+    kept = {champion_folder(machine, axis) for machine, axis in champions}
+    kept_machines = {folder.parent for folder in kept}
+    for machine_folder in paths.CHAMPION.iterdir() if paths.CHAMPION.is_dir() else []:
+        if machine_folder not in kept_machines:
+            shutil.rmtree(machine_folder)
+            continue
+        for stale in machine_folder.iterdir():
+            if stale not in kept:
+                shutil.rmtree(stale)
+    for (machine, axis), champion in champions.items():
+        folder = champion_folder(machine, axis)
         folder.mkdir(parents=True, exist_ok=True)
         joblib.dump(champion.result.estimator, folder / paths.CHAMPION_ESTIMATOR_FILE)
         card_text = json.dumps(champion.card, indent=2, sort_keys=True) + "\n"
@@ -88,7 +103,7 @@ def write_champions(champions: dict[str, Champion]) -> None:
 
 @dataclass(frozen=True)
 class Outcome:
-    """Everything the stage writes, computed before anything is written.
+    """Everything the stage computed for one machine, before anything is written.
 
     Attributes
     ----------
@@ -107,6 +122,8 @@ class Outcome:
         (:func:`pipeline.protocol.evaluation.compare_axis`).
     skipped_axes : dict of str to str
         Axis -> why it has no model; named in the report and the metrics.
+    twin_source : str or None
+        Where the twin candidate's effects came from (None: the twin was not scored).
     """
 
     evaluations: list[AxisEvaluation]
@@ -116,10 +133,18 @@ class Outcome:
     champions: dict[str, Champion]
     comparisons: dict[str, AxisComparison]
     skipped_axes: dict[str, str]
+    twin_source: str | None = None
 
 
-def write_tables(outcome: Outcome) -> None:
-    """Write scores, summary, metrics, fitted record and champions."""
+def _combined(outcomes: dict[str, Outcome], table_of) -> pd.DataFrame:
+    """Return the machines' ``table_of(outcome)`` side by side, a leading ``machine``."""
+    frames = [with_machine(table_of(o), m) for m, o in outcomes.items()]
+    frames = [f for f in frames if not f.empty] or frames[:1]
+    return pd.concat(frames, ignore_index=True) if frames else pd.DataFrame(columns=["machine"])
+
+
+def write_tables(outcomes: dict[str, Outcome]) -> None:
+    """Write scores, summary, metrics, fitted record and champions of every machine."""
     for path in (
         paths.SCORES_LONG,
         paths.CROSS_SEASON_METRICS,
@@ -128,83 +153,141 @@ def write_tables(outcome: Outcome) -> None:
         paths.CHAMPION / "x",
     ):
         path.parent.mkdir(parents=True, exist_ok=True)
-    evaluations, scores = outcome.evaluations, outcome.scores
-    outcome.scores.to_csv(paths.SCORES_LONG, index=False, float_format="%.6g")
-    ranked = ranked_summary(outcome.summary, [e.decision for e in evaluations])
+    _combined(outcomes, lambda o: o.scores).to_csv(
+        paths.SCORES_LONG, index=False, float_format="%.6g"
+    )
+    ranked = _combined(
+        outcomes, lambda o: ranked_summary(o.summary, [e.decision for e in o.evaluations])
+    )
     ranked.to_csv(paths.CANDIDATE_SCORES, index=False, float_format="%.4f")
-    outcome.groups.to_csv(paths.GROUP_SCORES, index=False, float_format="%.4f")
-    write_champions(outcome.champions)
-    cards = {axis: champion.card for axis, champion in outcome.champions.items()}
-    metrics = evaluation_metrics(evaluations, scores, cards, outcome.skipped_axes)
-    paths.CROSS_SEASON_METRICS.write_text(json.dumps(metrics, indent=2, sort_keys=True))
-    paths.FITTED_MODELS.write_text(json.dumps(fitted_record(evaluations), indent=2, sort_keys=True))
+    groups = _combined(outcomes, lambda o: o.groups)
+    groups.to_csv(paths.GROUP_SCORES, index=False, float_format="%.4f")
+    write_champions({(m, axis): c for m, o in outcomes.items() for axis, c in o.champions.items()})
+    metrics = {
+        m: evaluation_metrics(
+            o.evaluations,
+            o.scores,
+            {axis: champion.card for axis, champion in o.champions.items()},
+            o.skipped_axes,
+        )
+        for m, o in outcomes.items()
+    }
+    text = json.dumps({"machines": metrics}, indent=2, sort_keys=True)
+    paths.CROSS_SEASON_METRICS.write_text(text)
+    fitted = {m: fitted_record(o.evaluations) for m, o in outcomes.items()}
+    paths.FITTED_MODELS.write_text(json.dumps({"machines": fitted}, indent=2, sort_keys=True))
 
 
-def write_outputs(
-    outcome: Outcome,
-    table: pd.DataFrame,
-    selected: dict,
-    separation: dict,
-    twin_text: str = "",
-) -> None:
-    """Write every output declared for the stage in ``dvc.yaml``.
+def machine_sections(
+    machine: str, outcome: Outcome, document: dict, separation: dict, context: dict
+) -> tuple[list[str], list[dict], list[pd.DataFrame]]:
+    """One machine's part of the report: its opening, its axes' sections and plot rows.
 
-    With no axis at all every output is still written, empty, and the report says why.
-    ``twin_text``: the report's paragraph on the twin candidate
-    (:func:`pipeline.reporting.comparison.twin_section`).
+    ``context``: ``heatmaps``, ``origin`` and ``held_back`` (the twin text's wording).
     """
-    write_tables(outcome)
-    synthetic = bool(table["synthetic"].any())
-    origin = "SYNTHETIC data from the physical twin" if synthetic else "measured data"
-    heatmaps = write_matrices(outcome.scores, origin)
+    twin_text = (
+        ""
+        if outcome.twin_source is None
+        else comparison_report.twin_section(outcome.twin_source, context["held_back"])
+    )
     parts = [
         report_axis(
+            machine,
             e,
             outcome.comparisons[e.axis],
             outcome.summary,
             outcome.champions[e.axis].card,
-            selected,
+            document,
             separation,
-            heatmaps,
-            origin,
+            context["heatmaps"],
+            context["origin"],
             twin_text,
         )
         for e in outcome.evaluations
     ]
-    sections = [part.section for part in parts]
-    sections += [
-        f"## Axis {axis}\n\nNo model: {why}.\n" for axis, why in outcome.skipped_axes.items()
-    ]
     axes = [e.axis for e in outcome.evaluations]
-    paths.MODEL_COMPARISON.write_text(
-        comparison_report.render(sections, separation, synthetic, axes)
-    )
+    sections = [comparison_report.machine_intro(machine, separation, axes)]
+    sections += [part.section for part in parts]
+    sections += [
+        f"## Machine {machine}, axis {axis}\n\nNo model: {why}.\n"
+        for axis, why in outcome.skipped_axes.items()
+    ]
     plot_rows = [row for part in parts for row in part.plot_rows]
+    return sections, plot_rows, [frame for part in parts for frame in part.predictions]
+
+
+def write_outputs(
+    outcomes: dict[str, Outcome],
+    table: pd.DataFrame,
+    selected: dict,
+    separation: dict,
+    held_back: bool = True,
+) -> None:
+    """Write every output declared for the stage in ``dvc.yaml``.
+
+    With no machine or axis at all every output is still written, empty, and the report says
+    why. ``held_back``: the discrepancy stage kept the validation campaigns out of its search
+    (the twin paragraph's wording, :func:`pipeline.reporting.comparison.twin_section`).
+    """
+    write_tables(outcomes)
+    synthetic = bool(table["synthetic"].any())
+    origin = "SYNTHETIC data from the physical twin" if synthetic else "measured data"
+    scores = _combined(outcomes, lambda o: o.scores)
+    context = {
+        "heatmaps": write_matrices(scores, origin) if not scores.empty else [],
+        "origin": origin,
+        "held_back": held_back,
+    }
+    sections, plot_rows, frames = [], [], []
+    for machine, outcome in outcomes.items():
+        part = machine_sections(
+            machine,
+            outcome,
+            selected["machines"][machine],
+            separation["machines"][machine],
+            context,
+        )
+        sections += part[0]
+        plot_rows += part[1]
+        frames += part[2]
+    paths.MODEL_COMPARISON.write_text(
+        comparison_report.render(sections, separation, synthetic, list(outcomes))
+    )
     pd.DataFrame(plot_rows).to_csv(paths.PLOT_MODEL_SCORES, index=False, float_format="%.4f")
-    frames = [frame for part in parts for frame in part.predictions]
     predictions = (
         pd.concat(frames, ignore_index=True)
         if frames
         else pd.DataFrame(
-            columns=["elapsed_min", "measured_um", "predicted_um", "axis", "campaign_id"]
+            columns=[
+                "elapsed_min",
+                "measured_um",
+                "predicted_um",
+                MACHINE_COLUMN,
+                "axis",
+                "campaign_id",
+            ]
         )
     )
     predictions.round(4).to_csv(paths.PLOT_PREDICTIONS, index=False)
 
 
 def read_twin_setup(
-    table: pd.DataFrame, series: list[CampaignSeries], separate: SeparateSettings
+    machine: str,
+    table: pd.DataFrame,
+    series: list[CampaignSeries],
+    separate: SeparateSettings,
+    discrepancy: dict | None,
 ) -> TwinSetup:
     """Everything the ``twin`` candidate reads besides the separated table (axis Z rows).
 
-    The sensor roles and spindle programs from ``data/validated/spindle/campaigns.parquet``; the
-    effects from ``reports/discrepancy/discrepancy.json`` (absent: the baseline twin, with a
-    warning); the cold reference from ``separate`` (``params.yaml``: ``cold_reference``,
-    ``cold_n``), so that the twin's drift is referenced as the separation stage references the
-    measured one.
+    The sensor roles and spindle programs of the machine's campaigns from
+    ``data/validated/spindle/campaigns.parquet``; the effects from the machine's discrepancy
+    document (None: the baseline twin); the cold reference from ``separate``
+    (``params.yaml``: ``cold_reference``, ``cold_n``), so that the twin's drift is referenced
+    as the separation stage references the measured one.
     """
-    meta = pd.read_parquet(paths.VALIDATED_SPINDLE / paths.CAMPAIGNS_FILE)
-    effects, source = named_effects(read_discrepancy())
+    meta = machine_campaigns(machine)
+    effects, source = named_effects(discrepancy)
     return TwinSetup(
         campaigns=twin_campaigns(table, meta, series),
         effects=effects,
@@ -214,24 +297,94 @@ def read_twin_setup(
     )
 
 
-def read_discrepancy() -> dict | None:
-    """``reports/discrepancy/discrepancy.json``, or None (with a warning) when absent."""
-    if not paths.DISCREPANCY_DOCUMENT.is_file():
-        LOGGER.warning(
-            "%s not found: the twin candidate is the baseline twin", paths.DISCREPANCY_DOCUMENT
-        )
-        return None
-    return json.loads(paths.DISCREPANCY_DOCUMENT.read_text(encoding="utf-8"))
-
-
-def sensor_roles() -> frozenset[str]:
-    """Every sensor role of the valid spindle campaigns."""
+def machine_campaigns(machine: str) -> pd.DataFrame:
+    """Return the machine's rows of ``data/validated/spindle/campaigns.parquet``."""
     meta = pd.read_parquet(paths.VALIDATED_SPINDLE / paths.CAMPAIGNS_FILE)
+    return meta.loc[meta[MACHINE_COLUMN].astype(str) == machine].reset_index(drop=True)
+
+
+def read_discrepancy(machine: str) -> dict | None:
+    """Return the machine's discrepancy document, or None (with a warning) when absent."""
+    path = paths.discrepancy_document(machine_key(machine))
+    if not path.is_file():
+        LOGGER.warning("%s not found: the twin candidate is the baseline twin", path)
+        return None
+    return json.loads(path.read_text(encoding="utf-8"))
+
+
+def sensor_roles(machine: str) -> frozenset[str]:
+    """Every sensor role of the machine's valid spindle campaigns."""
     return frozenset(
         str((spec or {}).get("role", "other"))
-        for text in meta["sensors_json"]
+        for text in machine_campaigns(machine)["sensors_json"]
         for spec in json.loads(text).values()
     )
+
+
+@dataclass(frozen=True)
+class StageSettings:
+    """The sections the stage reads and the selection document's feature kind."""
+
+    params: EvaluateSettings
+    protocol: ProtocolSettings
+    separate: SeparateSettings
+    features: str
+
+
+def evaluate_machine(
+    machine: str, table: pd.DataFrame, document: dict, separation: dict, settings: StageSettings
+) -> Outcome:
+    """Every candidate of every axis of one machine, its champions chosen.
+
+    ``table``, ``document`` and ``separation``: the machine's rows of the separated table, its
+    entry of ``selected.json`` and of ``spindle_runs.json``.
+    """
+    params, features = settings.params, settings.features
+    selected = document["axes"]
+    with_twin = split_twin(params.candidates)[1]
+    discrepancy = read_discrepancy(machine) if with_twin else None
+    roles = sensor_roles(machine) if with_twin else frozenset()
+    evaluations, twin_source = [], None
+    for axis, series in series_by_axis(table, features).items():
+        if axis not in selected:
+            continue
+        skipped, twin = None, None
+        if with_twin:
+            skipped = skip_reason(axis, discrepancy, series, roles)
+            if skipped is None:
+                rows = table[table["axis"] == axis]
+                twin = read_twin_setup(machine, rows, series, settings.separate, discrepancy)
+                twin_source = twin.effects_source
+        evaluations.append(
+            evaluate_axis(axis, series, selected[axis], params, twin, skipped, settings.protocol)
+        )
+    scores = all_scores(evaluations)
+    summary, groups = candidate_summary(scores), group_scores(scores)
+    decide(evaluations, summary, params.champion)
+    champions = {e.axis: champion_of(e, table, features, separation) for e in evaluations}
+    for champion in champions.values():
+        champion.card[MACHINE_COLUMN] = machine
+    return Outcome(
+        evaluations,
+        scores,
+        summary,
+        groups,
+        champions=champions,
+        comparisons={e.axis: compare_axis(e, summary, groups) for e in evaluations},
+        skipped_axes=dict(document.get("skipped_axes") or {}),
+        twin_source=twin_source,
+    )
+
+
+def read_inputs() -> tuple[pd.DataFrame, dict, dict]:
+    """Read the separated table, ``selected.json`` and ``spindle_runs.json``."""
+    table = pd.read_parquet(paths.SPINDLE_THERMAL_ERROR)
+    if not paths.SELECTED.is_file():
+        raise MissingInputError(
+            f"{paths.SELECTED} not found: run the select stage first (dvc repro select)"
+        )
+    document = json.loads(paths.SELECTED.read_text())
+    return table, document, json.loads(paths.SPINDLE_RUNS.read_text())
 
 
 @summarise_warnings(details=str(paths.MODEL_COMPARISON))
@@ -241,48 +394,26 @@ def main(argv: list[str] | None = None) -> int:
     parser.parse_args(argv)
     params = load_settings(EvaluateSettings, "evaluate")
     check_models(params)
-    protocol = load_settings(ProtocolSettings, "protocol")
-    separate = load_settings(SeparateSettings, "separate")
-    table = pd.read_parquet(paths.SPINDLE_THERMAL_ERROR)
-    if not paths.SELECTED.is_file():
-        raise MissingInputError(
-            f"{paths.SELECTED} not found: run the select stage first (dvc repro select)"
-        )
-    document = json.loads(paths.SELECTED.read_text())
-    features, selected = check_feature_kind(str(document["features"])), document["axes"]
-    separation = json.loads(paths.SPINDLE_RUNS.read_text())
-    with_twin = split_twin(params.candidates)[1]
-    discrepancy = read_discrepancy() if with_twin else None
-    held_back = discrepancy is None or discrepancy.get("validation") is not None
-    roles = sensor_roles() if with_twin else frozenset()
-    evaluations, twin_source = [], None
-    skipped_axes = dict(document.get("skipped_axes") or {})
-    for axis, series in series_by_axis(table, features).items():
-        if axis not in selected:
-            continue
-        skipped, twin = None, None
-        if with_twin:
-            skipped = skip_reason(axis, discrepancy, series, roles)
-            if skipped is None:
-                twin = read_twin_setup(table[table["axis"] == axis], series, separate)
-                twin_source = twin.effects_source
-        evaluations.append(
-            evaluate_axis(axis, series, selected[axis], params, twin, skipped, protocol)
-        )
-    scores = all_scores(evaluations)
-    summary, groups = candidate_summary(scores), group_scores(scores)
-    decide(evaluations, summary, params.champion)
-    outcome = Outcome(
-        evaluations,
-        scores,
-        summary,
-        groups,
-        champions={e.axis: champion_of(e, table, features, separation) for e in evaluations},
-        comparisons={e.axis: compare_axis(e, summary, groups) for e in evaluations},
-        skipped_axes=skipped_axes,
+    table, document, separation = read_inputs()
+    settings = StageSettings(
+        params,
+        load_settings(ProtocolSettings, "protocol"),
+        load_settings(SeparateSettings, "separate"),
+        check_feature_kind(str(document["features"])),
     )
-    twin_text = (
-        "" if twin_source is None else comparison_report.twin_section(twin_source, held_back)
+    outcomes = {
+        machine: evaluate_machine(
+            machine,
+            rows,
+            document["machines"][machine],
+            separation["machines"][machine],
+            settings,
+        )
+        for machine, rows in separated_by_machine(table)
+    }
+    held_back = all(
+        doc is None or doc.get("validation") is not None
+        for doc in (read_discrepancy(m) for m in outcomes if split_twin(params.candidates)[1])
     )
-    write_outputs(outcome, table, document, separation, twin_text)
+    write_outputs(outcomes, table, document, separation, held_back)
     return 0

@@ -3,9 +3,10 @@
 ``thermal track`` (run from the repository root) reads the select and evaluate outputs
 (``reports/selection/selected.json``, ``reports/fitted_models.json``,
 ``reports/cross_season_scores.csv``, ``metrics/cross_season.json``,
-``data/models/champion/<axis>/``) and logs
+``data/models/champion/<machine>/<axis>/``) and logs, for each machine on its own (tag
+``machine`` on every run)
 
-- one parent run per pipeline execution: overall scores
+- one parent run per pipeline execution and machine: overall scores
   ``<axis>.<model>.<selection>.<mode>.<scheme>.<key>`` (um) and each axis' champion
   (``<axis>.champion.*``), the whole ``params.yaml`` and every selection's inputs
   (``selected.<axis>.<method>.<unit>``) as parameters, tags ``run_identity``, ``git_commit``,
@@ -15,7 +16,8 @@
 - one child run per candidate (axis, model, selection, mode) with its summary scores, every
   cross-campaign score and what each fit decided (see :mod:`pipeline.tracking.records`); the
   child of each axis' champion (tag ``champion: true``) also holds the champion model, with
-  its signature and an input example, registered as ``<track.registered_model>-<axis>``;
+  its signature and an input example, registered as
+  ``<track.registered_model>-<machine>-<axis>``;
 - the promotion gate (:mod:`pipeline.tracking.promotion`): each registered version takes the
   alias ``champion`` only when it proves better than the current champion on the campaigns
   that one was not trained on (or when there is none yet); the decision goes to
@@ -24,8 +26,9 @@
 The store is ``$MLFLOW_TRACKING_URI`` when set, else ``tracking.default_tracking_uri``
 (``sqlite:///mlflow.db`` in the working directory, artifacts in ``mlartifacts/`` beside it).
 When the store already holds a finished parent with the same run identity (see
-:mod:`pipeline.tracking.identity`) nothing is logged. ``reports/mlflow_run.json`` records
-where the run is.
+:mod:`pipeline.tracking.identity`: the machine's own raw campaigns, scores and champions, code
+and params) nothing is logged for that machine. ``reports/mlflow_run.json`` records where each
+machine's run is (``{"tracking_uri", "experiment", "machines": {machine: ...}}``).
 """
 
 from __future__ import annotations
@@ -38,6 +41,7 @@ from pathlib import Path
 
 from pipeline.config import DEFAULT_PARAMS
 from pipeline.paths import (
+    CROSS_SEASON_METRICS,
     PROMOTION,
     PROMOTION_DECISION,
     PROMOTION_REPORT,
@@ -58,6 +62,7 @@ from pipeline.tracking.pipeline_run import (
     log_pipeline_run,
     prepare,
 )
+from pipeline.tracking.stage_outputs import read_json
 from pipeline.warnings_capture import summarise_warnings
 
 logger = logging.getLogger(__name__)
@@ -83,19 +88,24 @@ def main(argv: list[str] | None = None) -> int:
     started = time.perf_counter()
     settings = load_settings(TrackSettings, "track", args.params)
     store_settings = load_settings(TrackingSettings, "tracking", args.params)
-    prepared = prepare(Path(args.params))
-    n_metrics = records.count_metrics([prepared.parent, *prepared.children])
+    prepared = [prepare(Path(args.params), machine) for machine in machines()]
+    n_metrics = {p.machine: records.count_metrics([p.parent, *p.children]) for p in prepared}
     ready = time.perf_counter()
     uri = resolve_tracking_uri(store_settings)
+    margin = settings.promotion.min_improvement
+    entries = {}
     try:
-        record = log_pipeline_run(
-            prepared,
-            store_settings,
-            settings,
-            uri,
-            n_metrics,
-            gate_inputs(list(prepared.champions), settings.promotion.min_improvement),
-        )
+        for machine_run in prepared:
+            machine = machine_run.machine
+            entries[machine] = log_pipeline_run(
+                machine_run,
+                store_settings,
+                settings,
+                uri,
+                n_metrics[machine],
+                gate_inputs(machine, list(machine_run.champions), margin),
+            )
+            entries[machine]["metrics"] = n_metrics[machine]
     except store.UNREACHABLE as error:
         raise SystemExit(unreachable_message(uri, error)) from error
     finished = time.perf_counter()
@@ -105,21 +115,43 @@ def main(argv: list[str] | None = None) -> int:
         ready - started,
         finished - ready,
     )
-    record["metrics"] = n_metrics
+    record = {
+        "tracking_uri": store.public_uri(uri),
+        "experiment": settings.experiment,
+        "machines": entries,
+    }
     TRACKING_RECORD.parent.mkdir(parents=True, exist_ok=True)
     TRACKING_RECORD.write_text(json.dumps(record, indent=2) + "\n", encoding="utf-8")
     write_promotion(record)
     return 0
 
 
+def machines() -> list[str]:
+    """Return the machines ``evaluate`` scored (``metrics/cross_season.json``), sorted."""
+    return sorted(read_json(CROSS_SEASON_METRICS).get("machines") or {})
+
+
 def write_promotion(record: dict) -> None:
-    """Write the gate's decisions: ``promotion.json`` and the Markdown ``promotion.md``."""
+    """Write the gate's decisions: ``promotion.json`` and the Markdown ``promotion.md``.
+
+    ``promotion.json``: ``tracking_uri``, ``machines`` (each machine's parent run and
+    champions) and ``axes``, every machine's decisions (each with its ``machine``).
+    """
     PROMOTION.mkdir(parents=True, exist_ok=True)
-    decisions = record.get("promotion") or []
+    decisions = [
+        {**decision, "machine": machine}
+        for machine, entry in record["machines"].items()
+        for decision in entry.get("promotion") or []
+    ]
     document = {
-        "parent_run_id": record.get("parent_run_id"),
         "tracking_uri": record.get("tracking_uri"),
-        "champions": record.get("champions"),
+        "machines": {
+            machine: {
+                "parent_run_id": entry.get("parent_run_id"),
+                "champions": entry.get("champions"),
+            }
+            for machine, entry in record["machines"].items()
+        },
         "axes": decisions,
     }
     PROMOTION_DECISION.write_text(json.dumps(document, indent=2) + "\n", encoding="utf-8")

@@ -8,7 +8,8 @@ campaigns, and writes
 
 - ``data/validated/spindle/{campaigns,samples}.parquet`` and
   ``data/validated/axis/{campaigns,samples,laser}.parquet``: the ingested tables restricted to
-  the valid campaigns (samples columns without data for them dropped), each gap of missing
+  the valid campaigns (samples columns without data for them dropped; ``machine`` the machine
+  each campaign is of, :func:`pipeline.machines.resolved_names`), each gap of missing
   readings bridged by linear interpolation in time or its samples dropped
   (``validate.max_bridged_gap_s``);
 - ``reports/validation.json``: ``{"summary": {"campaigns", "valid", "quarantined"},
@@ -17,10 +18,10 @@ campaigns, and writes
   "handling", "gap_s", "samples", "message", "action"}]}``.
 
 A campaign with any problem is left out and logged as a warning; a gap of missing readings is
-a warning only. The stage fails when no campaign is valid, and before writing anything when the
-campaigns name more than one ``machine``. Raw files are never touched. The checks, texts and
-report live in :mod:`pipeline.validation`; this module combines them (:func:`validate_tables`)
-and does the I/O.
+a warning only. The stage fails when no campaign is valid. A folder may hold the campaigns of
+several machines: every later stage models each machine on its own. Raw files are never
+touched. The checks, texts and report live in :mod:`pipeline.validation`; this module combines
+them (:func:`validate_tables`) and does the I/O.
 """
 
 from __future__ import annotations
@@ -34,6 +35,7 @@ import pandas as pd
 
 from pipeline import paths
 from pipeline.errors import MissingInputError
+from pipeline.machines import resolved_names
 from pipeline.settings.base import load_settings
 from pipeline.settings.validate import ValidateSettings
 from pipeline.validation.checks import validate_tables
@@ -105,16 +107,19 @@ def main(argv: list[str] | None = None) -> int:
         logger.error("%s", err)
         return 1
 
+    campaigns = campaigns.assign(machine=resolved_names(campaigns))
     outputs = select_valid(campaigns, apply_gaps(samples, result.gaps), laser, result.valid)
     for name, directory in (("spindle", paths.VALIDATED_SPINDLE), ("axis", paths.VALIDATED_AXIS)):
         directory.mkdir(parents=True, exist_ok=True)
         for table, frame in outputs[name].items():
             frame.to_parquet(directory / OUTPUT_FILES[table], index=False)
+    valid = campaigns.loc[campaigns["campaign_id"].isin(result.valid)]
+    machines = valid.groupby("machine")["campaign_id"].agg(lambda ids: ", ".join(sorted(ids)))
     logger.info(
         "validate: %d of %d campaigns valid (%s); %d quarantined; report %s",
         len(result.valid),
         len(result.campaigns),
-        ", ".join(result.valid),
+        "; ".join(f"machine {m}: {ids}" for m, ids in machines.items()),
         len(result.quarantined),
         paths.VALIDATION_REPORT,
     )

@@ -38,6 +38,7 @@ from mlflow.types.schema import ColSpec, Schema
 
 from pipeline import paths
 from pipeline.errors import MissingInputError
+from pipeline.machines import machine_key
 from pipeline.protocol.serving import predict_table
 from pipeline.separation.features import InputSpec
 from pipeline.tracking.model_code import write_model_code
@@ -187,7 +188,7 @@ def log_and_register(tracking_uri: str, run_id: str, registered_name: str, folde
                 input_example=example,
                 registered_model_name=registered_name,
             )
-        log_compensation(card["axis"])
+        log_compensation(card["machine"], card["axis"])
     finally:
         mlflow.end_run(status="RUNNING")
         # set_tracking_uri also sets the environment variable: restore the caller's.
@@ -197,6 +198,7 @@ def log_and_register(tracking_uri: str, run_id: str, registered_name: str, folde
     client.update_model_version(registered_name, version, description=description(card))
     client.update_registered_model(registered_name, description=model_description(card))
     tags = {
+        "machine": card["machine"],
         "axis": card["axis"],
         "model": card["model"],
         "selection": card["selection"],
@@ -210,27 +212,31 @@ def log_and_register(tracking_uri: str, run_id: str, registered_name: str, folde
     }
     for key, value in tags.items():
         client.set_model_version_tag(registered_name, version, key, value)
+    for key in ("machine", "axis"):
+        client.set_registered_model_tag(registered_name, key, card[key])
     logger.info("registered %s version %s", registered_name, version)
     return version
 
 
-def log_compensation(axis: str) -> None:
-    """Log the axis' compensation bundle, exports and replay proof to the active run.
+def log_compensation(machine: str, axis: str) -> None:
+    """Log the machine's axis' compensation bundle, exports and replay proof to the active run.
 
-    The bundle (``data/models/compensation/<axis>/``) goes to ``compensation/bundle`` (what
-    ``thermal compensate --registry`` loads), the reports (``reports/compensation/<axis>/``) to
-    ``compensation/report``, and the replay's means as metrics ``replay.<name>`` (um; ``ratio``
-    is the replayed over the offline held-out RMS). Nothing is logged for a part not written.
+    The bundle (``data/models/compensation/<machine>/<axis>/``) goes to ``compensation/bundle``
+    (what ``thermal compensate --registry`` loads), the reports
+    (``reports/compensation/<machine>/<axis>/``) to ``compensation/report``, and the replay's
+    means as metrics ``replay.<name>`` (um; ``ratio`` is the replayed over the offline held-out
+    RMS). Nothing is logged for a part not written.
     """
-    bundle = paths.COMPENSATION_BUNDLES / axis
+    bundle = paths.COMPENSATION_BUNDLES / machine_key(machine) / axis
     if bundle.is_dir():
         mlflow.log_artifacts(str(bundle), BUNDLE_ARTIFACTS)
-    report = paths.COMPENSATION_REPORTS / axis
+    report = paths.COMPENSATION_REPORTS / machine_key(machine) / axis
     if report.is_dir():
         mlflow.log_artifacts(str(report), REPORT_ARTIFACTS)
     if paths.COMPENSATION_SUMMARY.is_file():
         document = json.loads(paths.COMPENSATION_SUMMARY.read_text(encoding="utf-8"))
-        proof = (document.get("axes", {}).get(axis) or {}).get("proof") or {}
+        entry = (document.get("machines") or {}).get(machine) or {}
+        proof = (entry.get("axes", {}).get(axis) or {}).get("proof") or {}
         metrics = {
             f"replay.{name}": float(value)
             for name, value in proof.items()
@@ -240,11 +246,22 @@ def log_compensation(axis: str) -> None:
             mlflow.log_metrics(metrics)
 
 
-def registered_axes(tracking_uri: str, prefix: str) -> list[str]:
-    """Axes with a registered model ``<prefix>-<axis>`` in the store, sorted."""
+def registered_targets(tracking_uri: str, prefix: str) -> list[tuple[str, str, str]]:
+    """Every machine and axis with a registered model ``<prefix>-<machine>-<axis>``, sorted.
+
+    Returns
+    -------
+    list of (str, str, str)
+        ``(machine, axis, registered name)``, from the registered model's tags ``machine`` and
+        ``axis``.
+    """
     client = MlflowClient(tracking_uri=tracking_uri)
     models = client.search_registered_models(filter_string=f"name LIKE '{prefix}-%'")
-    return sorted(m.name.removeprefix(f"{prefix}-") for m in models)
+    return sorted(
+        (m.tags["machine"], m.tags["axis"], m.name)
+        for m in models
+        if "machine" in m.tags and "axis" in m.tags
+    )
 
 
 def download_bundle(tracking_uri: str, registered_name: str, alias: str, dest: Path) -> Path:

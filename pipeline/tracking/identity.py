@@ -1,17 +1,21 @@
-"""Run identity and provenance of one pipeline execution.
+"""Run identity and provenance of one machine's pipeline execution.
 
-The *run identity* decides whether the ``track`` stage logs a new MLflow parent run or reuses the
-one already in the store. It is the SHA-256 of four parts, each itself a SHA-256:
+The *run identity* decides whether the ``track`` stage logs a new MLflow parent run for a
+machine or reuses the one already in the store. It is the SHA-256 of four parts, each itself a
+SHA-256:
 
 - ``code``: every file under the directories of the imported ``pipeline`` and ``schemas``
   packages (``__pycache__`` folders, ``*.pyc`` and hidden files skipped), by relative path;
 - ``params``: the parsed content of ``params.yaml`` (all sections, canonical JSON, so comments
   and key order do not count);
-- ``data``: every file under ``data/raw`` (hidden files skipped), by relative path;
-- ``scores``: the evaluate outputs that ``track`` logs (scores CSV, metrics JSON, fitted models).
+- ``data``: every file of the machine's campaign folders in ``data/raw`` (hidden files
+  skipped), by folder and relative path;
+- ``scores``: the machine's part of the evaluate outputs that ``track`` logs (its rows of the
+  score tables, its entries of the metrics, fitted models and selections, its champion cards).
 
 Same code, params, raw data and scores give the same identity, so re-running ``dvc repro`` on
-unchanged inputs (the stage is ``always_changed``) does not duplicate runs.
+unchanged inputs (the stage is ``always_changed``) does not duplicate runs, and a campaign added
+to one machine leaves the other machines' identities, and their runs, as they were.
 """
 
 from __future__ import annotations
@@ -29,7 +33,7 @@ import yaml
 
 logger = logging.getLogger(__name__)
 
-IDENTITY_VERSION = "1"
+IDENTITY_VERSION = "2"
 _CHUNK = 1 << 20
 _SKIPPED_DIRS = {"__pycache__"}
 _SKIPPED_SUFFIXES = {".pyc", ".pyo"}
@@ -103,8 +107,8 @@ def hash_params(params: Mapping[str, Any]) -> str:
 def compute_identity(
     code_dirs: Iterable[Path | str],
     params: Mapping[str, Any],
-    raw_dir: Path | str,
-    score_files: Iterable[Path | str],
+    data_dirs: Iterable[Path | str],
+    score_parts: Iterable[tuple[str, bytes]],
 ) -> RunIdentity:
     """Compute the run identity from code, params, raw data and evaluate outputs.
 
@@ -114,10 +118,10 @@ def compute_identity(
         Source directories, e.g. those of the ``pipeline`` and ``schemas`` packages.
     params : mapping
         The whole parsed ``params.yaml``.
-    raw_dir : Path or str
-        ``data/raw``, the campaign folders.
-    score_files : iterable of Path or str
-        The evaluate outputs logged by ``track``; a missing file hashes as ``missing``.
+    data_dirs : iterable of Path or str
+        The machine's campaign folders of ``data/raw``.
+    score_parts : iterable of (str, bytes)
+        The machine's part of each evaluate output logged by ``track``, by name.
 
     Returns
     -------
@@ -128,12 +132,15 @@ def compute_identity(
     for directory in code_dirs:
         code.update(f"{Path(directory).name}\t{hash_tree(directory)}\n".encode())
     scores = hashlib.sha256()
-    for path in score_files:
-        scores.update(f"{Path(path).as_posix()}\t{hash_tree(path)}\n".encode())
+    for name, content in score_parts:
+        scores.update(f"{name}\t{hashlib.sha256(content).hexdigest()}\n".encode())
+    data = hashlib.sha256()
+    for directory in data_dirs:
+        data.update(f"{Path(directory).name}\t{hash_tree(directory)}\n".encode())
     parts = {
         "code": code.hexdigest(),
         "params": hash_params(params),
-        "data": hash_tree(raw_dir),
+        "data": data.hexdigest(),
         "scores": scores.hexdigest(),
     }
     combined = hashlib.sha256(f"identity-v{IDENTITY_VERSION}\n".encode())

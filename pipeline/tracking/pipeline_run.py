@@ -1,16 +1,19 @@
-"""One pipeline execution logged to MLflow: records built, runs logged or reused, champions.
+"""One machine's part of a pipeline execution logged to MLflow: records, runs, champions.
 
-:func:`prepare` reads the evaluate outputs and provenance (:mod:`pipeline.tracking.stage_outputs`,
-:mod:`pipeline.tracking.identity`) and builds the parent and child run records
-(:mod:`pipeline.tracking.records`) before MLflow is imported; :func:`log_pipeline_run` logs them
-(:mod:`pipeline.tracking.store`) unless a finished parent of the same run identity is there,
-registers each axis' champion from its child run, shares the experiment's views and links the
-discrepancy run. The ``track`` stage writes the record it returns.
+Each machine is its own pipeline run (its own parent run, run identity, champions and views):
+:func:`prepare` reads the machine's part of the evaluate outputs and its provenance
+(:mod:`pipeline.tracking.stage_outputs`, :mod:`pipeline.tracking.identity`) and builds the
+parent and child run records (:mod:`pipeline.tracking.records`) before MLflow is imported;
+:func:`log_pipeline_run` logs them (:mod:`pipeline.tracking.store`) unless a finished parent of
+the same run identity is there, registers each axis' champion from its child run as
+``<track.registered_model>-<machine>-<axis>``, shares the views and links the machine's
+discrepancy run. The ``track`` stage writes the records it returns, by machine.
 """
 
 from __future__ import annotations
 
 import importlib.util
+import json
 import logging
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -21,13 +24,18 @@ import pandas as pd
 import yaml
 
 from pipeline.errors import MissingInputError
+from pipeline.machines import MACHINE_COLUMN, machine_key, registered_name, resolved_names
 from pipeline.paths import (
     AXIS_MODEL_METRICS,
-    CHAMPION,
+    CANDIDATE_SCORES,
     CHAMPION_CARD_FILE,
     CHAMPION_HELDOUT_FILE,
     CROSS_SEASON_METRICS,
+    FITTED_MODELS,
+    GROUP_SCORES,
+    INGESTED_CAMPAIGNS,
     RAW,
+    SCORES_LONG,
     SELECTED,
     SPINDLE_THERMAL_ERROR,
     TRACKING_RECORD,
@@ -38,12 +46,12 @@ from pipeline.tracking import guide, records, store, views
 from pipeline.tracking import identity as ident
 from pipeline.tracking.location import absolute_store_uri, local_artifact_location
 from pipeline.tracking.stage_outputs import (
-    SCORE_FILES,
     artifact_files,
     champion_cards,
+    champion_folder,
     child_inputs,
     discrepancy_run_id,
-    read_json,
+    machine_entry,
 )
 
 logger = logging.getLogger(__name__)
@@ -64,8 +72,9 @@ def _load_params(path: Path) -> dict[str, Any]:
 
 @dataclass(frozen=True)
 class Prepared:
-    """Everything to log, computed before MLflow is imported."""
+    """Everything to log of one machine, computed before MLflow is imported."""
 
+    machine: str
     identity: ident.RunIdentity
     synthetic: str
     git_commit: str
@@ -74,17 +83,53 @@ class Prepared:
     champions: dict[str, dict]
 
 
-def prepare(params_path: Path) -> Prepared:
-    """Read the evaluate outputs and provenance, compute the identity, build the run records."""
+def machine_raw_folders(machine: str) -> list[Path]:
+    """Return the ``data/raw`` folders of the machine's campaigns (from ingest's campaigns)."""
+    if not INGESTED_CAMPAIGNS.is_file():
+        raise MissingInputError(
+            f"{INGESTED_CAMPAIGNS} not found: the run identity hashes each machine's raw "
+            "campaigns; run `dvc repro ingest` first"
+        )
+    campaigns = pd.read_parquet(INGESTED_CAMPAIGNS)
+    ids = campaigns.loc[resolved_names(campaigns) == machine, "campaign_id"].astype(str)
+    return [RAW / campaign_id for campaign_id in sorted(ids)]
+
+
+def machine_score_parts(machine: str, cards: dict[str, dict]) -> list[tuple[str, bytes]]:
+    """Return the machine's rows and entries of the evaluate outputs and its cards, as bytes."""
+    parts = []
+    for path in (SCORES_LONG, CANDIDATE_SCORES, GROUP_SCORES):
+        table = pd.read_csv(path, dtype={MACHINE_COLUMN: str}) if path.is_file() else None
+        rows = b"missing" if table is None else table.loc[table[MACHINE_COLUMN] == machine]
+        parts.append((path.as_posix(), rows if isinstance(rows, bytes) else rows.to_csv().encode()))
+    for path in (CROSS_SEASON_METRICS, FITTED_MODELS, SELECTED, AXIS_MODEL_METRICS):
+        entry = _entry_or_none(path, machine)
+        parts.append((path.as_posix(), json.dumps(entry, sort_keys=True).encode()))
+    folder = champion_folder(machine)
+    parts += [
+        ((folder / axis).as_posix(), (folder / axis / CHAMPION_CARD_FILE).read_bytes())
+        for axis in sorted(cards)
+    ]
+    return parts
+
+
+def _entry_or_none(path: Path, machine: str) -> Any:
+    """Return the machine's entry of a ``{"machines": ...}`` output; None without the file."""
+    return machine_entry(path, machine) if path.is_file() else None
+
+
+def prepare(params_path: Path, machine: str) -> Prepared:
+    """Read the machine's outputs and provenance, compute its identity, build the run records."""
     all_params = _load_params(params_path)
-    cross_season = read_json(CROSS_SEASON_METRICS)
-    selected = read_json(SELECTED)["axes"]
-    axis_model = read_json(AXIS_MODEL_METRICS) if AXIS_MODEL_METRICS.is_file() else {}
+    cross_season = machine_entry(CROSS_SEASON_METRICS, machine)
+    selected = machine_entry(SELECTED, machine)["axes"]
+    axis_model = _entry_or_none(AXIS_MODEL_METRICS, machine) or {}
 
     code_dirs = [_package_dir("pipeline"), _package_dir("schemas")]
-    cards = champion_cards()
-    card_files = [CHAMPION / axis / CHAMPION_CARD_FILE for axis in cards]
-    run_identity = ident.compute_identity(code_dirs, all_params, RAW, [*SCORE_FILES, *card_files])
+    cards = champion_cards(machine)
+    run_identity = ident.compute_identity(
+        code_dirs, all_params, machine_raw_folders(machine), machine_score_parts(machine, cards)
+    )
     synthetic = ident.synthetic_flag(RAW)
     commit = ident.git_commit()
     dvc_hashes = ident.dvc_lock_hashes(ident.read_dvc_lock(DVC_LOCK), RAW.as_posix())
@@ -93,35 +138,34 @@ def prepare(params_path: Path) -> Prepared:
     tags = records.provenance_tags(
         run_identity.value, run_identity.parts, commit, dvc_hashes, synthetic
     )
+    tags[MACHINE_COLUMN] = machine
     tags[records.NOTE_TAG] = guide.parent_description(commit, synthetic, run_identity.value, cards)
     for axis, card in cards.items():
         tags[records.safe_key(records.RANKED_BY_TAG, axis)] = str(card.get("chosen_on") or "-")
         label = "/".join(str(card[k]) for k in records.KEY_COLUMNS[1:])
         tags[records.safe_key(records.CHAMPION_TAG, axis)] = f"{axis}/{label}"
-    children = records.child_records(child_inputs(cards), {"synthetic": synthetic})
+    children = records.child_records(
+        child_inputs(machine, cards), {"synthetic": synthetic, MACHINE_COLUMN: machine}
+    )
     parent = records.parent_record(
-        f"pipeline-{run_identity.value[:12]}",
+        f"pipeline-{machine_key(machine)}-{run_identity.value[:12]}",
         cross_season,
         all_params,
         tags,
         selected,
         axis_model,
     )
-    return Prepared(run_identity, synthetic, commit, parent, children, cards)
+    return Prepared(machine, run_identity, synthetic, commit, parent, children, cards)
 
 
-def registered_name(prefix: str, axis: str) -> str:
-    """Return the registered model name of an axis' champion, e.g. ``thermal-error-spindle-Z``."""
-    return f"{prefix}-{axis}"
-
-
-def champion_hook(tracking_uri: str, prefix: str, cards: dict[str, dict]):
+def champion_hook(tracking_uri: str, prefix: str, machine: str, cards: dict[str, dict]):
     """Return a callback that logs and registers each axis' champion from its child run.
 
-    ``None`` (with a warning) when evaluate wrote no champion.
+    ``None`` (with a warning) when evaluate wrote no champion for the machine.
     """
+    folder = champion_folder(machine)
     if not cards:
-        logger.warning("%s/<axis>/ not found: no champion model to register", CHAMPION)
+        logger.warning("%s/<axis>/ not found: no champion model to register", folder)
         return None
 
     def register(record: records.RunRecord, run_id: str) -> None:
@@ -130,7 +174,8 @@ def champion_hook(tracking_uri: str, prefix: str, cards: dict[str, dict]):
             return
         from pipeline.tracking.champion_model import log_and_register
 
-        log_and_register(tracking_uri, run_id, registered_name(prefix, axis), CHAMPION / axis)
+        name = registered_name(prefix, machine, axis)
+        log_and_register(tracking_uri, run_id, name, folder / axis)
 
     return register
 
@@ -181,13 +226,14 @@ def log_pipeline_run(
     ranked_by = {
         axis: str(card.get("chosen_on") or "") for axis, card in prepared.champions.items()
     }
-    shared = views.shared_views(parent_id, prepared.children, ranked_by)
+    shared = views.shared_views(parent_id, prepared.children, ranked_by, prepared.machine)
     store.share_views(client, experiment_id, shared)
-    discrepancy = discrepancy_run_id()
+    discrepancy = discrepancy_run_id(prepared.machine)
     linked = discrepancy is not None and store.link_runs(
         client, parent_id, discrepancy, "discrepancy"
     )
     return {
+        "machine": prepared.machine,
         "tracking_uri": store.public_uri(uri),
         "experiment": experiment,
         "experiment_id": experiment_id,
@@ -196,7 +242,7 @@ def log_pipeline_run(
         "identity_parts": prepared.identity.parts,
         "reused": reused,
         "child_runs": len(prepared.children),
-        "champions": _registered_champions(target, prepared.champions),
+        "champions": _registered_champions(target, prepared),
         "git_commit": prepared.git_commit,
         "synthetic": prepared.synthetic,
         "discrepancy_run_id": discrepancy if linked else None,
@@ -224,8 +270,8 @@ class GateInputs:
     margin: float
 
 
-def gate_inputs(axes: Sequence[str], margin: float) -> GateInputs | None:
-    """Read the separated table and each axis' held-out predictions of its champion.
+def gate_inputs(machine: str, axes: Sequence[str], margin: float) -> GateInputs | None:
+    """Read the machine's separated rows and each axis' held-out predictions of its champion.
 
     None when no axis has a champion (nothing to gate).
 
@@ -242,10 +288,12 @@ def gate_inputs(axes: Sequence[str], margin: float) -> GateInputs | None:
             "run `dvc repro separate_spindle` first"
         )
     table = pd.read_parquet(SPINDLE_THERMAL_ERROR)
+    table = table.loc[table[MACHINE_COLUMN] == machine].reset_index(drop=True)
+    folder = champion_folder(machine)
     heldout = {
-        axis: pd.read_parquet(CHAMPION / axis / CHAMPION_HELDOUT_FILE)
+        axis: pd.read_parquet(folder / axis / CHAMPION_HELDOUT_FILE)
         for axis in axes
-        if (CHAMPION / axis / CHAMPION_HELDOUT_FILE).is_file()
+        if (folder / axis / CHAMPION_HELDOUT_FILE).is_file()
     }
     return GateInputs(table, heldout, margin)
 
@@ -254,7 +302,9 @@ def _gate(target: _Target, parent_id: str, prepared: Prepared, gate: GateInputs)
     """Run the promotion gate on the versions this execution registered (or reused)."""
     from pipeline.tracking.promotion import run_gate
 
-    names = {axis: registered_name(target.prefix, axis) for axis in prepared.champions}
+    names = {
+        axis: registered_name(target.prefix, prepared.machine, axis) for axis in prepared.champions
+    }
     found = store.parent_versions(
         target.client, target.experiment_id, parent_id, list(names.values())
     )
@@ -290,15 +340,18 @@ def _log_parent(target: _Target, prepared: Prepared, n_metrics: int) -> tuple[st
     if existing is not None:
         parent_id = existing.info.run_id
         logger.info(
-            "run identity %s already logged as parent run %s in experiment '%s' (%s): "
-            "code, params, raw data and scores unchanged, nothing logged",
+            "machine %s: run identity %s already logged as parent run %s in experiment '%s' "
+            "(%s): code, params, its raw data and scores unchanged, nothing logged",
+            prepared.machine,
             prepared.identity.value[:12],
             parent_id,
             target.experiment,
             store.public_uri(uri),
         )
         return parent_id, True
-    hook = champion_hook(absolute_store_uri(uri), target.prefix, prepared.champions)
+    hook = champion_hook(
+        absolute_store_uri(uri), target.prefix, prepared.machine, prepared.champions
+    )
     parent_id = store.log_pipeline(
         client,
         experiment_id,
@@ -308,7 +361,9 @@ def _log_parent(target: _Target, prepared: Prepared, n_metrics: int) -> tuple[st
         hook,
     )
     logger.info(
-        "logged parent run %s with %d child runs and %d metrics to experiment '%s' (%s)",
+        "machine %s: logged parent run %s with %d child runs and %d metrics to experiment "
+        "'%s' (%s)",
+        prepared.machine,
         parent_id,
         len(prepared.children),
         n_metrics,
@@ -318,11 +373,11 @@ def _log_parent(target: _Target, prepared: Prepared, n_metrics: int) -> tuple[st
     return parent_id, False
 
 
-def _registered_champions(target: _Target, champions: dict[str, dict]) -> dict[str, dict]:
+def _registered_champions(target: _Target, prepared: Prepared) -> dict[str, dict]:
     """Each axis' registered champion: model name, version, URI, candidate, compensate."""
     entries = {}
-    for axis, card in champions.items():
-        name = registered_name(target.prefix, axis)
+    for axis, card in prepared.champions.items():
+        name = registered_name(target.prefix, prepared.machine, axis)
         version = store.champion_version(target.client, name, "champion")
         entries[axis] = {
             "registered_model": name,

@@ -1,10 +1,11 @@
-"""The DVC outputs the ``track`` stage logs, read and checked.
+"""The DVC outputs the ``track`` stage logs, read and checked, one machine's part at a time.
 
 The evaluate tables (``reports/cross_season_scores.csv`` validated by
 :class:`schemas.evaluated.CrossSeasonScoresModel`, ``model_scores.csv``, ``heldout_scores.csv``),
 the JSON records (metrics, fitted models, selections), each axis' champion card, the heat-maps,
-the report files logged as artifacts and the discrepancy stage's run id. A missing or broken
-file raises an error that names it and the stage to rerun.
+the report files logged as artifacts and the discrepancy stage's run id. Every reader takes the
+machine and returns its rows or entry alone (each machine is its own pipeline run). A missing or
+broken file raises an error that names it and the stage to rerun.
 """
 
 from __future__ import annotations
@@ -19,9 +20,10 @@ import pandas as pd
 import pandera.pandas as pa
 
 from pipeline.errors import InputDataError, MissingInputError
+from pipeline.machines import MACHINE_COLUMN, machine_key
 from pipeline.paths import (
     AXIS_MODEL_METRICS,
-    AXIS_MODEL_PLOT,
+    AXIS_MODEL_PLOTS,
     AXIS_MODEL_REPORT,
     CANDIDATE_SCORES,
     CHAMPION,
@@ -98,14 +100,32 @@ def _schema_problems(path: Path, errors: pa.errors.SchemaErrors, limit: int = 10
     return "; ".join(lines[:limit]) + more
 
 
-def read_scores(path: Path) -> list[dict[str, Any]]:
+def machine_entry(path: Path, machine: str) -> Any:
+    """Read a JSON output of the form ``{"machines": {machine: entry}}``; the machine's entry.
+
+    Raises
+    ------
+    InputDataError
+        If the machine has no entry (the file is older than the other outputs).
+    """
+    entries = read_json(path).get("machines") or {}
+    if machine not in entries:
+        raise InputDataError(
+            f"{path} has no entry for machine {machine!r} (it has {sorted(entries)}): rerun the "
+            "stages before track (dvc repro)"
+        )
+    return entries[machine]
+
+
+def read_scores(path: Path, machine: str | None = None) -> list[dict[str, Any]]:
     """Read and validate the long score table (``schemas.evaluated.CrossSeasonScoresModel``).
 
     Returns
     -------
     list of dict
-        One dict per data row, in file order: key columns as str, ``n_samples`` int, scores
-        float (um, NaN when empty; pandas' default round-trip parsing, equal to ``float``).
+        One dict per data row of ``machine`` (None: every row), in file order, without the
+        ``machine`` column: key columns as str, ``n_samples`` int, scores float (um, NaN when
+        empty; pandas' default round-trip parsing, equal to ``float``).
 
     Raises
     ------
@@ -120,6 +140,7 @@ def read_scores(path: Path) -> list[dict[str, Any]]:
             "evaluate` (or `thermal evaluate`) first"
         )
     text_columns = [
+        MACHINE_COLUMN,
         *records.KEY_COLUMNS,
         "scheme",
         "train_unit",
@@ -148,7 +169,15 @@ def read_scores(path: Path) -> list[dict[str, Any]]:
         raise InputDataError(
             f"{_schema_problems(path, errors)}; rerun the evaluate stage (dvc repro evaluate)"
         ) from None
-    return table.to_dict("records")
+    return _machine_rows(table, machine).to_dict("records")
+
+
+def _machine_rows(table: pd.DataFrame, machine: str | None) -> pd.DataFrame:
+    """Return the machine's rows without the ``machine`` column (None: every row)."""
+    if machine is None or MACHINE_COLUMN not in table:
+        return table
+    rows = table.loc[table[MACHINE_COLUMN] == machine]
+    return rows.drop(columns=MACHINE_COLUMN).reset_index(drop=True)
 
 
 def artifact_files() -> list[tuple[Path, str]]:
@@ -162,7 +191,7 @@ def artifact_files() -> list[tuple[Path, str]]:
         CROSS_SEASON_METRICS,
         VALIDATION_REPORT,
         AXIS_MODEL_REPORT,
-        AXIS_MODEL_PLOT,
+        *sorted(AXIS_MODEL_PLOTS.glob("*.png")),
         *sorted(COMPARISON_FIGURES.glob("*.png")),
         *sorted(MATRICES.glob("*.png")),
         *sorted(SELECTION.glob("*")),
@@ -171,19 +200,29 @@ def artifact_files() -> list[tuple[Path, str]]:
     return [(path, path.parent.as_posix()) for path in candidates if path.is_file()]
 
 
-def champion_cards() -> dict[str, dict]:
-    """Each axis' champion card (``data/models/champion/<axis>/champion.json``), by axis."""
-    if not CHAMPION.is_dir():
+def champion_folder(machine: str) -> Path:
+    """Return ``data/models/champion/<machine>/`` (the machine as ``machine_key`` writes it)."""
+    return CHAMPION / machine_key(machine)
+
+
+def champion_cards(machine: str) -> dict[str, dict]:
+    """Each axis' champion card of the machine (``champion/<machine>/<axis>/champion.json``)."""
+    folder = champion_folder(machine)
+    if not folder.is_dir():
         return {}
     return {
-        folder.name: read_json(folder / CHAMPION_CARD_FILE)
-        for folder in sorted(CHAMPION.iterdir())
-        if (folder / CHAMPION_CARD_FILE).is_file() and (folder / CHAMPION_ESTIMATOR_FILE).is_file()
+        axis.name: read_json(axis / CHAMPION_CARD_FILE)
+        for axis in sorted(folder.iterdir())
+        if (axis / CHAMPION_CARD_FILE).is_file() and (axis / CHAMPION_ESTIMATOR_FILE).is_file()
     }
 
 
-def read_table(path: Path, text_columns: list[str]) -> list[dict[str, Any]]:
+def read_table(
+    path: Path, text_columns: list[str], machine: str | None = None
+) -> list[dict[str, Any]]:
     """Read an evaluate table (``model_scores.csv``, ``heldout_scores.csv``) as rows.
+
+    Only the rows of ``machine`` (None: every row), without the ``machine`` column.
 
     Raises
     ------
@@ -195,11 +234,12 @@ def read_table(path: Path, text_columns: list[str]) -> list[dict[str, Any]]:
             f"{path} not found: the track stage logs the evaluate outputs; run `dvc repro "
             "evaluate` (or `thermal evaluate`) first"
         )
+    text_columns = [MACHINE_COLUMN, *text_columns]
     missing = {column: ["", "nan", "NaN"] for column in _numeric(path, text_columns)}
     table = pd.read_csv(
         path, dtype=dict.fromkeys(text_columns, "str"), keep_default_na=False, na_values=missing
     )
-    return table.to_dict("records")
+    return _machine_rows(table, machine).to_dict("records")
 
 
 def _numeric(path: Path, text_columns: list[str]) -> list[str]:
@@ -207,22 +247,26 @@ def _numeric(path: Path, text_columns: list[str]) -> list[str]:
     return [column for column in header if column not in text_columns]
 
 
-def heatmaps() -> dict[records.ChildKey, str]:
-    """Each candidate's heat-map (``reports/matrices/<axis>__<model>__<selection>__<mode>.png``)."""
+def heatmaps(machine: str) -> dict[records.ChildKey, str]:
+    """Each candidate's heat-map of the machine, by child key.
+
+    Files ``reports/matrices/<machine>__<axis>__<model>__<selection>__<mode>.png``.
+    """
     found = {}
-    for path in sorted(MATRICES.glob("*.png")):
-        key = tuple(path.stem.split("__"))
+    for path in sorted(MATRICES.glob(f"{machine_key(machine)}__*.png")):
+        key = tuple(path.stem.split("__")[1:])
         if len(key) == len(records.KEY_COLUMNS):
             found[key] = str(path)
     return found
 
 
-def discrepancy_run_id() -> str | None:
-    """Return the MLflow run the discrepancy stage logged in this ``dvc repro``, if any."""
+def discrepancy_run_id(machine: str) -> str | None:
+    """Return the machine's MLflow run the discrepancy stage logged in this ``dvc repro``."""
     if not DISCREPANCY_RECORD.is_file():
         return None
     try:
-        run_id = json.loads(DISCREPANCY_RECORD.read_text(encoding="utf-8")).get("run_id")
+        run_ids = json.loads(DISCREPANCY_RECORD.read_text(encoding="utf-8")).get("machines")
+        run_id = (run_ids or {}).get(machine)
     except (json.JSONDecodeError, AttributeError):
         logger.warning(
             "%s is not a JSON object: the discrepancy run is not linked", DISCREPANCY_RECORD
@@ -231,20 +275,20 @@ def discrepancy_run_id() -> str | None:
     return str(run_id) if run_id else None
 
 
-def child_inputs(cards: Mapping[str, Mapping[str, Any]]) -> records.ChildInputs:
-    """Read the evaluate outputs every child record is built from."""
+def child_inputs(machine: str, cards: Mapping[str, Mapping[str, Any]]) -> records.ChildInputs:
+    """Read the machine's part of the evaluate outputs every child record is built from."""
     keys = list(records.KEY_COLUMNS)
     text = [*keys, "ineligible_reason", "eligible", "champion"]
     return records.ChildInputs(
-        scores=records.rows_by_child(read_scores(SCORES_LONG)),
-        summaries=records.summaries_by_child(read_table(CANDIDATE_SCORES, text)),
+        scores=records.rows_by_child(read_scores(SCORES_LONG, machine)),
+        summaries=records.summaries_by_child(read_table(CANDIDATE_SCORES, text, machine)),
         groups=records.groups_by_child(
-            read_table(GROUP_SCORES, [*keys, "scheme", "split", "held_out", "name"])
+            read_table(GROUP_SCORES, [*keys, "scheme", "split", "held_out", "name"], machine)
         ),
-        units=records.unit_tables(read_json(CROSS_SEASON_METRICS)),
-        fits=records.fits_by_candidate(read_json(FITTED_MODELS)),
+        units=records.unit_tables(machine_entry(CROSS_SEASON_METRICS, machine)),
+        fits=records.fits_by_candidate(machine_entry(FITTED_MODELS, machine)),
         ranked_by={axis: str(card.get("chosen_on") or "") for axis, card in cards.items()},
-        heatmaps=heatmaps(),
+        heatmaps=heatmaps(machine),
         champions=frozenset(
             (axis, *(str(card[k]) for k in records.KEY_COLUMNS[1:])) for axis, card in cards.items()
         ),

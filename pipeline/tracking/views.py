@@ -1,15 +1,15 @@
-"""Shared views of the run list: each axis' candidates ranked, with their scores as columns.
+"""Shared views of the run list: each machine and axis' candidates ranked, scores as columns.
 
 The MLflow UI (3.x) keeps a run list's columns in the browser, not in its address, but it opens
 a *shared view* stored as the experiment tag ``mlflow.sharedViewState.<key>`` (JSON: the
 search facets ``searchFilter``, ``orderByKey``, ``orderByAsc`` and the UI state
 ``selectedColumns``, ``runsHiddenMode``...) when the address carries
-``viewStateShareKey=<key>``. The track stage writes two per axis, pointing at its latest
-pipeline run:
+``viewStateShareKey=<key>``. The track stage writes two per machine and axis, pointing at the
+machine's latest pipeline run (the machine as :func:`pipeline.machines.machine_key` writes it):
 
-- ``ranked-<axis>``: the eligible candidates, best first on the axis' ranking score, with the
-  held-out and validation scores per season as columns;
-- ``all-<axis>``: every candidate, ineligible ones included, with ``eligible`` and
+- ``ranked-<machine>-<axis>``: the eligible candidates, best first on the axis' ranking score,
+  with the held-out and validation scores per season as columns;
+- ``all-<machine>-<axis>``: every candidate, ineligible ones included, with ``eligible`` and
   ``ineligible_reason``.
 
 Pure: :mod:`pipeline.tracking.store` writes the tags.
@@ -21,6 +21,7 @@ import json
 from collections.abc import Sequence
 from urllib.parse import quote
 
+from pipeline.machines import machine_key
 from pipeline.tracking.records import GROUPS_TABLE, PARENT_RUN_TAG, RunRecord
 
 SHARED_VIEW_TAG = "mlflow.sharedViewState."
@@ -33,9 +34,9 @@ def column(kind: str, name: str) -> str:
     return f"{kind}.`{name}`"
 
 
-def view_key(kind: str, axis: str) -> str:
-    """Return the share key of a view, e.g. ``ranked-Z``."""
-    return f"{kind}-{axis}"
+def view_key(kind: str, machine: str, axis: str) -> str:
+    """Return the share key of a view, e.g. ``ranked-vmc-450-Z``."""
+    return f"{kind}-{machine_key(machine)}-{axis}"
 
 
 def _score_columns(children: Sequence[RunRecord], ranked_by: str) -> list[str]:
@@ -55,9 +56,9 @@ def _score_columns(children: Sequence[RunRecord], ranked_by: str) -> list[str]:
 
 
 def shared_views(
-    parent_id: str, children: Sequence[RunRecord], ranked_by: dict[str, str]
+    parent_id: str, children: Sequence[RunRecord], ranked_by: dict[str, str], machine: str
 ) -> dict[str, str]:
-    """Return the shared views of every axis: share key -> JSON state.
+    """Return the shared views of every axis of a machine: share key -> JSON state.
 
     Parameters
     ----------
@@ -67,6 +68,8 @@ def shared_views(
         Its child records (tags ``axis``, metrics).
     ranked_by : dict
         Axis -> the score its candidates are ranked by (``loso_Mn_rms_um``...).
+    machine : str
+        The machine the parent run is of.
     """
     views = {}
     for axis, score in ranked_by.items():
@@ -82,14 +85,14 @@ def shared_views(
         }
         ranked = [column("tags", "rank"), column("tags", "champion"), *scores]
         every = [column("tags", name) for name in ("eligible", "rank", "ineligible_reason")]
-        views[view_key("ranked", axis)] = json.dumps(
+        views[view_key("ranked", machine, axis)] = json.dumps(
             {
                 **common,
                 "searchFilter": f"{where} and tags.eligible = 'true'",
                 "selectedColumns": ranked,
             }
         )
-        views[view_key("all", axis)] = json.dumps(
+        views[view_key("all", machine, axis)] = json.dumps(
             {**common, "searchFilter": where, "selectedColumns": [*every, *scores[:2]]}
         )
     return views

@@ -1,11 +1,11 @@
 """Every check of every campaign of the ingested tables, combined into one validation result.
 
-First the folder: campaigns of more than one machine stop validation
-(:mod:`pipeline.validation.machines`). Per campaign: the Pandera models of :mod:`schemas` (its
-sensor map and displacement axes added), the sample, laser and plausibility checks of this
-package, and the ingest problems; a campaign with any problem is quarantined
-(:class:`pipeline.validation.problems.ValidationResult`). The gaps of missing readings of the
-other campaigns are warnings (:mod:`pipeline.validation.gaps`).
+First the folder: which machine each campaign is of; a campaign whose machine is unknown is
+quarantined (:mod:`pipeline.validation.machines`). Per campaign: the Pandera models of
+:mod:`schemas` (its sensor map and displacement axes added), the sample, laser and
+plausibility checks of this package, and the ingest problems; a campaign with any problem is
+quarantined (:class:`pipeline.validation.problems.ValidationResult`). The gaps of missing
+readings of the other campaigns are warnings (:mod:`pipeline.validation.gaps`).
 """
 
 from __future__ import annotations
@@ -17,7 +17,7 @@ from pipeline.validation.findings import Finding
 from pipeline.validation.gaps import gaps_of_campaigns
 from pipeline.validation.ingest_problems import problems_from_ingest
 from pipeline.validation.laser_checks import validate_laser
-from pipeline.validation.machines import require_one_machine
+from pipeline.validation.machines import machine_findings
 from pipeline.validation.plausibility import validate_plausibility
 from pipeline.validation.problems import (
     CAMPAIGN_FILE,
@@ -62,14 +62,9 @@ def validate_tables(
         problem (no row) with that file, e.g. a missing file, and a campaign.yaml problem on a
         key ingest already reported (e.g. ``missing_key`` kind, then not ``kind_known``).
         A campaign with data but no campaigns row and no ingest problem gets
-        ``campaign_metadata_missing``.
-
-    Raises
-    ------
-    MixedMachinesError
-        When the campaigns name more than one ``machine``.
+        ``campaign_metadata_missing``; a campaign whose machine is unknown, or that follows a
+        campaign of another machine, gets the problems of :mod:`pipeline.validation.machines`.
     """
-    require_one_machine(campaigns)
     found = problems_from_ingest(problems)
     unreadable = {(p.campaign, p.file) for p in found if p.row is None}
     yaml_keys = {(p.campaign, p.column) for p in found if p.file == CAMPAIGN_FILE and p.column}
@@ -96,7 +91,7 @@ def validate_tables(
         for c in pd.unique(table["campaign_id"])
         if str(c) not in known
     ]
-    found += problems_from_findings(orphans, limits)
+    found += problems_from_findings(orphans + machine_findings(campaigns), limits)
     all_ids = known | {f.campaign for f in orphans}
     bad = {p.campaign for p in found}
     gaps, short = gaps_of_campaigns(samples, sorted(all_ids - bad), limits)

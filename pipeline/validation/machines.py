@@ -1,72 +1,64 @@
-"""One machine per folder: campaigns of several machines are not pooled.
+"""Which machine each campaign is of; the campaigns whose machine is unknown are quarantined.
 
-The pipeline models one machine: its sensors by name (``T1`` of one machine is not ``T1`` of
-another), its runs, its champion. Campaigns whose ``campaign.yaml`` names more than one
-``machine`` stop ``validate`` before anything is written, until the pipeline models each machine
-on its own. ``machine`` is optional in the raw contract: a campaign without it is taken to be of
-the one machine the others name, never a machine of its own.
+The pipeline models every machine on its own (:mod:`pipeline.machines`): its sensors by name
+(``T1`` of one machine is not ``T1`` of another), its runs, its champion. ``machine`` is optional
+in the raw contract: a campaign without it is of the one machine the others name. In a folder
+whose campaigns name two machines or more, a campaign without ``machine:`` could be of any of
+them and is quarantined (``machine_unknown``); so is a campaign that ``follows:`` a campaign of
+another machine (``follows_other_machine``: one record cannot run on two machines), and the
+campaigns of a machine whose name, made safe for folder and model names, is another machine's
+(``machine_name_clash``).
 """
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import pandas as pd
 
-from pipeline.errors import InputDataError
-
-SHOWN_IDS = 5
-"""Campaign ids named per machine in the message (the count says how many there are)."""
-
-
-class MixedMachinesError(InputDataError):
-    """The campaigns of one folder name more than one ``machine``."""
+from pipeline.machines import machine_key, resolved_names
+from pipeline.validation.findings import Finding
+from pipeline.validation.problems import CAMPAIGN_FILE
 
 
-def _ids_text(ids: list[str]) -> str:
-    """Return ``3 campaigns (K01, K02, K03)``, the ids cut after :data:`SHOWN_IDS`."""
-    shown = ", ".join(ids[:SHOWN_IDS]) + (", ..." if len(ids) > SHOWN_IDS else "")
-    return f"{len(ids)} campaign{'s' if len(ids) != 1 else ''} ({shown})"
-
-
-def _folder(campaigns: pd.DataFrame) -> str:
-    """Return the folder the campaigns were read from (``data/raw``), or a phrase for several."""
-    parents = {str(Path(str(d)).parent) for d in campaigns["source_dir"].dropna()}
-    return parents.pop() if len(parents) == 1 else "one folder"
-
-
-def require_one_machine(campaigns: pd.DataFrame) -> None:
-    """Raise :class:`MixedMachinesError` when the campaigns name more than one machine.
+def machine_findings(campaigns: pd.DataFrame) -> list[Finding]:
+    """Return the problems of the campaigns whose machine is unknown or contradictory.
 
     Parameters
     ----------
     campaigns : DataFrame
         Ingested campaigns (``campaign_id``, ``machine``: free text, ``""`` or missing when not
-        given, ``source_dir``). Names are compared without surrounding white space.
+        given, ``follows``).
 
-    Raises
-    ------
-    MixedMachinesError
-        Naming each machine with its number of campaigns and the first ids, the campaigns
-        without ``machine:``, and what to do.
+    Returns
+    -------
+    list of Finding
+        ``machine_unknown``, ``follows_other_machine`` and ``machine_name_clash``, one per
+        campaign, file ``campaign.yaml``, column ``machine`` (``follows``).
     """
-    names = campaigns["machine"].fillna("").astype(str).str.strip()
+    names = resolved_names(campaigns)
     ids = campaigns["campaign_id"].astype(str)
     machines = sorted(set(names) - {""})
-    if len(machines) < 2:
-        return
-    parts = [f"machine {m!r}: {_ids_text(sorted(ids[names == m]))}" for m in machines]
-    unnamed = sorted(ids[names == ""])
-    if unnamed:
-        parts.append(f"without machine: {_ids_text(unnamed)}")
-    folder = _folder(campaigns)
-    raise MixedMachinesError(
-        f"validate: the campaigns in {folder} are of {len(machines)} machines, and the pipeline "
-        "models one machine at a time (sensor T1 of one machine is not T1 of another): "
-        + "; ".join(parts)
-        + ". Put each machine's campaign folders in a folder (or repository) of their own and "
-        "run the pipeline once per machine, e.g. move the campaigns of all machines but one out "
-        f"of {folder}"
-        + (" and give the campaigns without machine: their machine" if unnamed else "")
-        + ", then rerun dvc repro; nothing was validated"
-    )
+    listed = ", ".join(repr(m) for m in machines)
+    found = [
+        Finding(cid, CAMPAIGN_FILE, "machine_unknown", "machine", fields={"machines": listed})
+        for cid in ids[names == ""]
+    ]
+    owner = dict(zip(ids, names, strict=True))
+    follows = campaigns["follows"] if "follows" in campaigns else pd.Series(None, index=ids.index)
+    for cid, predecessor in zip(ids, follows, strict=True):
+        other = owner.get(str(predecessor)) if isinstance(predecessor, str) else None
+        if other and owner[cid] and other != owner[cid]:
+            fields = {"machine": owner[cid], "other_machine": other}
+            found.append(
+                Finding(cid, CAMPAIGN_FILE, "follows_other_machine", "follows", predecessor, fields)
+            )
+    first_name: dict[str, str] = {}
+    for name in machines:
+        key = machine_key(name)
+        if key in first_name:
+            fields = {"machine": name, "other_machine": first_name[key], "key": key}
+            found += [
+                Finding(cid, CAMPAIGN_FILE, "machine_name_clash", "machine", name, fields)
+                for cid in ids[names == name]
+            ]
+        first_name.setdefault(key, name)
+    return found

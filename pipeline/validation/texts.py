@@ -284,6 +284,30 @@ PROBLEM_TEXTS: dict[str, ProblemText] = {
         column="follows",
         row_level=False,
     ),
+    "machine_unknown": ProblemText(
+        "{campaign}/campaign.yaml names no machine, and the campaigns of this folder are of "
+        "several ({machines}): its sensors cannot be told from theirs",
+        "write machine: with the name of the machine it measured in {campaign}/campaign.yaml, "
+        f"{RERUN}",
+        column="machine",
+        row_level=False,
+    ),
+    "follows_other_machine": ProblemText(
+        "{campaign}/campaign.yaml says the campaign (machine {machine!r}) follows {value}, a "
+        "campaign of machine {other_machine!r}",
+        "correct machine: or follows: in {campaign}/campaign.yaml (a campaign continues one of "
+        f"its own machine), {RERUN}",
+        column="follows",
+        row_level=False,
+    ),
+    "machine_name_clash": ProblemText(
+        "machine {value!r} of {campaign}/campaign.yaml and machine {other_machine!r} of other "
+        "campaigns are both written {key!r} in folder and model names",
+        "write the machine's name exactly as the other campaigns of that machine do, or give "
+        f"the machines names that differ in letters or digits, {RERUN}",
+        column="machine",
+        row_level=False,
+    ),
     "campaign_id_format": ProblemText(
         "campaign_id {value} has characters other than letters, digits, '-' and '_'",
         f"rename the folder data/raw/{{campaign}} and its campaign_id:, {RERUN}",
