@@ -104,7 +104,7 @@ def by_machine(frame: pd.DataFrame, fixed: Collection[str]) -> Iterator[tuple[st
 def with_machine(frame: pd.DataFrame, machine: str) -> pd.DataFrame:
     """``frame`` with a leading ``machine`` column holding ``machine``."""
     out = frame.copy()
-    out.insert(0, MACHINE_COLUMN, pd.Series([machine] * len(out), index=out.index, dtype=object))
+    out.insert(0, MACHINE_COLUMN, pd.Series([machine] * len(out), index=out.index, dtype="str"))
     return out
 
 

@@ -77,6 +77,10 @@ def discrepancy_document(machine_key: str) -> Path:
     return DISCREPANCY / machine_key / DISCREPANCY_FILE
 
 
+FIT_CACHE = Path(".thermal_cache")
+"""Each machine's results of a stage, by the hash of their inputs (``pipeline.fit_cache``; not a
+DVC output, git-ignored)."""
+
 METRICS = Path("metrics")
 CROSS_SEASON_METRICS = METRICS / "cross_season.json"
 FITTED_MODELS = REPORTS / "fitted_models.json"

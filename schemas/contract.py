@@ -76,10 +76,10 @@ CAMPAIGN_KEYS: tuple[Key, ...] = (
         "machine",
         OPTIONAL,
         "free text",
-        "the machine measured; the campaigns of one folder must all be of one machine "
-        "(`validate` stops on a second one), and a campaign without `machine` is taken to be of "
-        "that machine; campaigns of one machine that follow each other without a break form a "
-        "run",
+        "the machine measured; each machine is modelled on its own campaigns (a folder may "
+        "hold several); a campaign without `machine` is of the one machine the others name "
+        "(quarantined when they name several); campaigns of one machine that follow each other "
+        "without a break form a run",
         "machine",
     ),
     Key(

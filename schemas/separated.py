@@ -32,7 +32,7 @@ class SpindleThermalErrorModel(SamplesModel):
     increases within each (axis, campaign).
     """
 
-    machine: Series[str]
+    machine: Series[str] | None
     axis: Series[str]
     run_id: Series[str]
     run_elapsed_s: Series[float]
@@ -61,7 +61,7 @@ class AxisSlopesModel(pa.DataFrameModel):
     extra columns, named as in campaign.yaml. ``machine``: each machine is separated on its own.
     """
 
-    machine: Series[str]
+    machine: Series[str] | None
     campaign_id: Series[str]
     axis_name: Series[str]
     split: Series[str] = pa.Field(isin=SPLITS)

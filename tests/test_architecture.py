@@ -36,10 +36,12 @@ FOUNDATION = {
     "cluster",
     "settings",
     "machines",
+    "fit_cache",
 }
 """Modules every package may import: errors, paths, params, the figure toolkit, the schemas,
 the shared statistics (RMS, information criteria), the warnings' counts, the progress display,
-where the parallel jobs run, the typed params.yaml sections, machines as partitions."""
+where the parallel jobs run, the typed params.yaml sections, machines as partitions and each
+machine's cached results."""
 
 ALLOWED = {
     "schemas": set(),
@@ -53,6 +55,7 @@ ALLOWED = {
     "cluster": set(),
     "settings": set(),
     "machines": {"errors"},
+    "fit_cache": {"paths"},
     "validation": set(),
     "io": {"validation", "thermal"},  # the heat-load parser (pipeline/thermal/loads.py)
     "importers": {"io", "cli"},  # `thermal import <source>` reuses the command dispatcher

@@ -273,18 +273,18 @@ def test_stage_writes_report_metrics_and_figure(planted, tmp_path, monkeypatch):
         "model_axis:\n" + "".join(f"  {k}: {json.dumps(v)}\n" for k, v in PARAMS.items())
     )
     paths.SEPARATED.mkdir(parents=True)
-    planted["slopes"].to_parquet(paths.AXIS_SLOPES)
-    planted["geometric"].to_parquet(paths.AXIS_GEOMETRIC)
-    planted["thermal"].to_parquet(paths.AXIS_THERMAL_ERROR)
+    planted["slopes"].assign(machine="vmc 450").to_parquet(paths.AXIS_SLOPES)
+    planted["geometric"].assign(machine="vmc 450").to_parquet(paths.AXIS_GEOMETRIC)
+    planted["thermal"].assign(machine="vmc 450").to_parquet(paths.AXIS_THERMAL_ERROR)
     assert model_axis.main([]) == 0
-    report = json.loads(paths.AXIS_MODEL_REPORT.read_text())
-    metrics = json.loads(paths.AXIS_MODEL_METRICS.read_text())
+    report = json.loads(paths.AXIS_MODEL_REPORT.read_text())["machines"]["vmc 450"]
+    metrics = json.loads(paths.AXIS_MODEL_METRICS.read_text())["machines"]["vmc 450"]
     assert report["status"] == "ok"
     assert (
         metrics["residual_max_abs_um"]
         == report["scores"]["validation"]["overall"]["residual_max_abs_um"]
     )
-    assert paths.AXIS_MODEL_PLOT.stat().st_size > 0
+    assert (paths.AXIS_MODEL_PLOTS / "vmc-450.png").stat().st_size > 0
 
 
 def test_stage_without_separation_tables_says_which_stage_to_run(tmp_path, monkeypatch):

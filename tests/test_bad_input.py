@@ -27,7 +27,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from pipeline import cli, paths
+from pipeline import paths
 from pipeline.stages import ingest, validate
 from pipeline.validation.plausibility import CHECKS as PLAUSIBILITY_CHECKS
 from pipeline.validation.texts import FALLBACK_TEXT, PROBLEM_TEXTS
@@ -596,24 +596,50 @@ def _machines_workdir(workdir: Path, machine: str | None) -> None:
         yaml_of(raw, lambda meta: meta.__setitem__("machine", machine))
 
 
-def test_campaigns_of_two_machines_stop_validate_naming_both(workdir, monkeypatch, capsys):
+def test_campaigns_of_two_machines_are_validated_each_of_its_machine(workdir, monkeypatch):
     _machines_workdir(workdir, "FL_THERMAL")
-    monkeypatch.chdir(workdir)
-    assert ingest.main([]) == 0
-    assert cli.main(["validate"]) == 1
-    message = capsys.readouterr().err
-    assert "Traceback" not in message
-    assert "machine 'FL_THERMAL': 1 campaign (B01)" in message
-    assert "machine 'test': 2 campaigns (A01, K01)" in message
-    assert "run the pipeline once per machine" in message
-    assert not (workdir / paths.VALIDATED).exists()
-    assert not (workdir / paths.VALIDATION_REPORT).exists()
+    report = run_stages(workdir, monkeypatch, as_subprocess=False)
+    assert report["problems"] == []
+    assert set(report["summary"]["valid"]) == {"A01", "B01", "K01"}
+    campaigns = pd.read_parquet(workdir / paths.VALIDATED_SPINDLE / paths.CAMPAIGNS_FILE)
+    assert dict(zip(campaigns["campaign_id"], campaigns["machine"], strict=True)) == {
+        "B01": "FL_THERMAL",
+        "K01": "test",
+    }
 
 
 def test_a_campaign_without_machine_is_not_a_second_machine(workdir, monkeypatch):
     _machines_workdir(workdir, None)
     report = run_stages(workdir, monkeypatch, as_subprocess=False)
     assert set(report["summary"]["valid"]) == {"A01", "B01", "K01"}
+    campaigns = pd.read_parquet(workdir / paths.VALIDATED_SPINDLE / paths.CAMPAIGNS_FILE)
+    assert set(campaigns["machine"]) == {"test"}  # the folder's one machine
+
+
+def test_with_two_machines_a_campaign_without_one_is_quarantined(workdir, monkeypatch):
+    _machines_workdir(workdir, None)
+    edit_yaml(workdir / paths.RAW / "A01" / "campaign.yaml", lambda m: m.update(machine="lathe"))
+    report = run_stages(workdir, monkeypatch, as_subprocess=False)
+    [problem] = report["problems"]
+    assert (problem["campaign"], problem["check"], problem["column"]) == (
+        "B01",
+        "machine_unknown",
+        "machine",
+    )
+    assert "'lathe', 'test'" in problem["message"] and "write machine:" in problem["action"]
+    assert set(report["summary"]["valid"]) == {"A01", "K01"}
+
+
+def test_a_campaign_following_one_of_another_machine_is_quarantined(workdir, monkeypatch):
+    yaml_of(workdir / paths.RAW, lambda meta: meta.update(machine="FL_THERMAL", follows="K01"))
+    report = run_stages(workdir, monkeypatch, as_subprocess=False)
+    [problem] = report["problems"]
+    assert (problem["campaign"], problem["check"], problem["column"]) == (
+        "B01",
+        "follows_other_machine",
+        "follows",
+    )
+    assert "machine FL_THERMAL" in problem["message"] and "machine test" in problem["message"]
 
 
 def test_yaml_dates_and_non_text_values_are_read(workdir: Path, monkeypatch):
@@ -679,3 +705,11 @@ def test_a_csv_of_blank_cells_only_is_an_empty_file(workdir, monkeypatch):
     checks = {(p["campaign"], p["check"], p["file"]) for p in report["problems"]}
     assert (BAD, "empty_file", "temperature.csv") in checks
     assert report["summary"]["quarantined"] == [BAD]
+
+
+def test_two_machines_written_alike_in_names_are_quarantined(workdir, monkeypatch):
+    yaml_of(workdir / paths.RAW, lambda meta: meta.update(machine="test!"))  # "test" in names
+    report = run_stages(workdir, monkeypatch, as_subprocess=False)
+    [problem] = report["problems"]
+    assert (problem["campaign"], problem["check"]) == ("B01", "machine_name_clash")
+    assert "machine 'test!' of B01/campaign.yaml and machine test of" in problem["message"]

@@ -42,10 +42,13 @@ def test_summary_says_what_the_twin_comparison_named(tmp_path, capsys):
         "rmse_um_after": 3.65,
         "validation": {"rmse_um_before": 5.37, "rmse_um_after": 4.81},
     }
-    (tmp_path / "reports" / "discrepancy").mkdir(parents=True)
-    (tmp_path / "reports" / "discrepancy" / "discrepancy.json").write_text(json.dumps(doc))
+    (tmp_path / "reports" / "discrepancy" / "vmc-450").mkdir(parents=True)
+    (tmp_path / "reports" / "discrepancy" / "vmc-450" / "discrepancy.json").write_text(
+        json.dumps(doc)
+    )
     assert main(["summary", "--root", str(tmp_path)]) == 0
     out = capsys.readouterr().out
+    assert "  machine vmc-450\n" in out
     assert "named motor_heat; held-out Z 3.64 -> 3.65 um, validation Z 5.37 -> 4.81 um" in out
 
 
@@ -69,8 +72,10 @@ def test_import_hands_its_arguments_to_the_importer(tmp_path, capsys):
 
 def test_summary_says_why_the_twin_comparison_was_untestable(tmp_path, capsys):
     doc = {"status": "untestable", "reason": "no sensor has a structure role"}
-    (tmp_path / "reports" / "discrepancy").mkdir(parents=True)
-    (tmp_path / "reports" / "discrepancy" / "discrepancy.json").write_text(json.dumps(doc))
+    (tmp_path / "reports" / "discrepancy" / "lathe").mkdir(parents=True)
+    (tmp_path / "reports" / "discrepancy" / "lathe" / "discrepancy.json").write_text(
+        json.dumps(doc)
+    )
     assert main(["summary", "--root", str(tmp_path)]) == 0
     assert "untestable (no sensor has a structure role)" in capsys.readouterr().out
 
@@ -95,14 +100,13 @@ def test_an_internal_error_keeps_its_traceback(monkeypatch):
 
 
 def _tracking_record(**extra) -> dict:
-    """A ``reports/mlflow_run.json`` of a local store."""
+    """A ``reports/mlflow_run.json`` of a local store, one machine."""
     return {
         "tracking_uri": "sqlite:///mlflow.db",
         "experiment": "thermal-error",
-        "experiment_id": "7",
-        "parent_run_id": "abc",
-        "champions": {},
-        **extra,
+        "machines": {
+            "vmc-450": {"experiment_id": "7", "parent_run_id": "abc", "champions": {}, **extra}
+        },
     }
 
 

@@ -19,7 +19,7 @@ from pipeline.discrepancy.followup import (
 )
 from pipeline.discrepancy.own_evidence import implausible_reason, weak_campaigns
 from pipeline.discrepancy.search import FitResult, SearchSettings, follow_up_gate, forward_search
-from pipeline.stages.discrepancy import read_follow_up, write_history
+from pipeline.stages.discrepancy import history_of, read_history, write_history
 
 OLD = [f"K{i:02d}" for i in range(1, 7)]
 NEW = ["P1_01", "P1_02"]
@@ -124,18 +124,19 @@ def test_the_stage_keeps_the_history_a_tested_run_needs_and_forgets_it_when_unte
         },
     }
     path = tmp_path / "history.json"
-    write_history(path, doc)
-    assert json.loads(path.read_text()) == history_entry(doc)
-    back = read_follow_up(path)
-    assert back == FollowUp(
-        frozenset(OLD),
-        frozenset({"ambient_variation"}),
-        frozenset({"sensor_lag"}),
-        {"motor_heat": "why"},
-    )
-    write_history(path, {"status": "untestable", "named_effects": []})
-    assert json.loads(path.read_text()) == {"status": "untestable"}  # a DVC output: written
-    assert read_follow_up(path) is None
+    untestable = history_of({"status": "untestable", "named_effects": []})
+    write_history(path, {"vmc": history_of(doc), "lathe": untestable})
+    entries = json.loads(path.read_text())["machines"]
+    assert entries == {"vmc": history_entry(doc), "lathe": {"status": "untestable"}}
+    back = read_history(path)
+    assert back == {  # each machine's own; the untestable one starts afresh
+        "vmc": FollowUp(
+            frozenset(OLD),
+            frozenset({"ambient_variation"}),
+            frozenset({"sensor_lag"}),
+            {"motor_heat": "why"},
+        )
+    }
 
 
 def test_the_report_lists_the_suspects_with_their_reason():

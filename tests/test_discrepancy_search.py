@@ -426,13 +426,14 @@ def test_smoke_one_hidden_effect_is_named_and_reported(tmp_path):
     (tmp_path / "params.yaml").write_text(yaml.safe_dump(params), encoding="utf-8")
     argv = ["--raw", str(tmp_path / "raw"), "--out", str(tmp_path / "out")]
     assert main([*argv, "--params", str(tmp_path / "params.yaml"), "--no-mlflow"]) == 0
-    doc = json.loads((tmp_path / "out" / "discrepancy.json").read_text(encoding="utf-8"))
-    assert doc["named_effects"] == ["motor_heat"]
+    out = tmp_path / "out" / "vmc-450-twin"  # the folder of the campaigns' machine
+    doc = json.loads((out / "discrepancy.json").read_text(encoding="utf-8"))
+    assert doc["named_effects"] == ["motor_heat"] and doc["machine"] == "vmc-450-twin"
     assert doc["quarantined"] == ["H99"] and "H99" not in doc["campaigns"]
-    md = (tmp_path / "out" / "discrepancy.md").read_text(encoding="utf-8")
+    md = (out / "discrepancy.md").read_text(encoding="utf-8")
     assert "`motor_heat`" in md and "held-out" in md
-    assert (tmp_path / "out" / "heldout_fit.png").stat().st_size > 10_000
-    assert (tmp_path / "out" / "residuals.png").stat().st_size > 10_000
+    assert (out / "heldout_fit.png").stat().st_size > 10_000
+    assert (out / "residuals.png").stat().st_size > 10_000
     step = doc["steps"][0]
     assert step["effect"] == "motor_heat" and step["parameters"]
     assert all("unit" in p for p in step["parameters"].values())

@@ -13,6 +13,7 @@ from benchmarks.discrepancy_trials import write_hidden_campaigns
 from pipeline.config import load_section
 from pipeline.discrepancy.workflow import STRUCTURE_ROLES
 from pipeline.stages.discrepancy import main
+from pipeline.twin.campaigns import MACHINE
 from tests.helpers.processes import free_port
 
 
@@ -31,8 +32,9 @@ def _params(tmp_path, *more: str):
 def _run(tmp_path):
     argv = ["--raw", str(tmp_path / "raw"), "--out", str(tmp_path / "out")]
     code = main([*argv, "--params", str(_params(tmp_path)), "--no-mlflow"])
-    doc = json.loads((tmp_path / "out" / "discrepancy.json").read_text(encoding="utf-8"))
-    md = (tmp_path / "out" / "discrepancy.md").read_text(encoding="utf-8")
+    out = tmp_path / "out" / MACHINE  # one folder per machine
+    doc = json.loads((out / "discrepancy.json").read_text(encoding="utf-8"))
+    md = (out / "discrepancy.md").read_text(encoding="utf-8")
     return code, doc, md
 
 
@@ -52,7 +54,7 @@ def test_campaigns_whose_sensors_have_no_role_are_untestable_not_an_error(tmp_pa
     assert "no sensor has a structure role" in doc["reason"]
     assert sorted(doc["campaigns"]) == ["H01", "H02", "H03"]
     assert "Untestable on these campaigns" in md and "`spindle_front_bearing`" in md
-    assert not (tmp_path / "out" / "heldout_fit.png").exists()
+    assert not (tmp_path / "out" / MACHINE / "heldout_fit.png").exists()
 
 
 def test_a_single_campaign_is_untestable_and_says_how_many_are_needed(tmp_path):
@@ -82,6 +84,6 @@ def test_an_unreachable_tracking_server_leaves_the_report_and_exits_0(
 
     assert code == 0
     assert "MLflow logging failed" in caplog.text and "the report files are written" in caplog.text
-    doc = json.loads((tmp_path / "out" / "discrepancy.json").read_text(encoding="utf-8"))
+    doc = json.loads((tmp_path / "out" / MACHINE / "discrepancy.json").read_text(encoding="utf-8"))
     assert doc["status"] == "untestable" and "mlflow_run_id" not in doc
-    assert json.loads(record.read_text(encoding="utf-8")) == {"run_id": None}
+    assert json.loads(record.read_text(encoding="utf-8")) == {"machines": {MACHINE: None}}

@@ -17,6 +17,8 @@ import yaml
 from pipeline.stages import evaluate, ingest, select, separate_spindle, track, validate
 
 ROOT = Path(__file__).resolve().parents[1]
+MACHINE = "vmc-450-twin"
+"""The demo campaigns' machine."""
 
 
 @pytest.fixture
@@ -49,31 +51,33 @@ def _stages(folder: Path, *campaigns: str) -> dict:
 
 def test_a_folder_without_spindle_campaigns_writes_empty_outputs_and_says_why(folder):
     metrics = _stages(folder, "Y01", "Y02")
-    assert metrics == {}
+    assert metrics == {"machines": {}}
     runs = json.loads((folder / "data" / "separated" / "spindle_runs.json").read_text())
-    assert runs["axes"] == [] and "no spindle thermal error to model" in runs["note"]
+    assert runs["machines"] == {} and "no spindle thermal error to model" in runs["note"]
     assert pd.read_parquet(folder / "data" / "separated" / "spindle_thermal_error.parquet").empty
     assert pd.read_csv(folder / "reports" / "cross_season_scores.csv").empty
     report = (folder / "reports" / "model_comparison.md").read_text()
     assert "**Nothing to model**" in report
     record = json.loads((folder / "reports" / "mlflow_run.json").read_text())
-    assert record["champions"] == {} and record["child_runs"] == 0
+    assert record["machines"] == {}  # no machine has a model: no run
 
 
 def test_validation_campaigns_alone_give_no_model_and_the_reason(folder):
     metrics = _stages(folder, "V01", "V02")
-    assert "no training campaign measured axis Z" in metrics["Z"]["skipped"]["axis"]
+    skipped = metrics["machines"][MACHINE]["Z"]["skipped"]["axis"]
+    assert "no training campaign measured axis Z" in skipped
     report = (folder / "reports" / "model_comparison.md").read_text()
-    assert "## Axis Z\n\nNo model: no training campaign" in report
+    assert f"## Machine {MACHINE}, axis Z\n\nNo model: no training campaign" in report
 
 
 def test_a_single_training_campaign_registers_no_compensation(folder):
     metrics = _stages(folder, "K01", "V01")
-    assert metrics["Z"]["champion"]["compensate"] is False
-    card = json.loads((folder / "data" / "models" / "champion" / "Z" / "champion.json").read_text())
-    assert card["model"] == "none" and card["protocol"] is None
+    assert metrics["machines"][MACHINE]["Z"]["champion"]["compensate"] is False
+    card_path = folder / "data" / "models" / "champion" / MACHINE / "Z" / "champion.json"
+    card = json.loads(card_path.read_text())
+    assert card["model"] == "none" and card["protocol"] is None and card["machine"] == MACHINE
     assert "single training campaign" in card["reason"]
-    record = json.loads((folder / "reports" / "mlflow_run.json").read_text())
+    record = json.loads((folder / "reports" / "mlflow_run.json").read_text())["machines"][MACHINE]
     assert record["champions"]["Z"]["version"] == "1"
     report = (folder / "reports" / "model_comparison.md").read_text()
     assert "**Do not compensate axis Z with these inputs.**" in report

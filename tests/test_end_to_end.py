@@ -49,6 +49,8 @@ pytestmark = pytest.mark.slow
 ROOT = Path(__file__).resolve().parents[1]
 BIN = Path(sys.executable).parent
 KEYS = ["axis", "model", "selection", "mode"]
+MACHINE = "vmc-450-twin"
+"""The demo campaigns' machine."""
 
 
 def _env(uri: str) -> dict[str, str]:
@@ -75,6 +77,14 @@ def _experiment() -> str:
 
 def _scores(work: Path) -> pd.DataFrame:
     return pd.read_csv(work / "reports" / "cross_season_scores.csv")
+
+
+def _record(work: Path) -> dict:
+    """The demo machine's track record, beside the store and the experiment it shares."""
+    document = json.loads((work / "reports" / "mlflow_run.json").read_text())
+    assert list(document["machines"]) == [MACHINE]
+    shared = {key: value for key, value in document.items() if key != "machines"}
+    return {**shared, **document["machines"][MACHINE]}
 
 
 @dataclass(frozen=True)
@@ -232,9 +242,9 @@ def next_run(demo, tmp_path_factory) -> Iterator[NextRun]:
         identity = _identity(work, uri)
         partial = _incomplete_attempt(client, identity)
         again = _repro(work, _env(uri))
-        logged = json.loads((work / "reports" / "mlflow_run.json").read_text())
+        logged = _record(work)
         _run([str(BIN / "thermal"), "track"], work, _env(uri))
-        reused = json.loads((work / "reports" / "mlflow_run.json").read_text())
+        reused = _record(work)
         yield NextRun(
             work,
             before,
@@ -256,7 +266,7 @@ def _identity(work: Path, uri: str) -> str:
     """The run identity ``thermal track`` computes for the outputs in ``work``."""
     code = (
         "import pathlib, pipeline.tracking.pipeline_run as t; "
-        "print(t.prepare(pathlib.Path('params.yaml')).identity.value)"
+        "print(t.prepare(pathlib.Path('params.yaml'), 'vmc-450-twin').identity.value)"
     )
     return _run([sys.executable, "-c", code], work, _env(uri)).strip().splitlines()[-1]
 
@@ -276,7 +286,7 @@ def test_new_campaign_is_scored_old_scores_kept_unrelated_stages_skipped(next_ru
     assert "Stage 'separate_axis' didn't change, skipping" in output
     for stage in ("ingest", "validate", "separate_spindle", "select", "evaluate", "discrepancy"):
         assert f"Running stage '{stage}'" in output
-    disc = json.loads((work / "reports" / "discrepancy" / "discrepancy.json").read_text())
+    disc = json.loads((work / "reports" / "discrepancy" / MACHINE / "discrepancy.json").read_text())
     assert "K13" in disc["campaigns"]
     after = _scores(work)
     assert "K13" in set(after["train_unit"]) and "K13" in set(after["test_campaign"])
@@ -341,7 +351,7 @@ def test_malformed_campaign_is_quarantined_while_the_others_are_scored(next_run)
     training = {c for c in SPINDLE_CAMPAIGNS if c.startswith("K")}
     assert training | {"K13"} <= set(scores["train_unit"])
     assert {path: path.read_bytes() for path in next_run.raw_bytes} == next_run.raw_bytes
-    disc = json.loads((work / "reports" / "discrepancy" / "discrepancy.json").read_text())
+    disc = json.loads((work / "reports" / "discrepancy" / MACHINE / "discrepancy.json").read_text())
     assert "K99" not in disc["campaigns"] and "K01" in disc["campaigns"]
 
 
@@ -384,7 +394,7 @@ def _check_child_headlines(work: Path, children) -> None:
 
 def _check_discrepancy_run(work: Path, client, experiment: str, parent) -> None:
     """Named effects met the rule held out; the discrepancy and pipeline runs name each other."""
-    disc = json.loads((work / "reports" / "discrepancy" / "discrepancy.json").read_text())
+    disc = json.loads((work / "reports" / "discrepancy" / MACHINE / "discrepancy.json").read_text())
     rule = disc["thresholds"]
     for step in disc["steps"]:
         ev = step["evidence"]
@@ -392,7 +402,7 @@ def _check_discrepancy_run(work: Path, client, experiment: str, parent) -> None:
         by_z = ev["heldout_reduction"] >= rule["min_heldout_reduction"]
         by_t = ev["heldout_T_reduction"] >= rule["min_heldout_temperature_reduction"]
         assert by_z or by_t
-    assert (work / "reports" / "discrepancy" / "heldout_fit.png").stat().st_size > 10_000
+    assert (work / "reports" / "discrepancy" / MACHINE / "heldout_fit.png").stat().st_size > 10_000
     (disc_run,) = client.search_runs([client.get_experiment_by_name(experiment).experiment_id])
     assert disc_run.data.tags["pipeline_run_id"] == parent.info.run_id
     assert parent.data.tags["discrepancy_run_id"] == disc_run.info.run_id
@@ -408,8 +418,10 @@ def _check_discrepancy_run(work: Path, client, experiment: str, parent) -> None:
 
 def _check_champion_loads(work: Path, uri: str, scores: pd.DataFrame) -> None:
     """The registered champion predicts a logged table as the pooled fit scored it."""
-    record = json.loads((work / "reports" / "mlflow_run.json").read_text())
-    card = json.loads((work / "data" / "models" / "champion" / "Z" / "champion.json").read_text())
+    record = _record(work)
+    card = json.loads(
+        (work / "data" / "models" / "champion" / MACHINE / "Z" / "champion.json").read_text()
+    )
     assert card["protocol"] == "loso" and card["compensate"]
     os.environ["MLFLOW_TRACKING_URI"] = uri
     try:
@@ -439,17 +451,19 @@ def _check_champion_loads(work: Path, uri: str, scores: pd.DataFrame) -> None:
 def _check_compensation(work: Path, uri: str, client) -> None:
     """The replay proof holds, its bundle is the champion run's, the runtime loads it from there."""
     document = json.loads((work / "reports" / "compensation" / "compensation.json").read_text())
-    proof = document["axes"]["Z"]["proof"]
+    proof = document["machines"][MACHINE]["axes"]["Z"]["proof"]
     assert proof["n_campaigns"] == len(SPINDLE_CAMPAIGNS) and proof["ratio"] <= 1.1
     assert proof["rms_after_um"] < 0.2 * proof["rms_before_um"]
-    record = json.loads((work / "reports" / "mlflow_run.json").read_text())
+    record = _record(work)
     champion = record["champions"]["Z"]
     version = client.get_model_version(champion["registered_model"], champion["version"])
     run = client.get_run(version.run_id)
     assert run.data.metrics["replay.ratio"] == pytest.approx(proof["ratio"])
     logged = {a.path for a in client.list_artifacts(version.run_id, "compensation/bundle")}
     assert "compensation/bundle/bundle.json" in logged
-    card = json.loads((work / "data" / "models" / "champion" / "Z" / "champion.json").read_text())
+    card = json.loads(
+        (work / "data" / "models" / "champion" / MACHINE / "Z" / "champion.json").read_text()
+    )
     separated = pd.read_parquet(work / "data" / "separated" / "spindle_thermal_error.parquet")
     logger = separated.query("campaign_id == 'V02'").sort_values("elapsed_s")
     sensors = [s for s in card["input_spec"]["inputs"] if not s.startswith("speed")]
@@ -470,7 +484,7 @@ def _check_compensation(work: Path, uri: str, client) -> None:
     )
     assert f"{len(logger)} cycles, {len(logger)} writes, 0 refused" in out
     written = pd.read_csv(work / "offsets.csv")["offset_um"].to_numpy()
-    replayed = pd.read_csv(work / "reports" / "compensation" / "Z" / "trace.csv")
+    replayed = pd.read_csv(work / "reports" / "compensation" / MACHINE / "Z" / "trace.csv")
     expected = replayed.query("campaign_id == 'V02'")["offset_um"].to_numpy()
     np.testing.assert_allclose(written, expected, atol=1e-3)
 
@@ -549,7 +563,7 @@ def test_the_demo_logged_to_a_team_server_on_postgresql_and_s3(demo):
         cursor.execute("SELECT name, version FROM model_versions")
         versions = cursor.fetchall()
     assert stored == {r.info.run_id for r in runs}
-    record = json.loads((demo.work / "reports" / "mlflow_run.json").read_text())
+    record = _record(demo.work)
     champion = record["champions"]["Z"]
     assert (champion["registered_model"], int(champion["version"])) in versions
     s3 = s3_client(demo.team.s3_endpoint)

@@ -144,6 +144,7 @@ def test_write_matrices_passes_seasons_split_and_fits(tmp_path, monkeypatch):
     campaigns = [*TRAIN[:3], VALIDATION[0]]
     rows = [
         {
+            "machine": "vmc 450",
             "axis": "Z",
             "model": "mlr",
             "selection": "all",
@@ -168,7 +169,7 @@ def test_write_matrices_passes_seasons_split_and_fits(tmp_path, monkeypatch):
 
     monkeypatch.setattr(plots, "score_heatmap_figure", keep)
     figures = write_matrices(pd.DataFrame(rows), "synthetic data")
-    assert figures == ["matrices/Z__mlr__all__static.png"]
+    assert figures == ["matrices/vmc-450__Z__mlr__all__static.png"]
     assert (tmp_path / figures[0]).is_file()
     ax = drawn["fig"].axes[0]
     ticks = [t.get_text() for t in ax.get_xticklabels()]

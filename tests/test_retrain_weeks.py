@@ -34,6 +34,7 @@ import pytest
 import yaml
 from mlflow.tracking import MlflowClient
 
+from pipeline.twin.workshop import WORKSHOP_MACHINE as MACHINE
 from tests.helpers.mlflow_server import running_mlflow_server
 from tests.helpers.repository import copy_repository
 from tests.helpers.s3_server import S3_CREDENTIALS, running_s3_server
@@ -167,7 +168,7 @@ def weeks(tmp_path_factory):
             axis: {
                 alias: str(
                     client.get_model_version_by_alias(
-                        f"thermal-error-spindle-{axis}", alias
+                        f"thermal-error-spindle-{MACHINE}-{axis}", alias
                     ).version
                 )
                 for alias in ("champion", "previous", "challenger")
@@ -219,7 +220,7 @@ def test_week_three_keeps_the_champion_that_is_better_than_the_challenger(weeks)
         assert "not better by the margin" in decision["reason"]
         assert {c["campaign_id"] for c in decision["campaigns"]} <= {"C01", "C02", "C03"}
     report = (weeks["ci"] / "reports" / "retrain.md").read_text()
-    assert "| Z | **keep** | v2 | v3 (none/none/static) |" in report
+    assert f"| {MACHINE} Z | **keep** | v2 | v3 (none/none/static) |" in report
     assert report in weeks["summary"]  # the job summary got every week's report
 
 

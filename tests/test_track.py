@@ -58,7 +58,9 @@ ROOT = Path(__file__).resolve().parents[1]
 EXPERIMENT = "thermal-test"
 REGISTERED = "thermal-error-spindle"
 AXES = ("X", "Z")
-NAMES = {axis: f"{REGISTERED}-{axis}" for axis in AXES}
+MACHINE = "vmc 450"
+"""The machine of the campaigns (``vmc-450`` in names)."""
+NAMES = {axis: f"{REGISTERED}-vmc-450-{axis}" for axis in AXES}
 URIS = {axis: f"models:/{name}@champion" for axis, name in NAMES.items()}
 CAMPAIGNS = {  # campaign -> (split, season)
     "K01": ("train", "winter"),
@@ -269,7 +271,7 @@ def build_outputs() -> EvaluateOutputs:
             for r in results[axis]
             if r.unit.name == POOLED_UNIT and r.candidate == Candidate("mlr", "pair")
         ]
-        cards[axis] = champion_card(decision, pooled, SPEC, SAMPLE_S)
+        cards[axis] = {**champion_card(decision, pooled, SPEC, SAMPLE_S), "machine": MACHINE}
         estimators[axis] = pooled.estimator
     return EvaluateOutputs(scores, fitted, selected, cards, estimators)
 
@@ -281,13 +283,15 @@ def write_scores(root: Path, scores: pd.DataFrame, cards: dict) -> None:
     """Write the long score table, the candidate table and the metrics tree as evaluate does."""
     (root / "reports").mkdir(parents=True, exist_ok=True)
     (root / "metrics").mkdir(parents=True, exist_ok=True)
-    scores.to_csv(root / "reports" / "cross_season_scores.csv", index=False, float_format="%.6g")
+    scores.assign(machine=MACHINE).to_csv(
+        root / "reports" / "cross_season_scores.csv", index=False, float_format="%.6g"
+    )
     summary = candidate_summary(scores)
     decisions = [choose_champion(summary, axis, "loso", 0.1) for axis in AXES]
-    ranked_summary(summary, decisions).to_csv(
+    ranked_summary(summary, decisions).assign(machine=MACHINE).to_csv(
         root / "reports" / "model_scores.csv", index=False, float_format="%.4f"
     )
-    group_scores(scores).to_csv(
+    group_scores(scores).assign(machine=MACHINE).to_csv(
         root / "reports" / "heldout_scores.csv", index=False, float_format="%.4f"
     )
     tree = metrics_tree(scores)
@@ -300,7 +304,7 @@ def write_scores(root: Path, scores: pd.DataFrame, cards: dict) -> None:
         for axis in AXES
     }
     (root / "metrics" / "cross_season.json").write_text(
-        json.dumps(round_tree(metrics), indent=2, sort_keys=True)
+        json.dumps({"machines": {MACHINE: round_tree(metrics)}}, indent=2, sort_keys=True)
     )
 
 
@@ -308,9 +312,11 @@ def write_champion(root: Path, outputs: EvaluateOutputs) -> None:
     table, _ = temperature_table()
     separated = separated_table()
     (root / "data" / "separated").mkdir(parents=True, exist_ok=True)
-    separated.to_parquet(root / "data" / "separated" / "spindle_thermal_error.parquet")
+    separated.assign(machine=MACHINE).to_parquet(
+        root / "data" / "separated" / "spindle_thermal_error.parquet"
+    )
     for axis in AXES:
-        folder = root / "data" / "models" / "champion" / axis
+        folder = root / "data" / "models" / "champion" / "vmc-450" / axis
         folder.mkdir(parents=True, exist_ok=True)
         joblib.dump(outputs.estimators[axis], folder / "estimator.joblib")
         card = json.dumps(outputs.cards[axis], indent=2, sort_keys=True)
@@ -364,24 +370,37 @@ def write_evaluate_outputs(root: Path, outputs: EvaluateOutputs) -> None:
     for folder in ("selection", "matrices", "comparison", "separation"):
         (reports / folder).mkdir(parents=True, exist_ok=True)
     write_scores(root, outputs.scores, outputs.cards)
-    (reports / "fitted_models.json").write_text(json.dumps(outputs.fitted, indent=2))
-    (reports / "selection" / "selected.json").write_text(json.dumps(outputs.selected, indent=2))
+    fitted = {"machines": {MACHINE: outputs.fitted}}
+    (reports / "fitted_models.json").write_text(json.dumps(fitted, indent=2))
+    selected = {
+        "features": outputs.selected["features"],
+        "machines": {MACHINE: {"axes": outputs.selected["axes"], "skipped_axes": {}}},
+    }
+    (reports / "selection" / "selected.json").write_text(json.dumps(selected, indent=2))
     (reports / "selection" / "pair_evidence.csv").write_text("unit,sensor,score\nK01,T1,0.9\n")
     (reports / "model_comparison.md").write_text("# Model comparison (SYNTHETIC data)\n")
     (reports / "cross_season_matrix.csv").write_text("model,selection,mode,score,train_unit\n")
-    (reports / "matrices" / "Z__mlr__pair__static.png").write_bytes(PNG)
+    (reports / "matrices" / "vmc-450__Z__mlr__pair__static.png").write_bytes(PNG)
     (reports / "comparison" / "best_worst_validation.png").write_bytes(PNG)
     (reports / "validation.json").write_text('{"summary": {}, "problems": []}')
     (reports / "separation" / "axis_separation.png").write_bytes(PNG)
-    (reports / "axis_model.json").write_text(json.dumps({"axis_model": AXIS_METRICS}))
-    (root / "metrics" / "axis_model.json").write_text(json.dumps(AXIS_METRICS))
+    axis_model = {"machines": {MACHINE: {"axis_model": AXIS_METRICS}}}
+    (reports / "axis_model.json").write_text(json.dumps(axis_model))
+    (root / "metrics" / "axis_model.json").write_text(
+        json.dumps({"machines": {MACHINE: AXIS_METRICS}})
+    )
     write_champion(root, outputs)
     (root / "params.yaml").write_text(yaml.safe_dump(PARAMS))
     for campaign in CAMPAIGNS:
         folder = root / "data" / "raw" / campaign
         folder.mkdir(parents=True, exist_ok=True)
-        (folder / "campaign.yaml").write_text(f"campaign_id: {campaign}\nsynthetic: true\n")
+        (folder / "campaign.yaml").write_text(
+            f"campaign_id: {campaign}\nmachine: {MACHINE}\nsynthetic: true\n"
+        )
         (folder / "temperature.csv").write_text("elapsed_s,T1\n0,20.0\n60,20.5\n")
+    (root / "data" / "ingested").mkdir(parents=True, exist_ok=True)
+    ingested = pd.DataFrame({"campaign_id": list(CAMPAIGNS), "machine": MACHINE})
+    ingested.to_parquet(root / "data" / "ingested" / "campaigns.parquet")
 
 
 def temperature_table() -> tuple[pd.DataFrame, pd.DataFrame]:
@@ -419,7 +438,11 @@ def read_json(root: Path, relative: str):
 
 
 def record(root: Path) -> dict:
-    return read_json(root, "reports/mlflow_run.json")
+    """The track record of the machine, beside the store and experiment."""
+    document = read_json(root, "reports/mlflow_run.json")
+    assert list(document["machines"]) == [MACHINE]
+    shared = {key: value for key, value in document.items() if key != "machines"}
+    return {**shared, **document["machines"][MACHINE]}
 
 
 def all_runs(client: MlflowClient) -> list:
@@ -439,7 +462,7 @@ def child_key(run) -> tuple[str, ...]:
 
 def expected_child_metrics(root: Path, key: tuple[str, ...]) -> dict[str, float]:
     """A candidate's headline scores: its model_scores.csv row and its held-out groups."""
-    summary = pd.read_csv(root / "reports" / "model_scores.csv")
+    summary = pd.read_csv(root / "reports" / "model_scores.csv").drop(columns="machine")
     row = summary.set_index(list(records.KEY_COLUMNS)).loc[key]
     standing = {"eligible", "ineligible_reason", "rank", "champion"}
     expected = {
@@ -448,6 +471,7 @@ def expected_child_metrics(root: Path, key: tuple[str, ...]) -> dict[str, float]
         if name not in standing and pd.notna(value)
     }
     groups = pd.read_csv(root / "reports" / "heldout_scores.csv", keep_default_na=False)
+    groups = groups.drop(columns="machine")
     mine = groups.set_index(list(records.KEY_COLUMNS)).loc[[key]]
     for _, group in mine.iterrows():
         expected[group["name"]] = float(group["rms_um"])
@@ -621,7 +645,8 @@ def test_child_metrics_are_the_headline_scores_and_the_rest_is_in_its_tables(
             logged = merged[f"{column}_logged"].astype(float).to_numpy()
             np.testing.assert_array_equal(merged[column].astype(float).to_numpy(), logged)
     # and each training unit's summary (metrics/cross_season.json by_train_unit)
-    tree = read_json(workdir, "metrics/cross_season.json")["Z"]["candidates"]["mlr"]["pair"]
+    metrics = read_json(workdir, "metrics/cross_season.json")["machines"][MACHINE]
+    tree = metrics["Z"]["candidates"]["mlr"]["pair"]
     run = by_key[("Z", "mlr", "pair", "static")]
     units = table_artifact(client, run.info.run_id, records.UNITS_TABLE, tmp / "units")
     units = units.set_index("train_unit")
@@ -722,7 +747,7 @@ def test_parent_has_champion_scores_selected_sensors_tags_and_artifacts(tracked,
     assert tags["dvc.evaluate.reports/cross_season_scores.csv"] == "123"
     assert "dvc.track.reports/mlflow_run.json" not in tags  # its own previous output
     expected = {}
-    tree = read_json(workdir, "metrics/cross_season.json")
+    tree = read_json(workdir, "metrics/cross_season.json")["machines"][MACHINE]
     for axis in AXES:
         champion = tree[axis]["champion"]
         assert champion["loso_Mn_rms_um"] == outputs.cards[axis]["scores"]["loso_Mn_rms_um"]
@@ -762,7 +787,7 @@ def test_parent_has_champion_scores_selected_sensors_tags_and_artifacts(tracked,
         "metrics/cross_season.json"
     }
     stored = workdir / "mlartifacts" / EXPERIMENT / parent.info.run_id / "artifacts"
-    assert (stored / "reports" / "matrices" / "Z__mlr__pair__static.png").is_file()
+    assert (stored / "reports" / "matrices" / "vmc-450__Z__mlr__pair__static.png").is_file()
     assert info["metrics"] == len(parent.data.metrics) + sum(len(r.data.metrics) for r in children)
     assert info["tracking_uri"] == "sqlite:///mlflow.db"
     assert info["reused"] is False
@@ -793,7 +818,7 @@ def test_each_axis_champion_is_registered_from_its_child_run_and_predicts(tracke
     assert required == ["T2", "T1"]
     table, rises = temperature_table()
     predicted = np.asarray(model.predict(table), dtype=float)
-    card = read_json(workdir, "data/models/champion/Z/champion.json")
+    card = read_json(workdir, "data/models/champion/vmc-450/Z/champion.json")
     assert card == outputs.cards["Z"]
     estimator = outputs.estimators["Z"]
     expected = estimator.predict(model_inputs(table, InputSpec.from_dict(card["input_spec"])))
@@ -818,9 +843,9 @@ def test_a_none_champion_is_registered_and_predicts_no_compensation(workdir, cli
         if unit.name == POOLED_UNIT
     ]
     spec = InputSpec((), "temperature_rise", "first_sample", 1)
-    folder = workdir / "data" / "models" / "champion" / "X"
+    folder = workdir / "data" / "models" / "champion" / "vmc-450" / "X"
     joblib.dump(pooled.estimator, folder / "estimator.joblib")
-    card = champion_card(decision, pooled, spec, SAMPLE_S)
+    card = {**champion_card(decision, pooled, spec, SAMPLE_S), "machine": MACHINE}
     (folder / "champion.json").write_text(json.dumps(card, indent=2, sort_keys=True))
     track.main([])
     _, children = split_runs(all_runs(client))
@@ -919,7 +944,7 @@ def test_changed_scores_params_or_data_log_a_new_parent_and_gate_its_champion(
     assert str(client.get_model_version_by_alias(NAMES["Z"], "challenger").version) == "2"
     assert client.get_model_version(NAMES["Z"], "2").tags["gate"] == "keep"
     report = (workdir / "reports" / "promotion" / "promotion.md").read_text()
-    assert "| Z | **keep** | v1 | v2 (mlr/pair/static) | 1 |" in report
+    assert f"| {MACHINE} Z | **keep** | v1 | v2 (mlr/pair/static) | 1 |" in report
 
 
 def test_returning_to_logged_inputs_leaves_the_alias_where_the_gate_put_it(workdir, client):
@@ -938,17 +963,18 @@ def test_returning_to_logged_inputs_leaves_the_alias_where_the_gate_put_it(workd
 
 def test_identity_is_stable_and_sees_renamed_files(tmp_path, outputs):
     write_evaluate_outputs(tmp_path, outputs)
-    files = [tmp_path / "reports" / "cross_season_scores.csv"]
+    scores = [("scores", (tmp_path / "reports" / "cross_season_scores.csv").read_bytes())]
     params = yaml.safe_load((tmp_path / "params.yaml").read_text())
-    first = identity.compute_identity([tmp_path / "data"], params, tmp_path / "data/raw", files)
-    again = identity.compute_identity(
-        [tmp_path / "data"], dict(params), tmp_path / "data/raw", files
-    )
+    raw = tmp_path / "data" / "raw"
+    mine = [raw / "K01", raw / "K02"]  # the machine's campaign folders
+    first = identity.compute_identity([tmp_path / "metrics"], params, mine, scores)
+    again = identity.compute_identity([tmp_path / "metrics"], dict(params), mine, scores)
     assert first == again
-    (tmp_path / "data" / "raw" / "K01" / "temperature.csv").rename(
-        tmp_path / "data" / "raw" / "K01" / "temperature_renamed.csv"
-    )
-    moved = identity.compute_identity([tmp_path / "data"], params, tmp_path / "data/raw", files)
+    (raw / "K03" / "temperature.csv").rename(raw / "K03" / "temperature_renamed.csv")
+    other = identity.compute_identity([tmp_path / "metrics"], params, mine, scores)
+    assert other == first  # another machine's campaign: not this machine's identity
+    (raw / "K01" / "temperature.csv").rename(raw / "K01" / "temperature_renamed.csv")
+    moved = identity.compute_identity([tmp_path / "metrics"], params, mine, scores)
     assert moved.parts["data"] != first.parts["data"]
     assert moved.parts["params"] == first.parts["params"]
 

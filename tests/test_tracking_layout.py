@@ -123,9 +123,10 @@ def test_group_scores_read_back_from_csv_give_the_same_child_metrics(tmp_path):
 def test_the_shared_views_list_an_axis_children_ranked_with_their_scores_as_columns():
     (child,) = records.child_records(_inputs(3))
     other = records.RunRecord("X/mlr/all/static", tags={"axis": "X"}, metrics={"S_um": 1.0})
-    shared = views.shared_views("p1", [child, other], {"Z": "loco_Mn_rms_um", "X": ""})
-    assert set(shared) == {"ranked-Z", "all-Z"}  # X has no ranking score: no view
-    ranked = json.loads(shared["ranked-Z"])
+    ranked_by = {"Z": "loco_Mn_rms_um", "X": ""}
+    shared = views.shared_views("p1", [child, other], ranked_by, "DMU 50")
+    assert set(shared) == {"ranked-DMU-50-Z", "all-DMU-50-Z"}  # X has no ranking score: no view
+    ranked = json.loads(shared["ranked-DMU-50-Z"])
     assert ranked["searchFilter"] == (
         "tags.`mlflow.parentRunId` = 'p1' and tags.axis = 'Z' and tags.eligible = 'true'"
     )
@@ -139,7 +140,7 @@ def test_the_shared_views_list_an_axis_children_ranked_with_their_scores_as_colu
         "metrics.`loco_K001_rms_um`",
         "metrics.`loco_K002_rms_um`",
     ]
-    assert "eligible" not in json.loads(shared["all-Z"])["searchFilter"]
-    assert views.view_path("4", "ranked-Z") == (
-        "/#/experiments/4/runs?workflowType=machine_learning&viewStateShareKey=ranked-Z"
+    assert "eligible" not in json.loads(shared["all-DMU-50-Z"])["searchFilter"]
+    assert views.view_path("4", "ranked-DMU-50-Z") == (
+        "/#/experiments/4/runs?workflowType=machine_learning&viewStateShareKey=ranked-DMU-50-Z"
     )

@@ -203,7 +203,7 @@ def test_twin_is_never_champion_even_when_it_scores_best(hidden, baseline_scores
     decision = choose_champion(best, "Z", "loso", 0.1)
     assert decision.label == "mlr/all/static"
     assert list(decision.ranked["model"]) == ["mlr", "none"]
-    context = AxisContext("Z", best, decision, {"inputs": ["T1"]}, {}, series, {})
+    context = AxisContext("vmc-450", "Z", best, decision, {"inputs": ["T1"]}, {}, series, {})
     text = axis_section(context, {}, AxisFigures("x.png", ("a", "b")), twin_section("baseline"))
     assert "`twin` (selection `roles`, mode `static`)" in text
     assert "never chosen as champion" in text

@@ -23,6 +23,7 @@ import pytest
 import yaml
 from mlflow.tracking import MlflowClient
 
+from pipeline.twin.workshop import WORKSHOP_MACHINE as MACHINE
 from tests.helpers.mlflow_server import running_mlflow_server
 from tests.helpers.repository import copy_repository
 
@@ -73,7 +74,9 @@ def workshop(tmp_path_factory):
         experiment = client.get_experiment_by_name(params["track"]["experiment"])
         runs = client.search_runs([experiment.experiment_id], max_results=1000)
         versions = {
-            axis: client.get_model_version_by_alias(f"thermal-error-spindle-{axis}", "champion")
+            axis: client.get_model_version_by_alias(
+                f"thermal-error-spindle-{MACHINE}-{axis}", "champion"
+            )
             for axis in AXES
         }
         yield work, output, runs, versions
@@ -86,10 +89,10 @@ def _json(work: Path, relative: str):
 def test_the_twin_comparison_is_untestable_and_the_pipeline_goes_on(workshop):
     work, output, _, _ = workshop
     assert "Running stage 'track'" in output
-    disc = _json(work, "reports/discrepancy/discrepancy.json")
+    disc = _json(work, f"reports/discrepancy/{MACHINE}/discrepancy.json")
     assert disc["status"] == "untestable" and disc["roles_present"] == ["other"]
     assert "spindle_front_bearing" in disc["needed_roles"]
-    metrics = _json(work, "metrics/cross_season.json")
+    metrics = _json(work, "metrics/cross_season.json")["machines"][MACHINE]
     assert "structure role" in metrics["Z"]["skipped"]["twin/roles"]
     assert "Z drift only" in metrics["X"]["skipped"]["twin/roles"]
     report = (work / "reports" / "model_comparison.md").read_text()
@@ -98,7 +101,7 @@ def test_the_twin_comparison_is_untestable_and_the_pipeline_goes_on(workshop):
 
 def test_back_to_back_campaigns_are_one_run_counted_from_its_cold_start(workshop):
     work, _, _, _ = workshop
-    runs = _json(work, "data/separated/spindle_runs.json")
+    runs = _json(work, "data/separated/spindle_runs.json")["machines"][MACHINE]
     (run,) = runs["runs"]
     assert run["campaigns"] == [f"W0{i}" for i in range(1, 7)]
     assert all(link["how"] == "detected" and link["contiguous"] for link in run["links"])
@@ -133,7 +136,7 @@ def test_every_axis_is_scored_held_out_ranked_forward_and_registered(workshop):
     assert report.count("Ranked by **rolling origin (forward in time)**") == 3
     assert report.count("No independent check exists") == 3
     for axis in AXES:
-        card = _json(work, f"data/models/champion/{axis}/champion.json")
+        card = _json(work, f"data/models/champion/{MACHINE}/{axis}/champion.json")
         version = versions[axis]
         champion = next(r for r in children if r.info.run_id == version.run_id)
         assert champion.data.tags["champion"] == "true" and champion.data.tags["axis"] == axis
@@ -149,14 +152,14 @@ def test_every_axis_is_scored_held_out_ranked_forward_and_registered(workshop):
 
 def test_the_replayed_compensation_leaves_what_the_champion_left_offline(workshop):
     work, _, _, _ = workshop
-    document = _json(work, "reports/compensation/compensation.json")
+    document = _json(work, "reports/compensation/compensation.json")["machines"][MACHINE]
     assert set(document["axes"]) == set(AXES)
     for axis, record in document["axes"].items():
         proof = record["proof"]
         # W04-W06, each forecast by the campaigns before it, replayed from the run's cold start
         assert proof["n_campaigns"] == 3, axis
         assert proof["ratio"] <= 1.1, (axis, proof)
-        table = pd.read_csv(work / "reports" / "compensation" / axis / "proof.csv")
+        table = pd.read_csv(work / "reports" / "compensation" / MACHINE / axis / "proof.csv")
         assert set(table["campaign_id"]) == {"W04", "W05", "W06"}
         assert set(table["unit"]) == {"before_W04", "before_W05", "before_W06"}
     budget = pd.read_csv(work / "reports" / "sensor_budget.csv")

@@ -201,11 +201,13 @@ def run(
     quarantined: list[str] | None = None,
     synthetic: bool = False,
     follow: FollowUp | None = None,
+    machine: str | None = None,
 ) -> tuple[SearchResult, dict, list[Path]]:
-    """Search, localise and write the outputs for already-read campaigns.
+    """Search, localise and write the outputs for already-read campaigns (of one machine).
 
     ``follow`` is the earlier run's outcome (:mod:`pipeline.discrepancy.followup`): an effect
-    it did not name must owe its evidence to the campaigns it had not seen.
+    it did not name must owe its evidence to the campaigns it had not seen. ``machine``, when
+    given, is written in the document.
 
     Returns
     -------
@@ -253,6 +255,8 @@ def run(
     doc["no_longer_named"] = no_longer_named(
         follow, result.named_effects, result.suspects, last_tried
     )
+    if machine is not None:
+        doc["machine"] = machine
     files = write_outputs(out_dir, doc, campaigns, result, before)
     logger.info(
         "discrepancy: named %s; held-out Z RMS %.2f -> %.2f um (%.0f s)",
@@ -271,8 +275,11 @@ def run_untestable(
     *,
     quarantined: list[str] | None = None,
     synthetic: bool = False,
+    machine: str | None = None,
 ) -> tuple[dict, list[Path]]:
     """Write the report of campaigns the twin cannot be compared with (status untestable).
+
+    ``machine``, when given, is written in the document.
 
     Returns
     -------
@@ -289,6 +296,8 @@ def run_untestable(
         quarantined=quarantined or [],
         synthetic=synthetic,
     )
+    if machine is not None:
+        doc["machine"] = machine
     files = write_untestable(out_dir, doc)
     logger.warning("discrepancy: untestable: %s", reason)
     return doc, files

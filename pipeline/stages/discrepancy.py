@@ -163,9 +163,8 @@ def main(argv: list[str] | None = None) -> int:
             section,
             args.out / machine_key(machine),
             follow.get(machine),
-            {"quarantined": quarantined, "synthetic": synthetic},
+            {"quarantined": quarantined, "synthetic": synthetic, "machine": machine},
         )
-        doc["machine"] = machine
         entries[machine] = history_of(doc)
         if tracking is not None:
             try:
@@ -173,10 +172,7 @@ def main(argv: list[str] | None = None) -> int:
             except Exception as err:  # the report stands without the tracking record
                 logger.warning("MLflow logging failed (%s); the report files are written", err)
         run_ids[machine] = doc.get("mlflow_run_id")
-    if history is not None:
-        history.parent.mkdir(parents=True, exist_ok=True)
-        text = json.dumps({"machines": entries}, indent=2) + "\n"
-        history.write_text(text, encoding="utf-8")
+    write_history(history, entries)
     record = args.run_record or (paths.DISCREPANCY_RECORD if args.out == DEFAULT_OUT else None)
     if record is not None:
         write_run_record(record, run_ids)
@@ -213,6 +209,14 @@ def history_of(doc: dict) -> dict:
     """
     tested = doc.get("status") == STATUS_TESTED
     return history_entry(doc) if tested else {"status": doc.get("status")}
+
+
+def write_history(path: Path | None, entries: dict[str, dict]) -> None:
+    """Keep each machine's :func:`history_of` in ``path`` (``{"machines": {machine: entry}}``)."""
+    if path is None:
+        return
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(json.dumps({"machines": entries}, indent=2) + "\n", encoding="utf-8")
 
 
 def write_run_record(path: Path, run_ids: dict[str, str | None]) -> None:

@@ -26,12 +26,14 @@ import json
 import logging
 import shutil
 from dataclasses import dataclass
+from functools import partial
 
 import joblib
 import pandas as pd
 
 from pipeline import paths
 from pipeline.errors import MissingInputError
+from pipeline.fit_cache import StageCache
 from pipeline.machines import MACHINE_COLUMN, machine_key, with_machine
 from pipeline.protocol.evaluation import (
     AxisComparison,
@@ -341,6 +343,12 @@ def evaluate_machine(
     """
     params, features = settings.params, settings.features
     selected = document["axes"]
+    LOGGER.info(
+        "machine %s: evaluating axes %s on its %d campaigns",
+        machine,
+        ", ".join(selected) or "none",
+        table["campaign_id"].nunique(),
+    )
     with_twin = split_twin(params.candidates)[1]
     discrepancy = read_discrepancy(machine) if with_twin else None
     roles = sensor_roles(machine) if with_twin else frozenset()
@@ -387,6 +395,26 @@ def read_inputs() -> tuple[pd.DataFrame, dict, dict]:
     return table, document, json.loads(paths.SPINDLE_RUNS.read_text())
 
 
+def cache_parts(
+    machine: str, rows: pd.DataFrame, document: dict, separation: dict, settings: StageSettings
+) -> list[tuple[str, object]]:
+    """Everything one machine's evaluation is computed from (:mod:`pipeline.fit_cache`)."""
+    parts = [
+        ("rows", rows),
+        ("selected", document["machines"][machine]),
+        ("features", settings.features),
+        ("separation", separation["machines"][machine]),
+        ("evaluate", settings.params),
+        ("protocol", settings.protocol),
+        ("separate", settings.separate),
+    ]
+    if split_twin(settings.params.candidates)[1]:
+        path = paths.discrepancy_document(machine_key(machine))
+        discrepancy = json.loads(path.read_text(encoding="utf-8")) if path.is_file() else None
+        parts += [("discrepancy", discrepancy), ("campaigns", machine_campaigns(machine))]
+    return parts
+
+
 @summarise_warnings(details=str(paths.MODEL_COMPARISON))
 def main(argv: list[str] | None = None) -> int:
     """Run the stage with the ``evaluate``, ``protocol`` and ``separate`` params sections."""
@@ -401,16 +429,23 @@ def main(argv: list[str] | None = None) -> int:
         load_settings(SeparateSettings, "separate"),
         check_feature_kind(str(document["features"])),
     )
+    cache = StageCache("evaluate")
     outcomes = {
-        machine: evaluate_machine(
+        machine: cache.result(
             machine,
-            rows,
-            document["machines"][machine],
-            separation["machines"][machine],
-            settings,
+            cache_parts(machine, rows, document, separation, settings),
+            partial(
+                evaluate_machine,
+                machine,
+                rows,
+                document["machines"][machine],
+                separation["machines"][machine],
+                settings,
+            ),
         )
         for machine, rows in separated_by_machine(table)
     }
+    cache.prune()
     held_back = all(
         doc is None or doc.get("validation") is not None
         for doc in (read_discrepancy(m) for m in outcomes if split_twin(params.candidates)[1])

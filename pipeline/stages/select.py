@@ -26,10 +26,12 @@ import argparse
 import json
 import logging
 from dataclasses import dataclass, field
+from functools import partial
 
 import pandas as pd
 
 from pipeline import paths, plots
+from pipeline.fit_cache import StageCache
 from pipeline.machines import MACHINE_COLUMN, axis_label
 from pipeline.protocol.selection_runs import (
     STABILITY_COLUMNS,
@@ -173,10 +175,16 @@ def main(argv: list[str] | None = None) -> int:
     entries = method_entries(settings.methods)
     protocol = load_settings(ProtocolSettings, "protocol")
     table = pd.read_parquet(paths.SPINDLE_THERMAL_ERROR)
+    cache = StageCache("select")
     machines = {
-        machine: select_machine(machine, rows, features, entries, protocol)
+        machine: cache.result(
+            machine,
+            [("rows", rows), ("features", features), ("methods", entries), ("protocol", protocol)],
+            partial(select_machine, machine, rows, features, entries, protocol),
+        )
         for machine, rows in separated_by_machine(table)
     }
+    cache.prune()
     if table.empty:
         LOGGER.warning("no spindle thermal error to select inputs for (see %s)", paths.SPINDLE_RUNS)
     write_outputs(features, machines, bool(table["synthetic"].any()))

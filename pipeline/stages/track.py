@@ -41,6 +41,7 @@ from pathlib import Path
 
 from pipeline.config import DEFAULT_PARAMS
 from pipeline.paths import (
+    AXIS_MODEL_METRICS,
     CROSS_SEASON_METRICS,
     PROMOTION,
     PROMOTION_DECISION,
@@ -127,8 +128,11 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def machines() -> list[str]:
-    """Return the machines ``evaluate`` scored (``metrics/cross_season.json``), sorted."""
-    return sorted(read_json(CROSS_SEASON_METRICS).get("machines") or {})
+    """Return the machines ``evaluate`` or ``model_axis`` modelled, sorted."""
+    found = set(read_json(CROSS_SEASON_METRICS).get("machines") or {})
+    if AXIS_MODEL_METRICS.is_file():
+        found |= set(read_json(AXIS_MODEL_METRICS).get("machines") or {})
+    return sorted(found)
 
 
 def write_promotion(record: dict) -> None:

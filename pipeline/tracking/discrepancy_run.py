@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 
 from pipeline.discrepancy.report import STATUS_TESTED, STATUS_UNTESTABLE
+from pipeline.machines import machine_key
 from pipeline.settings.tracking import TrackingSettings
 from pipeline.tracking.location import (
     absolute_store_uri,
@@ -27,7 +28,7 @@ logger = logging.getLogger(__name__)
 
 
 def _run_tags(doc: Mapping[str, Any]) -> dict[str, str]:
-    """Return the MLflow run's tags: stage, status, synthetic, effects' fates, why untestable."""
+    """Return the MLflow run's tags: stage, status, machine, synthetic, effects' fates, why not."""
     tags = {
         "stage": "discrepancy",
         "status": str(doc.get("status", STATUS_TESTED)),
@@ -37,6 +38,8 @@ def _run_tags(doc: Mapping[str, Any]) -> dict[str, str]:
         "no_longer_named": ",".join(d["effect"] for d in doc.get("no_longer_named") or [])
         or "none",
     }
+    if doc.get("machine"):
+        tags["machine"] = str(doc["machine"])
     if doc.get("status") == STATUS_UNTESTABLE:
         tags["mlflow.note.content"] = f"Untestable: {doc['reason']}"
     return tags
@@ -182,7 +185,8 @@ def log_discrepancy_run(
     client = make_client(uri)
     location = local_artifact_location(uri, settings.local_artifact_dir, experiment)
     experiment_id = ensure_experiment(client, experiment, location)
-    run = client.create_run(experiment_id, tags=_run_tags(doc), run_name="discrepancy")
+    name = f"discrepancy-{machine_key(doc['machine'])}" if doc.get("machine") else "discrepancy"
+    run = client.create_run(experiment_id, tags=_run_tags(doc), run_name=name)
     run_id = run.info.run_id
     try:
         log_values(client, run_id, *run_values(doc))

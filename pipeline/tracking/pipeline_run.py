@@ -121,8 +121,8 @@ def _entry_or_none(path: Path, machine: str) -> Any:
 def prepare(params_path: Path, machine: str) -> Prepared:
     """Read the machine's outputs and provenance, compute its identity, build the run records."""
     all_params = _load_params(params_path)
-    cross_season = machine_entry(CROSS_SEASON_METRICS, machine)
-    selected = machine_entry(SELECTED, machine)["axes"]
+    cross_season = _entry_or_none(CROSS_SEASON_METRICS, machine) or {}
+    selected = (_entry_or_none(SELECTED, machine) or {}).get("axes", {})
     axis_model = _entry_or_none(AXIS_MODEL_METRICS, machine) or {}
 
     code_dirs = [_package_dir("pipeline"), _package_dir("schemas")]

@@ -49,7 +49,14 @@ def machine_findings(campaigns: pd.DataFrame) -> list[Finding]:
         if other and owner[cid] and other != owner[cid]:
             fields = {"machine": owner[cid], "other_machine": other}
             found.append(
-                Finding(cid, CAMPAIGN_FILE, "follows_other_machine", "follows", predecessor, fields)
+                Finding(
+                    cid,
+                    CAMPAIGN_FILE,
+                    "follows_other_machine",
+                    "follows",
+                    value=predecessor,
+                    fields=fields,
+                )
             )
     first_name: dict[str, str] = {}
     for name in machines:
@@ -57,7 +64,9 @@ def machine_findings(campaigns: pd.DataFrame) -> list[Finding]:
         if key in first_name:
             fields = {"machine": name, "other_machine": first_name[key], "key": key}
             found += [
-                Finding(cid, CAMPAIGN_FILE, "machine_name_clash", "machine", name, fields)
+                Finding(
+                    cid, CAMPAIGN_FILE, "machine_name_clash", "machine", value=name, fields=fields
+                )
                 for cid in ids[names == name]
             ]
         first_name.setdefault(key, name)

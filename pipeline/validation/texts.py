@@ -293,16 +293,16 @@ PROBLEM_TEXTS: dict[str, ProblemText] = {
         row_level=False,
     ),
     "follows_other_machine": ProblemText(
-        "{campaign}/campaign.yaml says the campaign (machine {machine!r}) follows {value}, a "
-        "campaign of machine {other_machine!r}",
+        "{campaign}/campaign.yaml says the campaign (machine {machine}) follows {value}, a "
+        "campaign of machine {other_machine}",
         "correct machine: or follows: in {campaign}/campaign.yaml (a campaign continues one of "
         f"its own machine), {RERUN}",
         column="follows",
         row_level=False,
     ),
     "machine_name_clash": ProblemText(
-        "machine {value!r} of {campaign}/campaign.yaml and machine {other_machine!r} of other "
-        "campaigns are both written {key!r} in folder and model names",
+        "machine {value} of {campaign}/campaign.yaml and machine {other_machine} of other "
+        "campaigns are both written {key} in folder and model names",
         "write the machine's name exactly as the other campaigns of that machine do, or give "
         f"the machines names that differ in letters or digits, {RERUN}",
         column="machine",

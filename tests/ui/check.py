@@ -42,6 +42,7 @@ from urllib.parse import urlencode
 
 from pipeline.config import DEFAULT_PARAMS
 from pipeline.errors import InputDataError, MissingInputError, UserError
+from pipeline.machines import machine_key
 from pipeline.paths import REPORTS, TRACKING_RECORD
 from pipeline.settings.base import load_settings
 from pipeline.settings.tracking import DEFAULT_TRACKING_URI, TrackingSettings
@@ -65,15 +66,21 @@ NO_CHROMIUM = (
 Write = Callable[[str], None]
 
 
-def read_record(path: Path) -> dict[str, Any]:
-    """Read ``reports/mlflow_run.json``, written by the ``track`` stage.
+def read_record(path: Path) -> list[dict[str, Any]]:
+    """Read ``reports/mlflow_run.json``, written by the ``track`` stage: each machine's record.
+
+    Returns
+    -------
+    list of dict
+        One per machine: its entry with the store and experiment it shares with the others.
 
     Raises
     ------
     MissingInputError
         If the file is missing.
     InputDataError
-        If it is not a JSON object with ``experiment_id`` and ``parent_run_id``.
+        If it is not a JSON object of machines, each with ``experiment_id`` and
+        ``parent_run_id``.
     """
     if not path.is_file():
         raise MissingInputError(
@@ -84,12 +91,20 @@ def read_record(path: Path) -> dict[str, Any]:
         record = json.loads(path.read_text(encoding="utf-8"))
     except (json.JSONDecodeError, UnicodeDecodeError) as error:
         raise InputDataError(f"{path} is not valid JSON ({error}); rerun thermal track") from None
-    if not isinstance(record, dict):
-        raise InputDataError(f"{path} is not a JSON object; rerun thermal track")
-    missing = [key for key in ("experiment_id", "parent_run_id") if not record.get(key)]
-    if missing:
-        raise InputDataError(f"{path} lacks {', '.join(missing)}; rerun thermal track")
-    return record
+    if not isinstance(record, dict) or not isinstance(record.get("machines"), dict):
+        raise InputDataError(f"{path} is not a JSON object of machines; rerun thermal track")
+    shared = {key: value for key, value in record.items() if key != "machines"}
+    entries = [{**shared, **entry} for entry in record["machines"].values()]
+    for entry in entries:
+        missing = [key for key in ("experiment_id", "parent_run_id") if not entry.get(key)]
+        if missing:
+            raise InputDataError(
+                f"{path}: machine {entry.get('machine')} lacks {', '.join(missing)}; rerun "
+                "thermal track"
+            )
+    if not entries:
+        raise InputDataError(f"{path} names no machine's run; rerun thermal track")
+    return entries
 
 
 def resolve_store(
@@ -228,18 +243,22 @@ def run_check(args: argparse.Namespace, chromium: str, write: Write) -> list[str
     """Read the record and the store, serve the UI, visit the pages; return the problems."""
     from mlflow import MlflowClient
 
-    record = read_record(args.record)
-    store = resolve_store(args.tracking_uri, os.environ, record)
-    view = read_store(MlflowClient(tracking_uri=store, registry_uri=store), record)
-    plan, problems = make_plan(view, record)
+    records = read_record(args.record)
+    store = resolve_store(args.tracking_uri, os.environ, records[0])
+    client = MlflowClient(tracking_uri=store, registry_uri=store)
+    plans = [make_plan(read_store(client, record), record) for record in records]
 
     def check(base: str) -> list[str]:
-        pages = make_pages(base, plan, args.top)
-        return (
-            problems
-            + evidence_problems(base, plan)
-            + visit(pages, chromium, args.out, args.budget_ms, write)
-        )
+        found = []
+        for record, (plan, problems) in zip(records, plans, strict=True):
+            out = args.out / machine_key(record["machine"]) if len(records) > 1 else args.out
+            pages = make_pages(base, plan, args.top)
+            found += (
+                problems
+                + evidence_problems(base, plan)
+                + visit(pages, chromium, out, args.budget_ms, write)
+            )
+        return found
 
     if args.ui_url or is_server(store):
         base = (args.ui_url or store).rstrip("/")

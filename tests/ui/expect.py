@@ -402,7 +402,7 @@ def axis_plan(axis: str, view: StoreView, record: Mapping[str, Any]) -> tuple[Ax
     if has_eligible:
         search += " and tags.eligible = 'true'"
     has_rank = any(rank_of(child) is not None for child in listed)
-    key = views.view_key("ranked", axis)
+    key = views.view_key("ranked", record.get("machine", ""), axis)
     shared = key if f"{views.SHARED_VIEW_TAG}{key}" in view.experiment_tags else None
     if shared is None:
         problems.append(

@@ -139,9 +139,13 @@ def _log_candidate(
     return run_id, name
 
 
+MACHINE = "vmc-450"
+"""The machine of the store's pipeline run."""
+
+
 def _share_ranked_view(client, experiment_id: str, parent_id: str) -> None:
     """Store the ranked view of axis Z as pipeline.tracking.views writes it for the pipeline."""
-    key = views.view_key("ranked", "Z")
+    key = views.view_key("ranked", MACHINE, "Z")
     state = {
         "searchFilter": f"tags.`mlflow.parentRunId` = '{parent_id}' and tags.eligible = 'true'",
         "orderByKey": views.column("metrics", RANKING_METRIC),
@@ -214,6 +218,7 @@ def build_ui_store(
     record = {
         "tracking_uri": uri,
         "experiment": experiment,
+        "machine": MACHINE,
         "experiment_id": experiment_id,
         "parent_run_id": parent_id,
         "champions": {
@@ -232,8 +237,16 @@ def build_ui_store(
 
 
 def write_record(folder: Path, record: dict) -> Path:
-    """Write ``record`` as ``folder/reports/mlflow_run.json``; return its path."""
+    """Write one machine's ``record`` as the track stage does (``folder/reports/mlflow_run.json``).
+
+    Returns the file's path.
+    """
     path = folder / "reports" / "mlflow_run.json"
     path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(json.dumps(record, indent=2))
+    shared = ("tracking_uri", "experiment")
+    document = {
+        **{key: record[key] for key in shared},
+        "machines": {record["machine"]: {k: v for k, v in record.items() if k not in shared}},
+    }
+    path.write_text(json.dumps(document, indent=2))
     return path

@@ -133,7 +133,10 @@ def _view(children, *, layout=True, version_run=None):
     return StoreView(
         "2",
         "thermal-error",
-        {"mlflow.note.content": "Thermal-error models", "mlflow.sharedViewState.ranked-Z": "{}"}
+        {
+            "mlflow.note.content": "Thermal-error models",
+            "mlflow.sharedViewState.ranked-vmc-450-Z": "{}",
+        }
         if layout
         else {},
         PARENT,
@@ -145,11 +148,12 @@ def _view(children, *, layout=True, version_run=None):
 
 RECORD = {
     "experiment": "thermal-error",
+    "machine": "vmc-450",
     "experiment_id": "2",
     "parent_run_id": PARENT,
     "champions": {
         "Z": {
-            "registered_model": "thermal-error-spindle-Z",
+            "registered_model": "thermal-error-spindle-vmc-450-Z",
             "version": "3",
             "model": "pls_dl/gra_top_k/static",
         }
@@ -178,7 +182,9 @@ def test_plan_of_the_complete_layout_ranks_the_eligible_runs():
     pages = make_pages("http://h", plan)
     assert [page.screenshot for page in pages] == SCREENSHOTS
     (runs,) = [page for page in pages if page.name == "runs Z"]
-    assert runs.url.endswith("/runs?workflowType=machine_learning&viewStateShareKey=ranked-Z")
+    assert runs.url.endswith(
+        "/runs?workflowType=machine_learning&viewStateShareKey=ranked-vmc-450-Z"
+    )
     (compare,) = [page for page in pages if page.name == "compare Z"]
     heat_map = "cross_season_rms.png"
     assert (compare.select, compare.image, compare.image_count) == (heat_map, heat_map, 3)
