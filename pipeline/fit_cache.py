@@ -17,7 +17,8 @@ import functools
 import hashlib
 import json
 import logging
-from collections.abc import Callable, Iterable
+import shutil
+from collections.abc import Callable, Iterable, Sequence
 from pathlib import Path
 from typing import Any, TypeVar
 
@@ -118,6 +119,39 @@ class StageCache:
         joblib.dump(value, scratch)
         scratch.replace(path)
         self.computed.append(machine)
+        return value
+
+    def result_with_files(
+        self,
+        machine: str,
+        parts: Iterable[tuple[str, Any]],
+        compute: Callable[[], Result],
+        folders: Sequence[Path],
+    ) -> Result:
+        """Like :meth:`result`, for a computation that also writes the machine's ``folders``.
+
+        The files ``compute`` writes under ``folders`` are stored with its result; on reuse
+        each folder is emptied and its files written back as they were (DVC removes a stage's
+        outputs before it runs it).
+        """
+
+        def computed() -> tuple[Result, dict[str, bytes]]:
+            value = compute()
+            files = {
+                path.as_posix(): path.read_bytes()
+                for folder in folders
+                for path in sorted(Path(folder).rglob("*"))
+                if path.is_file()
+            }
+            return value, files
+
+        value, files = self.result(machine, parts, computed)
+        for folder in folders:
+            if Path(folder).is_dir():
+                shutil.rmtree(folder)
+        for name, content in files.items():
+            Path(name).parent.mkdir(parents=True, exist_ok=True)
+            Path(name).write_bytes(content)
         return value
 
     def prune(self) -> None:

@@ -19,7 +19,7 @@ from pipeline.discrepancy.followup import (
 )
 from pipeline.discrepancy.own_evidence import implausible_reason, weak_campaigns
 from pipeline.discrepancy.search import FitResult, SearchSettings, follow_up_gate, forward_search
-from pipeline.stages.discrepancy import history_of, read_history, write_history
+from pipeline.stages.discrepancy import history_entries, history_of, write_history
 
 OLD = [f"K{i:02d}" for i in range(1, 7)]
 NEW = ["P1_01", "P1_02"]
@@ -128,14 +128,15 @@ def test_the_stage_keeps_the_history_a_tested_run_needs_and_forgets_it_when_unte
     write_history(path, {"vmc": history_of(doc), "lathe": untestable})
     entries = json.loads(path.read_text())["machines"]
     assert entries == {"vmc": history_entry(doc), "lathe": {"status": "untestable"}}
-    back = read_history(path)
+    back = {m: FollowUp.from_document(entry) for m, entry in history_entries(path).items()}
     assert back == {  # each machine's own; the untestable one starts afresh
         "vmc": FollowUp(
             frozenset(OLD),
             frozenset({"ambient_variation"}),
             frozenset({"sensor_lag"}),
             {"motor_heat": "why"},
-        )
+        ),
+        "lathe": None,
     }
 
 

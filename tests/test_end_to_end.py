@@ -528,6 +528,7 @@ def test_every_score_reaches_a_real_mlflow_server_once_and_the_champion_loads(de
 
 def test_on_a_real_dask_cluster_the_scores_are_the_local_runs(demo, tmp_path):
     work = _continue_from(demo, tmp_path / "repo")
+    shutil.rmtree(work / ".thermal_cache")  # fit every candidate again, on the cluster
     with running_dask_cluster(tmp_path, n_workers=2) as address:
         env = {**_env(demo.uri), cluster.SCHEDULER_VARIABLE: address}
         output = _run([str(work / "bin" / "thermal"), "evaluate"], work, env)

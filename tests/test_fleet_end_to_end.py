@@ -168,7 +168,7 @@ def test_each_machines_scores_are_those_of_the_machine_alone(fleet, machine, tmp
 
 def test_a_campaign_of_one_machine_leaves_the_other_machines_fits_and_runs(fleet):
     work, before, second = fleet["work"], fleet["before"], fleet["second"]
-    for stage in ("select", "evaluate"):
+    for stage in ("select", "evaluate", "discrepancy", "compensation"):
         assert f"{stage}, machine {FIRST}: its inputs, params and code are unchanged" in second
         assert f"{stage}, machine {SECOND}: its inputs" not in second
     after = work / "reports" / "cross_season_scores.csv"

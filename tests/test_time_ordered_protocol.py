@@ -187,3 +187,13 @@ def test_protocol_params_are_checked(section, message):
 
 def test_protocol_defaults_are_those_of_an_empty_section():
     assert parse_section(ProtocolSettings, "protocol", {"rank_by": "auto"}) == ProtocolSettings()
+
+
+def test_the_rolling_origin_keeps_the_latest_forecasts_so_its_cost_stays_linear():
+    series = _series(_record(9))
+    every = [
+        u.name for u in _units(series, forward_max_origins=100).values() if u.scheme == "forward"
+    ]
+    assert every == [f"before_W0{i}" for i in (6, 7, 8, 9)]  # each fit on at least 5 of 9
+    kept = [u.name for u in _units(series, forward_max_origins=2).values() if u.scheme == "forward"]
+    assert kept == ["before_W08", "before_W09"]

@@ -17,7 +17,11 @@ A *training unit* is the set of campaigns one model is built on:
   forecasts whose fit has at least ``forward_min_share`` of the training campaigns (and at
   least ``forward_min_train``) count: the registered model is fitted on all of them, and a
   forecast from a fit on far fewer campaigns says more about learning from little data than
-  about the model that will run (Tashman 2000, section 2, on the length of the fit period);
+  about the model that will run (Tashman 2000, section 2, on the length of the fit period).
+  Of those, the latest ``forward_max_origins`` are kept: each forecast is fitted on every
+  campaign before it, so every origin would make the cost grow with the campaigns squared;
+  a fixed number of the latest origins keeps it linear and measures the model on the period it
+  is about to run in (Tashman 2000's fixed-length evaluation period);
 - scheme ``pooled``: every training campaign (unit ``all_training``), the model a user deploys;
   it is the one registered as MLflow champion.
 
@@ -203,8 +207,8 @@ def training_units(
     Leave-one-season-out units exist when the training campaigns span two seasons or more;
     otherwise leave-one-campaign-out units, when there are two training campaigns or more;
     both leave out the hv-block buffer (``protocol.buffer_campaigns``). Forward units exist for
-    every training campaign with enough training campaigns ended before it started
-    (:func:`forward_units`; start times known).
+    the latest ``forward_max_origins`` training campaigns with enough training campaigns ended
+    before them (:func:`forward_units`; start times known).
 
     Raises
     ------
@@ -227,7 +231,7 @@ def training_units(
         groups = [(s.campaign_id, [s]) for s in training]
         units += _leave_out_units(series, groups, LOCO, settings.buffer_campaigns)
     least = max(settings.forward_min_train, math.ceil(settings.forward_min_share * len(training)))
-    units += forward_units(training, least)
+    units += forward_units(training, least)[-settings.forward_max_origins :]
     units.append(TrainingUnit(POOLED_UNIT, POOLED, tuple(s.campaign_id for s in training)))
     return units
 

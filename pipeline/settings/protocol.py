@@ -28,6 +28,9 @@ class ProtocolSettings(Settings):
     forward_min_share : float
         Rolling origin: share of all training campaigns (0 to 1, rounded up) that must have
         ended before a forecast one started.
+    forward_max_origins : int
+        Rolling origin: at most this many forecast campaigns, the latest ones (each forecast
+        is fitted on every campaign before it, so all origins would cost campaigns squared).
     rank_by : str
         The held-out score that ranks: ``auto`` (the scheme the campaigns allow), ``loso``,
         ``loco`` or ``forward``.
@@ -36,4 +39,5 @@ class ProtocolSettings(Settings):
     buffer_campaigns: StrictInt = Field(1, ge=0)
     forward_min_train: StrictInt = Field(1, ge=1)
     forward_min_share: StrictFloat = Field(0.5, ge=0, le=1)
+    forward_max_origins: StrictInt = Field(8, ge=1)
     rank_by: Literal["auto", "loso", "loco", "forward"] = "auto"

@@ -25,10 +25,12 @@ and, over all machines and axes, ``reports/compensation/compensation.{json,md}``
 from __future__ import annotations
 
 import argparse
+import hashlib
 import json
 import logging
 import shutil
 from dataclasses import dataclass, replace
+from functools import partial
 from pathlib import Path
 
 import joblib
@@ -55,6 +57,7 @@ from pipeline.compensation.report import render_report, summary_record
 from pipeline.compensation.sensor_budget import budget_figure, fallback_fits, sensor_budget
 from pipeline.config import DEFAULT_PARAMS
 from pipeline.errors import MissingInputError
+from pipeline.fit_cache import StageCache
 from pipeline.machines import machine_key, with_machine
 from pipeline.protocol.units import series_by_axis, training_units
 from pipeline.separation.features import InputSpec, separated_by_machine
@@ -274,6 +277,15 @@ def compensate_machine(
     return {"axes": records, "linear_axes": linear}, budget, tables
 
 
+def file_digests(folder: Path) -> dict[str, str]:
+    """Return the SHA-256 of every file under ``folder``, by relative path (empty: none)."""
+    return {
+        path.relative_to(folder).as_posix(): hashlib.sha256(path.read_bytes()).hexdigest()
+        for path in sorted(folder.rglob("*"))
+        if path.is_file()
+    }
+
+
 def read_inputs() -> tuple[pd.DataFrame, dict, dict]:
     """Read the separated table, the selections and the axis models, by machine."""
     if not paths.SPINDLE_THERMAL_ERROR.is_file():
@@ -312,16 +324,29 @@ def main(argv: list[str] | None = None) -> int:
     paths.COMPENSATION_REPORTS.mkdir(parents=True)
     machines, budgets, tables = {}, [], {}
     rows_of = dict(separated_by_machine(table))
+    cache = StageCache("compensation")
     for machine in sorted(set(rows_of) | set(axis_models)):
         rows = rows_of.get(machine, table[:0])
-        machines[machine], budget, tables[machine] = compensate_machine(
+        own = (selected.get(machine) or {}).get("axes", {})
+        champions = paths.CHAMPION / machine_key(machine)
+        parts = [
+            ("rows", rows),
+            ("selected", own),
+            ("axis_model", axis_models.get(machine)),
+            ("settings", stage),
+            ("champions", file_digests(champions)),
+        ]
+        machines[machine], budget, tables[machine] = cache.result_with_files(
             machine,
-            rows,
-            (selected.get(machine) or {}).get("axes", {}),
-            axis_models.get(machine),
-            stage,
+            parts,
+            partial(compensate_machine, machine, rows, own, axis_models.get(machine), stage),
+            [
+                folder / machine_key(machine)
+                for folder in (paths.COMPENSATION_BUNDLES, paths.COMPENSATION_REPORTS)
+            ],
         )
         budgets.append(budget)
+    cache.prune()
     budget = pd.concat(budgets, ignore_index=True) if budgets else pd.DataFrame()
     paths.METRICS.mkdir(parents=True, exist_ok=True)
     budget.to_csv(paths.SENSOR_BUDGET, index=False, float_format="%.4f")

@@ -35,13 +35,13 @@ from __future__ import annotations
 import argparse
 import json
 import logging
+from functools import partial
 from pathlib import Path
 
 import pandas as pd
 
 from pipeline import paths
 from pipeline.config import DEFAULT_PARAMS
-from pipeline.discrepancy.data import MeasuredCampaign
 from pipeline.discrepancy.followup import FollowUp, history_entry
 from pipeline.discrepancy.report import STATUS_TESTED
 from pipeline.discrepancy.workflow import (
@@ -52,6 +52,7 @@ from pipeline.discrepancy.workflow import (
     untestable_reason,
 )
 from pipeline.errors import MissingInputError
+from pipeline.fit_cache import StageCache
 from pipeline.machines import MACHINE_COLUMN, UNNAMED, machine_key
 from pipeline.settings.base import load_settings
 from pipeline.settings.discrepancy import DiscrepancySettings
@@ -90,14 +91,14 @@ def read_validated() -> tuple[pd.DataFrame, pd.DataFrame, list[str]]:
     return pd.read_parquet(needed[0]), pd.read_parquet(needed[1]), quarantined
 
 
-def machine_campaigns(
+def machine_tables(
     campaigns: pd.DataFrame, samples: pd.DataFrame, machine: str
-) -> tuple[list[MeasuredCampaign], bool]:
-    """One machine's spindle-drift campaigns with a Z displacement, and whether synthetic."""
+) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """Return one machine's rows of the validated spindle tables (its own sensor columns)."""
     own = campaigns.loc[campaigns[MACHINE_COLUMN].astype(str) == machine].reset_index(drop=True)
     ids = set(own["campaign_id"].astype(str))
     rows = samples.loc[samples["campaign_id"].astype(str).isin(ids)].reset_index(drop=True)
-    return spindle_campaigns(own, drop_empty_columns(rows))
+    return own, drop_empty_columns(rows)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -154,17 +155,35 @@ def main(argv: list[str] | None = None) -> int:
             logger.error("%s", err)
             return 1
     history = args.history or (paths.DISCREPANCY_HISTORY if args.out == DEFAULT_OUT else None)
-    follow = read_history(history)
+    earlier = history_entries(history)
+    # the stage's own run keeps each machine's result; a run on other folders computes afresh
+    cache = StageCache("discrepancy") if args.raw is None and args.out == DEFAULT_OUT else None
     entries, run_ids = {}, {}
     for machine in sorted(set(campaigns[MACHINE_COLUMN].astype(str))) or [UNNAMED]:
-        measured, synthetic = machine_campaigns(campaigns, samples, machine)
-        doc, files = compare_machine(
-            measured,
+        own, rows = machine_tables(campaigns, samples, machine)
+        out = args.out / machine_key(machine)
+        follow = FollowUp.from_document(earlier.get(machine))
+        compute = partial(
+            compare_machine,
+            own,
+            rows,
             section,
-            args.out / machine_key(machine),
-            follow.get(machine),
-            {"quarantined": quarantined, "synthetic": synthetic, "machine": machine},
+            out,
+            follow,
+            {"quarantined": quarantined, "machine": machine},
         )
+        if cache is None:
+            doc = compute()
+        else:
+            parts = [
+                ("campaigns", own),
+                ("samples", rows),
+                ("quarantined", quarantined),
+                ("discrepancy", section),
+                ("history", earlier.get(machine) if follow is not None else None),
+            ]
+            doc = cache.result_with_files(machine, parts, compute, [out])
+        files = sorted(path for path in out.rglob("*") if path.is_file())
         entries[machine] = history_of(doc)
         if tracking is not None:
             try:
@@ -173,6 +192,8 @@ def main(argv: list[str] | None = None) -> int:
                 logger.warning("MLflow logging failed (%s); the report files are written", err)
         run_ids[machine] = doc.get("mlflow_run_id")
     write_history(history, entries)
+    if cache is not None:
+        cache.prune()
     record = args.run_record or (paths.DISCREPANCY_RECORD if args.out == DEFAULT_OUT else None)
     if record is not None:
         write_run_record(record, run_ids)
@@ -180,26 +201,34 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def compare_machine(
-    campaigns: list[MeasuredCampaign],
+    campaigns: pd.DataFrame,
+    samples: pd.DataFrame,
     section: DiscrepancySettings,
     out: Path,
     follow: FollowUp | None,
     common: dict,
-) -> tuple[dict, list[Path]]:
-    """Compare one machine's campaigns with its twin; return ``discrepancy.json`` and the files."""
-    reason = untestable_reason(campaigns)
+) -> dict:
+    """Compare one machine's campaigns with its twin, write its report; return the document.
+
+    ``campaigns`` and ``samples``: the machine's validated spindle tables; ``common``: the
+    quarantined campaigns and the machine.
+    """
+    measured, synthetic = spindle_campaigns(campaigns, samples)
+    reason = untestable_reason(measured)
     if reason is not None:
-        return run_untestable(campaigns, reason, out, **common)
-    return run(campaigns, section, out, follow=follow, **common)[1:]
+        return run_untestable(measured, reason, out, synthetic=synthetic, **common)[0]
+    return run(measured, section, out, follow=follow, synthetic=synthetic, **common)[1]
 
 
-def read_history(path: Path | None) -> dict[str, FollowUp]:
-    """Return each machine's earlier outcome kept in ``path`` (empty without one)."""
+def history_entries(path: Path | None) -> dict[str, dict]:
+    """Return each machine's entry of the earlier run's history in ``path`` (empty without one).
+
+    An entry becomes the machine's :class:`FollowUp` (:meth:`FollowUp.from_document`; None for
+    an untestable run).
+    """
     if path is None or not path.is_file():
         return {}
-    entries = json.loads(path.read_text(encoding="utf-8")).get("machines") or {}
-    found = {machine: FollowUp.from_document(entry) for machine, entry in entries.items()}
-    return {machine: follow for machine, follow in found.items() if follow is not None}
+    return json.loads(path.read_text(encoding="utf-8")).get("machines") or {}
 
 
 def history_of(doc: dict) -> dict:
