@@ -49,13 +49,13 @@ def _code_digest() -> str:
 def part_bytes(value: Any) -> bytes:
     """Return the bytes a key is made of for one input: a table, a document or a setting.
 
-    A DataFrame counts by its column names, dtypes and values (row order included); anything
-    else by its canonical JSON (pydantic models by their dump).
+    A DataFrame counts by its text (CSV: column names and values in row order, floats written
+    exactly), not by its dtypes: one machine's rows of a table may change dtype when another
+    machine's rows fill an empty column. Anything else counts by its canonical JSON (pydantic
+    models by their dump).
     """
     if isinstance(value, pd.DataFrame):
-        head = json.dumps([[str(c), str(t)] for c, t in value.dtypes.items()]).encode()
-        rows = pd.util.hash_pandas_object(value, index=False).to_numpy().tobytes()
-        return head + rows
+        return value.to_csv(index=False).encode()
     if hasattr(value, "model_dump"):
         value = value.model_dump(mode="json")
     return json.dumps(value, sort_keys=True, default=str).encode()

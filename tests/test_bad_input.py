@@ -675,7 +675,12 @@ def test_a_folder_of_bad_campaigns_only_fails_validate_with_a_message(tmp_path: 
     assert all("Traceback" not in r.stderr for r in runs)
     assert "no valid campaign" in runs[1].stderr and "B01" in runs[1].stderr
     report = json.loads((tmp_path / paths.VALIDATION_REPORT).read_text())
-    assert report["summary"] == {"campaigns": 1, "valid": [], "quarantined": [BAD]}
+    assert report["summary"] == {
+        "campaigns": 1,
+        "valid": [],
+        "quarantined": [BAD],
+        "machines": {BAD: "test"},
+    }
 
 
 def test_a_quiet_probe_beside_a_drifting_one_is_not_taken_for_millimetres(workdir, monkeypatch):

@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 import yaml
 
-from benchmarks.bench_scale import exponents, write_fleet
+from benchmarks.bench_scale import add_campaign, exponents, report_lines, write_fleet
 
 
 def _size(machines: int, campaigns: int, seconds: float) -> dict:
@@ -38,3 +38,24 @@ def test_the_fleet_has_one_machine_name_per_machine_and_a_season_per_run(tmp_pat
     assert all(len(found) == 2 for found in seasons.values())
     with pytest.raises(ValueError, match="multiple of 6"):
         write_fleet(tmp_path, machines=1, campaigns=10)
+
+
+def test_the_campaign_added_is_the_last_machines_a_week_later_and_cold(tmp_path):
+    write_fleet(tmp_path, machines=2, campaigns=6)
+    added = add_campaign(tmp_path, 2)
+    meta = yaml.safe_load((tmp_path / added / "campaign.yaml").read_text())
+    first = yaml.safe_load((tmp_path / "M2R1W01" / "campaign.yaml").read_text())
+    assert (meta["campaign_id"], meta["machine"], meta["start_state"]) == (
+        added,
+        "workshop-2",
+        "cold",
+    )
+    assert (meta["start"] - first["start"]).days == 7
+
+
+def test_the_report_shows_the_rerun_beside_the_first_run():
+    size = {**_size(2, 6, 10.0), "one_more": {"evaluate": {"seconds": 6.0, "peak_mib": 90.0}}}
+    run = {"sizes": [size], "exponents": exponents([size])}
+    lines = report_lines({"local": run})
+    assert "  then one campaign added to workshop-2 (the others' results reused):" in lines
+    assert any("6.0 s (first run 10.0 s)" in line for line in lines)

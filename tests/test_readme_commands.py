@@ -106,7 +106,7 @@ def test_the_own_data_walkthrough_runs_as_written_and_ends_in_mlflow(tmp_path):
     assert sorted(validation["summary"]["valid"]) == imported and len(imported) >= 2
     scores = pd.read_csv(work / "reports" / "cross_season_scores.csv")
     assert set(scores["test_campaign"]) == set(imported)
-    record = json.loads((work / "reports" / "mlflow_run.json").read_text())
+    (record,) = json.loads((work / "reports" / "mlflow_run.json").read_text())["machines"].values()
     client = MlflowClient(tracking_uri=f"sqlite:///{work / 'mlflow.db'}")
     children = client.search_runs(
         [record["experiment_id"]],

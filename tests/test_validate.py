@@ -650,7 +650,13 @@ def test_main_writes_valid_campaigns_and_report(tmp_path, monkeypatch, caplog):
     monkeypatch.chdir(tmp_path)
     assert v.main([]) == 0
     report = json.loads(paths.VALIDATION_REPORT.read_text())
-    assert report["summary"] == {"campaigns": 2, "valid": ["K01"], "quarantined": ["A01"]}
+    machines = {"A01": "vmc-450", "K01": "vmc-450"}  # each campaign's machine
+    assert report["summary"] == {
+        "campaigns": 2,
+        "valid": ["K01"],
+        "quarantined": ["A01"],
+        "machines": machines,
+    }
     assert {"campaign", "file", "row", "line", "column", "check", "value", "message", "action"} == (
         set(report["problems"][0])
     )

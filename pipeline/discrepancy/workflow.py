@@ -97,7 +97,7 @@ def read_raw(
             "compare one machine's campaigns at a time (thermal discrepancy --raw does so)"
         )
     measured, synthetic = spindle_campaigns(campaigns, samples)
-    return measured, quarantined, synthetic
+    return measured, list(quarantined), synthetic
 
 
 def read_raw_tables(
@@ -111,8 +111,8 @@ def read_raw_tables(
     -------
     campaigns, samples : DataFrame
         As ``data/validated/spindle/{campaigns,samples}.parquet`` (``machine`` resolved).
-    quarantined : list of str
-        Campaigns left out, each logged with its problems.
+    quarantined : dict of str to str
+        Campaigns left out, each logged with its problems -> its machine (``""``: unknown).
     """
     tables = ingest(Path(raw_dir), max_alignment_gap_s)
     result = validate_tables(
@@ -129,7 +129,9 @@ def read_raw_tables(
     samples = apply_gaps(tables["samples"], result.gaps)
     campaigns = tables["campaigns"].assign(machine=resolved_names(tables["campaigns"]))
     spindle = select_valid(campaigns, samples, tables["laser"], result.valid)["spindle"]
-    return spindle["campaigns"], spindle["samples"], list(result.quarantined)
+    owner = dict(zip(campaigns["campaign_id"].astype(str), campaigns["machine"], strict=True))
+    quarantined = {c: owner.get(c, "") for c in result.quarantined}
+    return spindle["campaigns"], spindle["samples"], quarantined
 
 
 def spindle_campaigns(

@@ -75,8 +75,9 @@ def read_validated() -> tuple[pd.DataFrame, pd.DataFrame, list[str]]:
     -------
     campaigns, samples : DataFrame
         ``data/validated/spindle/{campaigns,samples}.parquet``.
-    quarantined : list of str
-        Campaigns the validate stage left out (``reports/validation.json``).
+    quarantined : dict of str to str
+        Campaigns the validate stage left out (``reports/validation.json``) -> their machine
+        (``""``: unknown).
     """
     folder = paths.VALIDATED_SPINDLE
     needed = [folder / paths.CAMPAIGNS_FILE, folder / paths.SAMPLES_FILE, paths.VALIDATION_REPORT]
@@ -86,8 +87,9 @@ def read_validated() -> tuple[pd.DataFrame, pd.DataFrame, list[str]]:
             f"{', '.join(missing)} not found: run the validate stage first (dvc repro validate), "
             "or give a raw folder with --raw"
         )
-    report = json.loads(paths.VALIDATION_REPORT.read_text(encoding="utf-8"))
-    quarantined = list(report["summary"]["quarantined"])
+    summary = json.loads(paths.VALIDATION_REPORT.read_text(encoding="utf-8"))["summary"]
+    machines = summary.get("machines") or {}
+    quarantined = {c: machines.get(c, "") for c in summary["quarantined"]}
     return pd.read_parquet(needed[0]), pd.read_parquet(needed[1]), quarantined
 
 
@@ -161,6 +163,7 @@ def main(argv: list[str] | None = None) -> int:
     entries, run_ids = {}, {}
     for machine in sorted(set(campaigns[MACHINE_COLUMN].astype(str))) or [UNNAMED]:
         own, rows = machine_tables(campaigns, samples, machine)
+        left_out = sorted(c for c, owner in quarantined.items() if owner == machine)
         out = args.out / machine_key(machine)
         follow = FollowUp.from_document(earlier.get(machine))
         compute = partial(
@@ -170,7 +173,7 @@ def main(argv: list[str] | None = None) -> int:
             section,
             out,
             follow,
-            {"quarantined": quarantined, "machine": machine},
+            {"quarantined": left_out, "machine": machine},
         )
         if cache is None:
             doc = compute()
@@ -178,7 +181,7 @@ def main(argv: list[str] | None = None) -> int:
             parts = [
                 ("campaigns", own),
                 ("samples", rows),
-                ("quarantined", quarantined),
+                ("quarantined", left_out),
                 ("discrepancy", section),
                 ("history", earlier.get(machine) if follow is not None else None),
             ]

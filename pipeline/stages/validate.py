@@ -97,9 +97,13 @@ def main(argv: list[str] | None = None) -> int:
         )
     for campaign_id, summary in gap_summaries(result).items():
         logger.warning("campaign %s: %s; see %s", campaign_id, summary, paths.VALIDATION_REPORT)
+    machines = dict(
+        zip(campaigns["campaign_id"].astype(str), resolved_names(campaigns), strict=True)
+    )
     paths.VALIDATION_REPORT.parent.mkdir(parents=True, exist_ok=True)
     paths.VALIDATION_REPORT.write_text(
-        json.dumps(build_report(result), indent=2, ensure_ascii=False) + "\n", encoding="utf-8"
+        json.dumps(build_report(result, machines), indent=2, ensure_ascii=False) + "\n",
+        encoding="utf-8",
     )
     try:
         require_valid(result, paths.VALIDATION_REPORT)

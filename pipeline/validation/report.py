@@ -2,23 +2,28 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
 from pipeline.validation.problems import BRIDGED, DROPPED, NoValidCampaignError, ValidationResult
 
 
-def build_report(result: ValidationResult) -> dict[str, Any]:
+def build_report(
+    result: ValidationResult, machines: Mapping[str, str] | None = None
+) -> dict[str, Any]:
     """Return the content of ``reports/validation.json``.
 
     ``problems`` quarantine their campaigns; ``warnings`` are the gaps of missing readings of
-    the other campaigns, each with how it is handled in the validated data.
+    the other campaigns, each with how it is handled in the validated data. ``machines``: each
+    campaign's machine (``""`` when unknown), written as ``summary.machines``.
     """
     return {
         "summary": {
             "campaigns": len(result.campaigns),
             "valid": result.valid,
             "quarantined": result.quarantined,
+            "machines": {c: (machines or {}).get(c, "") for c in result.campaigns},
         },
         "problems": [p.to_dict() for p in result.problems],
         "warnings": [g.to_dict() for g in result.gaps],
