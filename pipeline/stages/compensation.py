@@ -277,12 +277,18 @@ def compensate_machine(
     return {"axes": records, "linear_axes": linear}, budget, tables
 
 
-def file_digests(folder: Path) -> dict[str, str]:
-    """Return the SHA-256 of every file under ``folder``, by relative path (empty: none)."""
+CHAMPION_KEY_FILES = (paths.CHAMPION_CARD_FILE, paths.CHAMPION_HELDOUT_FILE)
+"""What a champion is known by in the cache key: its card (model, inputs, scores, training
+campaigns) and its held-out predictions. Its pickled fits are not byte-stable: the same fit
+loaded from the cache and saved again may be pickled differently."""
+
+
+def champion_digests(folder: Path) -> dict[str, str]:
+    """Return the SHA-256 of each axis' :data:`CHAMPION_KEY_FILES` under ``folder``."""
     return {
         path.relative_to(folder).as_posix(): hashlib.sha256(path.read_bytes()).hexdigest()
         for path in sorted(folder.rglob("*"))
-        if path.is_file()
+        if path.is_file() and path.name in CHAMPION_KEY_FILES
     }
 
 
@@ -334,7 +340,7 @@ def main(argv: list[str] | None = None) -> int:
             ("selected", own),
             ("axis_model", axis_models.get(machine)),
             ("settings", stage),
-            ("champions", file_digests(champions)),
+            ("champions", champion_digests(champions)),
         ]
         machines[machine], budget, tables[machine] = cache.result_with_files(
             machine,
