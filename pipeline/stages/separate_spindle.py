@@ -54,7 +54,7 @@ def separate_machines(
         ``{"machines": {machine: record}}``; ``"note"`` when no machine has a thermal error.
     """
     tagged = tag_rows(samples, campaigns)
-    tables, records = [with_machine(empty_table(), "")[:0]], {}
+    tables, records = [with_machine(empty_table(), "")], {}
     for machine, rows in by_machine(tagged, SAMPLE_BASE_COLUMNS):
         own = campaigns.loc[campaigns[MACHINE_COLUMN] == machine].reset_index(drop=True)
         table, records[machine] = spindle_thermal_error(
