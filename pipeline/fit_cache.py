@@ -134,8 +134,10 @@ class StageCache:
         each folder is emptied and its files written back as they were (DVC removes a stage's
         outputs before it runs it).
         """
+        fresh = []
 
         def computed() -> tuple[Result, dict[str, bytes]]:
+            fresh.append(True)
             value = compute()
             files = {
                 path.as_posix(): path.read_bytes()
@@ -146,6 +148,8 @@ class StageCache:
             return value, files
 
         value, files = self.result(machine, parts, computed)
+        if fresh:  # the files are there, as compute wrote them
+            return value
         for folder in folders:
             if Path(folder).is_dir():
                 shutil.rmtree(folder)

@@ -616,11 +616,17 @@ def test_a_campaign_without_machine_is_not_a_second_machine(workdir, monkeypatch
     assert set(campaigns["machine"]) == {"test"}  # the folder's one machine
 
 
+def _only_problem(workdir: Path, monkeypatch) -> tuple[dict, dict]:
+    """Run the stages; return the report and its one problem."""
+    report = run_stages(workdir, monkeypatch, as_subprocess=False)
+    [problem] = report["problems"]
+    return report, problem
+
+
 def test_with_two_machines_a_campaign_without_one_is_quarantined(workdir, monkeypatch):
     _machines_workdir(workdir, None)
     edit_yaml(workdir / paths.RAW / "A01" / "campaign.yaml", lambda m: m.update(machine="lathe"))
-    report = run_stages(workdir, monkeypatch, as_subprocess=False)
-    [problem] = report["problems"]
+    report, problem = _only_problem(workdir, monkeypatch)
     assert (problem["campaign"], problem["check"], problem["column"]) == (
         "B01",
         "machine_unknown",
@@ -632,8 +638,7 @@ def test_with_two_machines_a_campaign_without_one_is_quarantined(workdir, monkey
 
 def test_a_campaign_following_one_of_another_machine_is_quarantined(workdir, monkeypatch):
     yaml_of(workdir / paths.RAW, lambda meta: meta.update(machine="FL_THERMAL", follows="K01"))
-    report = run_stages(workdir, monkeypatch, as_subprocess=False)
-    [problem] = report["problems"]
+    _, problem = _only_problem(workdir, monkeypatch)
     assert (problem["campaign"], problem["check"], problem["column"]) == (
         "B01",
         "follows_other_machine",
@@ -714,7 +719,6 @@ def test_a_csv_of_blank_cells_only_is_an_empty_file(workdir, monkeypatch):
 
 def test_two_machines_written_alike_in_names_are_quarantined(workdir, monkeypatch):
     yaml_of(workdir / paths.RAW, lambda meta: meta.update(machine="test!"))  # "test" in names
-    report = run_stages(workdir, monkeypatch, as_subprocess=False)
-    [problem] = report["problems"]
+    _, problem = _only_problem(workdir, monkeypatch)
     assert (problem["campaign"], problem["check"]) == ("B01", "machine_name_clash")
     assert "machine 'test!' of B01/campaign.yaml and machine test of" in problem["message"]

@@ -273,36 +273,66 @@ def write_outputs(
     predictions.round(4).to_csv(paths.PLOT_PREDICTIONS, index=False)
 
 
+@dataclass(frozen=True)
+class MachineTwin:
+    """What the ``twin`` candidate reads of one machine besides the separated table.
+
+    Attributes
+    ----------
+    discrepancy : dict or None
+        The machine's ``reports/discrepancy/<machine>/discrepancy.json`` (None: absent, the
+        baseline twin).
+    campaigns : DataFrame
+        The machine's rows of ``data/validated/spindle/campaigns.parquet`` (sensor roles,
+        spindle programs).
+    """
+
+    discrepancy: dict | None
+    campaigns: pd.DataFrame
+
+    @property
+    def roles(self) -> frozenset[str]:
+        """Every sensor role of the machine's valid spindle campaigns."""
+        return frozenset(
+            str((spec or {}).get("role", "other"))
+            for text in self.campaigns["sensors_json"]
+            for spec in json.loads(text).values()
+        )
+
+
+def read_twins(machines: list[str]) -> dict[str, MachineTwin]:
+    """Read what the ``twin`` candidate needs of each machine, each file once."""
+    meta = pd.read_parquet(paths.VALIDATED_SPINDLE / paths.CAMPAIGNS_FILE)
+    return {
+        machine: MachineTwin(
+            read_discrepancy(machine),
+            meta.loc[meta[MACHINE_COLUMN].astype(str) == machine].reset_index(drop=True),
+        )
+        for machine in machines
+    }
+
+
 def read_twin_setup(
-    machine: str,
     table: pd.DataFrame,
     series: list[CampaignSeries],
     separate: SeparateSettings,
-    discrepancy: dict | None,
+    machine_twin: MachineTwin,
 ) -> TwinSetup:
-    """Everything the ``twin`` candidate reads besides the separated table (axis Z rows).
+    """Everything the ``twin`` candidate is built from (axis Z rows of ``table``).
 
-    The sensor roles and spindle programs of the machine's campaigns from
-    ``data/validated/spindle/campaigns.parquet``; the effects from the machine's discrepancy
-    document (None: the baseline twin); the cold reference from ``separate``
-    (``params.yaml``: ``cold_reference``, ``cold_n``), so that the twin's drift is referenced
-    as the separation stage references the measured one.
+    The sensor roles and spindle programs of the machine's campaigns and the effects its
+    discrepancy document named (None: the baseline twin), from ``machine_twin``; the cold
+    reference from ``separate`` (``params.yaml``: ``cold_reference``, ``cold_n``), so that the
+    twin's drift is referenced as the separation stage references the measured one.
     """
-    meta = machine_campaigns(machine)
-    effects, source = named_effects(discrepancy)
+    effects, source = named_effects(machine_twin.discrepancy)
     return TwinSetup(
-        campaigns=twin_campaigns(table, meta, series),
+        campaigns=twin_campaigns(table, machine_twin.campaigns, series),
         effects=effects,
         effects_source=source,
         cold_reference=separate.cold_reference,
         cold_n=separate.cold_n,
     )
-
-
-def machine_campaigns(machine: str) -> pd.DataFrame:
-    """Return the machine's rows of ``data/validated/spindle/campaigns.parquet``."""
-    meta = pd.read_parquet(paths.VALIDATED_SPINDLE / paths.CAMPAIGNS_FILE)
-    return meta.loc[meta[MACHINE_COLUMN].astype(str) == machine].reset_index(drop=True)
 
 
 def read_discrepancy(machine: str) -> dict | None:
@@ -312,15 +342,6 @@ def read_discrepancy(machine: str) -> dict | None:
         LOGGER.warning("%s not found: the twin candidate is the baseline twin", path)
         return None
     return json.loads(path.read_text(encoding="utf-8"))
-
-
-def sensor_roles(machine: str) -> frozenset[str]:
-    """Every sensor role of the machine's valid spindle campaigns."""
-    return frozenset(
-        str((spec or {}).get("role", "other"))
-        for text in machine_campaigns(machine)["sensors_json"]
-        for spec in json.loads(text).values()
-    )
 
 
 @dataclass(frozen=True)
@@ -334,12 +355,18 @@ class StageSettings:
 
 
 def evaluate_machine(
-    machine: str, table: pd.DataFrame, document: dict, separation: dict, settings: StageSettings
+    machine: str,
+    table: pd.DataFrame,
+    document: dict,
+    separation: dict,
+    settings: StageSettings,
+    machine_twin: MachineTwin | None = None,
 ) -> Outcome:
     """Every candidate of every axis of one machine, its champions chosen.
 
     ``table``, ``document`` and ``separation``: the machine's rows of the separated table, its
-    entry of ``selected.json`` and of ``spindle_runs.json``.
+    entry of ``selected.json`` and of ``spindle_runs.json``; ``machine_twin``: what the twin
+    candidate reads (None: the twin is not a candidate).
     """
     params, features = settings.params, settings.features
     selected = document["axes"]
@@ -349,19 +376,16 @@ def evaluate_machine(
         ", ".join(selected) or "none",
         table["campaign_id"].nunique(),
     )
-    with_twin = split_twin(params.candidates)[1]
-    discrepancy = read_discrepancy(machine) if with_twin else None
-    roles = sensor_roles(machine) if with_twin else frozenset()
     evaluations, twin_source = [], None
     for axis, series in series_by_axis(table, features).items():
         if axis not in selected:
             continue
         skipped, twin = None, None
-        if with_twin:
-            skipped = skip_reason(axis, discrepancy, series, roles)
+        if machine_twin is not None:
+            skipped = skip_reason(axis, machine_twin.discrepancy, series, machine_twin.roles)
             if skipped is None:
                 rows = table[table["axis"] == axis]
-                twin = read_twin_setup(machine, rows, series, settings.separate, discrepancy)
+                twin = read_twin_setup(rows, series, settings.separate, machine_twin)
                 twin_source = twin.effects_source
         evaluations.append(
             evaluate_axis(axis, series, selected[axis], params, twin, skipped, settings.protocol)
@@ -396,22 +420,32 @@ def read_inputs() -> tuple[pd.DataFrame, dict, dict]:
 
 
 def cache_parts(
-    machine: str, rows: pd.DataFrame, document: dict, separation: dict, settings: StageSettings
+    machine: str,
+    rows: pd.DataFrame,
+    document: dict,
+    separation: dict,
+    settings: StageSettings,
+    machine_twin: MachineTwin | None,
 ) -> list[tuple[str, object]]:
-    """Everything one machine's evaluation is computed from (:mod:`pipeline.fit_cache`)."""
+    """Everything one machine's evaluation is computed from (:mod:`pipeline.fit_cache`).
+
+    The arguments are :func:`evaluate_machine`'s.
+    """
     parts = [
+        ("machine", machine),
         ("rows", rows),
-        ("selected", document["machines"][machine]),
+        ("selected", document),
         ("features", settings.features),
-        ("separation", separation["machines"][machine]),
+        ("separation", separation),
         ("evaluate", settings.params),
         ("protocol", settings.protocol),
         ("separate", settings.separate),
     ]
-    if split_twin(settings.params.candidates)[1]:
-        path = paths.discrepancy_document(machine_key(machine))
-        discrepancy = json.loads(path.read_text(encoding="utf-8")) if path.is_file() else None
-        parts += [("discrepancy", discrepancy), ("campaigns", machine_campaigns(machine))]
+    if machine_twin is not None:
+        parts += [
+            ("discrepancy", machine_twin.discrepancy),
+            ("campaigns", machine_twin.campaigns),
+        ]
     return parts
 
 
@@ -429,26 +463,26 @@ def main(argv: list[str] | None = None) -> int:
         load_settings(SeparateSettings, "separate"),
         check_feature_kind(str(document["features"])),
     )
+    machines = dict(separated_by_machine(table))
+    twins = read_twins(list(machines)) if split_twin(params.candidates)[1] else {}
     cache = StageCache("evaluate")
-    outcomes = {
-        machine: cache.result(
+    outcomes = {}
+    for machine, rows in machines.items():
+        inputs = (
             machine,
-            cache_parts(machine, rows, document, separation, settings),
-            partial(
-                evaluate_machine,
-                machine,
-                rows,
-                document["machines"][machine],
-                separation["machines"][machine],
-                settings,
-            ),
+            rows,
+            document["machines"][machine],
+            separation["machines"][machine],
+            settings,
+            twins.get(machine),
         )
-        for machine, rows in separated_by_machine(table)
-    }
+        outcomes[machine] = cache.result(
+            machine, cache_parts(*inputs), partial(evaluate_machine, *inputs)
+        )
     cache.prune()
     held_back = all(
-        doc is None or doc.get("validation") is not None
-        for doc in (read_discrepancy(m) for m in outcomes if split_twin(params.candidates)[1])
+        twin.discrepancy is None or twin.discrepancy.get("validation") is not None
+        for twin in twins.values()
     )
     write_outputs(outcomes, table, document, separation, held_back)
     return 0
