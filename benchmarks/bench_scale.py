@@ -3,8 +3,10 @@
 For every size (machines x campaigns per machine, by default 1, 2, 4 x 6, 12, 24) the workshop
 twin (:mod:`pipeline.twin.workshop`: 16 unnamed sensors, X/Y/Z probes, warm starts) writes the
 campaigns into a copy of the repository whose demo campaigns are removed: each machine
-(``workshop-1``, ``workshop-2``, ...) gets one two-day run of six back-to-back campaigns per
-season (spring, summer, autumn, winter, in that order), each run with its own seed. Each
+(``workshop-1``, ``workshop-2``, ...) gets one run of back-to-back campaigns in each season
+(spring, summer, autumn, winter, in that order; the campaigns shared out as evenly as they go,
+6 as 2, 2, 1, 1), each run with its own seed: every size covers the same four seasons, so the
+sizes differ in the campaigns only, not in the number of seasons left out in turn. Each
 stage's command (``dvc.yaml``, in order) then runs alone in a process that reads its wall time
 and its peak resident memory (the largest process of the stage, its joblib workers included:
 ``getrusage(RUSAGE_CHILDREN)``), logging to a local MLflow store in the copy.
@@ -55,9 +57,8 @@ RUN_STARTS = (
     datetime(2025, 10, 6, 7, 0),
     datetime(2026, 1, 12, 7, 0),
 )
-"""One workshop run per season, spring to winter: 6, 12 and 24 campaigns span 1, 2 and 4
-seasons, so the ranking scheme is the one a user's data of that length would get."""
-RUN_CAMPAIGNS = 6
+"""One workshop run per season, spring to winter, at every size: the campaigns grow, the seasons
+(leave-one-season-out's folds, bounded by ``protocol.max_folds``) stay four."""
 INTERVAL_S = 60.0
 """The workshop logger at 60 s: a third of the default's rows, the same cost structure."""
 OUT = Path("reports/bench_scale.json")
@@ -75,16 +76,19 @@ _MEASURE = (
 
 def write_fleet(raw: Path, machines: int, campaigns: int) -> list[str]:
     """Write ``machines`` x ``campaigns`` workshop campaigns into ``raw``; return their ids."""
-    if campaigns % RUN_CAMPAIGNS or campaigns // RUN_CAMPAIGNS > len(RUN_STARTS):
-        raise ValueError(
-            f"campaigns per machine: a multiple of {RUN_CAMPAIGNS} up to "
-            f"{RUN_CAMPAIGNS * len(RUN_STARTS)}, not {campaigns}"
-        )
-    ids = []
     base = workshop_plan(INTERVAL_S)
+    most = len(base.slots) * len(RUN_STARTS)
+    if not len(RUN_STARTS) <= campaigns <= most:
+        raise ValueError(
+            f"campaigns per machine: {len(RUN_STARTS)} (one a season) to {most}, not {campaigns}"
+        )
+    shares = [len(part) for part in np.array_split(np.arange(campaigns), len(RUN_STARTS))]
+    ids = []
     for m in range(1, machines + 1):
-        for r, start in enumerate(RUN_STARTS[: campaigns // RUN_CAMPAIGNS], start=1):
-            slots = tuple(replace(s, campaign_id=f"M{m}R{r}{s.campaign_id}") for s in base.slots)
+        for r, (start, share) in enumerate(zip(RUN_STARTS, shares, strict=True), start=1):
+            slots = tuple(
+                replace(s, campaign_id=f"M{m}R{r}{s.campaign_id}") for s in base.slots[:share]
+            )
             plan = replace(
                 base, start=start, slots=slots, run_id=f"scale-{m}-{r}", machine=f"workshop-{m}"
             )

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from collections import Counter
+
 import pytest
 import yaml
 
@@ -27,17 +29,18 @@ def test_the_exponents_are_the_slopes_of_time_on_log_log_axes():
         assert by_stage["evaluate"] == pytest.approx(1.0)
 
 
-def test_the_fleet_has_one_machine_name_per_machine_and_a_season_per_run(tmp_path):
-    ids = write_fleet(tmp_path, machines=2, campaigns=12)
-    assert len(ids) == len(set(ids)) == 24
+@pytest.mark.parametrize("campaigns", [6, 12])
+def test_every_size_covers_the_four_seasons_one_machine_name_per_machine(tmp_path, campaigns):
+    ids = write_fleet(tmp_path, machines=2, campaigns=campaigns)
+    assert len(ids) == len(set(ids)) == 2 * campaigns
     meta = [yaml.safe_load((tmp_path / i / "campaign.yaml").read_text()) for i in ids]
     assert {m["machine"] for m in meta} == {"workshop-1", "workshop-2"}
-    seasons = {
-        m["machine"]: {c["season"] for c in meta if c["machine"] == m["machine"]} for m in meta
-    }
-    assert all(len(found) == 2 for found in seasons.values())
-    with pytest.raises(ValueError, match="multiple of 6"):
-        write_fleet(tmp_path, machines=1, campaigns=10)
+    for machine in ("workshop-1", "workshop-2"):
+        seasons = Counter(m["season"] for m in meta if m["machine"] == machine)
+        assert len(seasons) == 4
+        assert max(seasons.values()) - min(seasons.values()) <= 1  # shared out evenly
+    with pytest.raises(ValueError, match="4 \\(one a season\\) to 24, not 25"):
+        write_fleet(tmp_path, machines=1, campaigns=25)
 
 
 def test_the_campaign_added_is_the_last_machines_a_week_later_and_cold(tmp_path):

@@ -140,7 +140,7 @@ def test_every_problem_of_a_section_is_one_line_of_the_message():
         "'forward'",
         "params.yaml: protocol.buffer: unknown key (did you mean 'buffer_campaigns'?); allowed "
         "here: buffer_campaigns, forward_min_train, forward_min_share, forward_max_origins, "
-        "rank_by",
+        "max_folds, rank_by",
     ]
 
 

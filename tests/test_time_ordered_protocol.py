@@ -189,11 +189,72 @@ def test_protocol_defaults_are_those_of_an_empty_section():
     assert parse_section(ProtocolSettings, "protocol", {"rank_by": "auto"}) == ProtocolSettings()
 
 
-def test_the_rolling_origin_keeps_the_latest_forecasts_so_its_cost_stays_linear():
+def test_the_rolling_origin_forecasts_every_campaign_with_a_bounded_number_of_fits():
     series = _series(_record(9))
-    every = [
-        u.name for u in _units(series, forward_max_origins=100).values() if u.scheme == "forward"
+    every = {
+        u.name: (u.campaigns, u.tests)
+        for u in _units(series, forward_max_origins=100).values()
+        if u.scheme == "forward"
+    }
+    assert list(every) == [f"before_W0{i}" for i in (6, 7, 8, 9)]  # each fit on at least 5 of 9
+    blocks = {
+        u.name: (u.campaigns, u.tests)
+        for u in _units(series, forward_max_origins=3).values()
+        if u.scheme == "forward"
+    }
+    # four forecasts in three fits: the earliest block the larger, the latest ones refitted
+    assert blocks == {
+        "before_W06": (every["before_W06"][0], ("W06", "W07")),
+        "before_W08": every["before_W08"],
+        "before_W09": every["before_W09"],
+    }
+    ranked = ranking_scheme(series, training_units(series, ProtocolSettings(forward_max_origins=3)))
+    assert ranked.scheme == "forward" and "each of 4 campaigns" in ranked.reason
+
+
+def _independent_days(n, seasons=("spring",)):
+    """``n`` one-campaign records on consecutive days, seasons in turn."""
+    return [
+        (
+            f"D{i:02d}",
+            "train",
+            seasons[i % len(seasons)],
+            f"D{i:02d}",
+            pd.Timestamp("2025-04-01T08:00") + pd.Timedelta(days=i),
+        )
+        for i in range(n)
     ]
-    assert every == [f"before_W0{i}" for i in (6, 7, 8, 9)]  # each fit on at least 5 of 9
-    kept = [u.name for u in _units(series, forward_max_origins=2).values() if u.scheme == "forward"]
-    assert kept == ["before_W08", "before_W09"]
+
+
+def test_leave_one_campaign_out_leaves_consecutive_campaigns_out_together_above_max_folds():
+    series = _series(_independent_days(12))
+    loco = {n: u for n, u in _units(series, max_folds=5).items() if u.scheme == "loco"}
+    assert list(loco) == [
+        "not_D00_to_D02",
+        "not_D03_to_D05",
+        "not_D06_to_D07",
+        "not_D08_to_D09",
+        "not_D10_to_D11",
+    ]
+    assert loco["not_D03_to_D05"].campaigns == tuple(
+        f"D{i:02d}" for i in range(12) if i not in (3, 4, 5)
+    )
+    left_out = [c for u in loco.values() for c in {s.campaign_id for s in series} - set(u.campaigns)]
+    assert sorted(left_out) == [f"D{i:02d}" for i in range(12)]  # each left out exactly once
+    alone = {n for n, u in _units(series, max_folds=12).items() if u.scheme == "loco"}
+    assert alone == {f"not_D{i:02d}" for i in range(12)}
+
+
+def test_a_block_of_one_record_leaves_the_buffer_out_on_either_side_of_the_whole_block():
+    loco = {n: u for n, u in _units(_series(_record(9)), max_folds=3).items() if u.scheme == "loco"}
+    assert loco["not_W04_to_W06"].campaigns == ("W01", "W02", "W08", "W09")
+    assert set(loco["not_W04_to_W06"].tests) == {"W01", "W02", "W04", "W05", "W06", "W08", "W09"}
+
+
+def test_leave_one_season_out_merges_consecutive_seasons_above_max_folds():
+    seasons = ("s1", "s2", "s3", "s4")
+    series = _series(_independent_days(8, seasons))
+    loso = {n: u for n, u in _units(series, max_folds=2).items() if u.scheme == "loso"}
+    assert list(loso) == ["not_s1_to_s2", "not_s3_to_s4"]
+    assert {c for c in loso["not_s1_to_s2"].campaigns} == {"D02", "D03", "D06", "D07"}
+    assert len([u for u in _units(series).values() if u.scheme == "loso"]) == 4

@@ -98,7 +98,7 @@ def ranking_scheme(
         return _choice(auto.scheme, reason, available)
     training = [s for s in series if s.split == "train"]
     seasons = sorted({s.season for s in training})
-    forecasts = sum(1 for u in units if u.scheme == FORWARD)
+    forecasts = sum(len(u.tests) for u in units if u.scheme == FORWARD)
     runs = Counter(s.run_id or s.campaign_id for s in training)
     joined = max(runs.values(), default=0)
     if LOSO in available:
@@ -110,7 +110,7 @@ def ranking_scheme(
     if FORWARD in available and joined >= 2 and forecasts >= MIN_FORECASTS:
         reason = (
             f"one season, and {joined} training campaigns are cut from one continuous record: "
-            f"each of {forecasts} campaigns is predicted by a fit on the campaigns that ended "
+            f"each of {forecasts} campaigns is predicted by a fit on campaigns that ended "
             "before it started, as the deployed model only ever knows the past"
         )
         return _choice(FORWARD, reason, available)

@@ -13,15 +13,23 @@ A *training unit* is the set of campaigns one model is built on:
   Benitez 2012, "On the use of cross-validation for time series predictor evaluation",
   Information Sciences 191): campaigns in the order of their start, each one predicted by a
   fit on the training campaigns that *ended before it started* (unit ``before_<campaign>``),
-  and scored on it alone: what a model trained up to now leaves on the next campaign. Only
+  and scored on the campaigns it forecasts: what a model trained up to now leaves on the next
+  campaigns. Only
   forecasts whose fit has at least ``forward_min_share`` of the training campaigns (and at
   least ``forward_min_train``) count: the registered model is fitted on all of them, and a
   forecast from a fit on far fewer campaigns says more about learning from little data than
   about the model that will run (Tashman 2000, section 2, on the length of the fit period).
-  Of those, the latest ``forward_max_origins`` are kept: each forecast is fitted on every
-  campaign before it, so every origin would make the cost grow with the campaigns squared;
-  a fixed number of the latest origins keeps it linear and measures the model on the period it
-  is about to run in (Tashman 2000's fixed-length evaluation period);
+  Every such forecast counts, with at most ``forward_max_origins`` fits: the forecast
+  campaigns, in time order, are split into that many consecutive blocks, each forecast by one
+  fit on the campaigns that ended before the block's first campaign started, as scikit-learn's
+  ``TimeSeriesSplit`` forecasts a block of samples per split with a fixed number of splits.
+  One fit per forecast campaign would make the cost grow with the campaigns squared; a fixed
+  number of fits, each on at most every campaign, keeps it linear. Deviation from Tashman
+  (2000), who recommends recalibrating the model at every origin: only each block's first
+  campaign is forecast from a fit recalibrated just before it; a later campaign of the block is
+  forecast from a few campaigns further back than a model retrained on each new campaign would
+  be, so its score errs on the pessimistic side. The earlier blocks are the larger ones: the
+  latest forecasts are the closest to the retrained model;
 - scheme ``pooled``: every training campaign (unit ``all_training``), the model a user deploys;
   it is the one registered as MLflow champion.
 
@@ -34,6 +42,15 @@ validation block (Racine 2000, "Consistent cross-validatory model-selection for 
 hv-block cross-validation", Journal of Econometrics 99(1)); a unit left with no campaign is
 dropped. Here the block is a whole campaign, not h samples: a campaign is the unit a user adds
 and the unit the deployed model is applied to.
+
+**At most** ``max_folds`` **leave-out fits.** With more seasons (``loso``) or campaigns
+(``loco``) than ``max_folds``, consecutive groups in time order are left out together in that
+many blocks (unit ``not_<first>_to_<last>``): blocked K-fold cross-validation (Bergmeir and
+Benitez 2012), with the ten folds Kohavi (1995, "A study of cross-validation and bootstrap for
+accuracy estimation and model selection", IJCAI) recommends. Leaving each campaign out alone
+would fit the campaigns n times on n - 1 of them, a cost that grows with the campaigns squared;
+K blocks cost at most K fits on all of them. The hv-block buffer is left out on either side of
+the whole block.
 
 Splits follow campaigns, seasons and time, never random samples. Each displacement axis has its
 own series (:func:`series_by_axis`); the units are the same for every axis that has the same
@@ -206,9 +223,10 @@ def training_units(
 
     Leave-one-season-out units exist when the training campaigns span two seasons or more;
     otherwise leave-one-campaign-out units, when there are two training campaigns or more;
-    both leave out the hv-block buffer (``protocol.buffer_campaigns``). Forward units exist for
-    the latest ``forward_max_origins`` training campaigns with enough training campaigns ended
-    before them (:func:`forward_units`; start times known).
+    both leave out the hv-block buffer (``protocol.buffer_campaigns``), in at most
+    ``protocol.max_folds`` units (:func:`held_out_blocks`). Forward units forecast the training
+    campaigns with enough training campaigns ended before them, in at most
+    ``forward_max_origins`` fits (:func:`forward_units`; start times known).
 
     Raises
     ------
@@ -226,12 +244,13 @@ def training_units(
     seasons = list(dict.fromkeys(s.season for s in training))
     if len(seasons) >= 2:
         groups = [(season, [s for s in training if s.season == season]) for season in seasons]
+        groups = held_out_blocks(groups, settings.max_folds)
         units += _leave_out_units(series, groups, LOSO, settings.buffer_campaigns)
     elif len(training) >= 2:
-        groups = [(s.campaign_id, [s]) for s in training]
+        groups = held_out_blocks([(s.campaign_id, [s]) for s in training], settings.max_folds)
         units += _leave_out_units(series, groups, LOCO, settings.buffer_campaigns)
     least = max(settings.forward_min_train, math.ceil(settings.forward_min_share * len(training)))
-    units += forward_units(training, least)[-settings.forward_max_origins :]
+    units += forward_units(training, least, settings.forward_max_origins)
     units.append(TrainingUnit(POOLED_UNIT, POOLED, tuple(s.campaign_id for s in training)))
     return units
 
@@ -294,8 +313,40 @@ def _leave_out_units(
     return units
 
 
-def forward_units(training: list[CampaignSeries], min_train: int) -> list[TrainingUnit]:
-    """Rolling-origin units: each campaign predicted by the campaigns that ended before it.
+def held_out_blocks(
+    groups: list[tuple[str, list[CampaignSeries]]], max_folds: int
+) -> list[tuple[str, list[CampaignSeries]]]:
+    """The groups left out one at a time, or, above ``max_folds``, in consecutive blocks.
+
+    Parameters
+    ----------
+    groups : list of (str, list of CampaignSeries)
+        Name (season or campaign id) and campaigns of each group.
+    max_folds : int
+        Units at most.
+
+    Returns
+    -------
+    list of (str, list of CampaignSeries)
+        ``groups`` unchanged when there are at most ``max_folds``; otherwise ``max_folds``
+        blocks of groups consecutive in the time order of their first campaigns (sizes differing
+        by one at most), named ``<first>_to_<last>``.
+    """
+    if len(groups) <= max_folds:
+        return groups
+    ordered = sorted(groups, key=lambda group: min(_time_key(s) for s in group[1]))
+    blocks = []
+    for places in np.array_split(np.arange(len(ordered)), max_folds):
+        part = [ordered[place] for place in places]
+        name = part[0][0] if len(part) == 1 else f"{part[0][0]}_to_{part[-1][0]}"
+        blocks.append((name, [member for _, members in part for member in members]))
+    return blocks
+
+
+def forward_units(
+    training: list[CampaignSeries], min_train: int, max_origins: int
+) -> list[TrainingUnit]:
+    """Rolling-origin units: the campaigns forecast by the campaigns that ended before them.
 
     Parameters
     ----------
@@ -303,23 +354,33 @@ def forward_units(training: list[CampaignSeries], min_train: int) -> list[Traini
         The training campaigns; those without a start time take no part.
     min_train : int
         Campaigns a unit must be built on.
+    max_origins : int
+        Fits at most: above this many forecast campaigns, consecutive ones share the fit of the
+        first of them (the earlier blocks the larger).
 
     Returns
     -------
     list of TrainingUnit
-        ``before_<campaign>``, scheme ``forward``, ``tests`` the forecast campaign, in the
-        order of the campaigns' first samples.
+        ``before_<campaign>``, scheme ``forward``, built on the campaigns that ended before
+        ``<campaign>`` started, ``tests`` that campaign and those of its block, in the order of
+        the campaigns' first samples.
     """
     timed = sorted((s for s in training if s.start is not None), key=_time_key)
-    units = []
+    forecasts = []
     for target in timed:
         before = tuple(s.campaign_id for s in timed if s.last_time < target.first_time)
         if len(before) >= min_train:
-            units.append(
-                TrainingUnit(
-                    f"{FORWARD_PREFIX}{target.campaign_id}", FORWARD, before, (target.campaign_id,)
-                )
-            )
+            forecasts.append((target.campaign_id, before))
+    if not forecasts:
+        return []
+    sizes = [len(part) for part in np.array_split(np.arange(len(forecasts)), max_origins)]
+    units, place = [], 0
+    for size in [size for size in sizes if size]:
+        block = forecasts[place : place + size]
+        first, before = block[0]
+        tests = tuple(campaign for campaign, _ in block)
+        units.append(TrainingUnit(f"{FORWARD_PREFIX}{first}", FORWARD, before, tests))
+        place += size
     return units
 
 

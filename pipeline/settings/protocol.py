@@ -29,8 +29,12 @@ class ProtocolSettings(Settings):
         Rolling origin: share of all training campaigns (0 to 1, rounded up) that must have
         ended before a forecast one started.
     forward_max_origins : int
-        Rolling origin: at most this many forecast campaigns, the latest ones (each forecast
-        is fitted on every campaign before it, so all origins would cost campaigns squared).
+        Rolling origin: at most this many fits; above this many forecast campaigns,
+        consecutive ones share one fit (each fit is on every campaign before its origin, so one
+        fit per forecast would cost campaigns squared).
+    max_folds : int
+        Leave-one-out schemes: at most this many fits; above this many seasons (or campaigns),
+        consecutive ones are left out together in that many blocks.
     rank_by : str
         The held-out score that ranks: ``auto`` (the scheme the campaigns allow), ``loso``,
         ``loco`` or ``forward``.
@@ -39,5 +43,6 @@ class ProtocolSettings(Settings):
     buffer_campaigns: StrictInt = Field(1, ge=0)
     forward_min_train: StrictInt = Field(1, ge=1)
     forward_min_share: StrictFloat = Field(0.5, ge=0, le=1)
-    forward_max_origins: StrictInt = Field(8, ge=1)
+    forward_max_origins: StrictInt = Field(5, ge=1)
+    max_folds: StrictInt = Field(10, ge=2)
     rank_by: Literal["auto", "loso", "loco", "forward"] = "auto"
