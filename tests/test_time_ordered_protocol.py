@@ -239,7 +239,8 @@ def test_leave_one_campaign_out_leaves_consecutive_campaigns_out_together_above_
     assert loco["not_D03_to_D05"].campaigns == tuple(
         f"D{i:02d}" for i in range(12) if i not in (3, 4, 5)
     )
-    left_out = [c for u in loco.values() for c in {s.campaign_id for s in series} - set(u.campaigns)]
+    every = {s.campaign_id for s in series}
+    left_out = [c for u in loco.values() for c in every - set(u.campaigns)]
     assert sorted(left_out) == [f"D{i:02d}" for i in range(12)]  # each left out exactly once
     alone = {n for n, u in _units(series, max_folds=12).items() if u.scheme == "loco"}
     assert alone == {f"not_D{i:02d}" for i in range(12)}

@@ -316,7 +316,7 @@ def _leave_out_units(
 def held_out_blocks(
     groups: list[tuple[str, list[CampaignSeries]]], max_folds: int
 ) -> list[tuple[str, list[CampaignSeries]]]:
-    """The groups left out one at a time, or, above ``max_folds``, in consecutive blocks.
+    """Return the groups to leave out one at a time, above ``max_folds`` in consecutive blocks.
 
     Parameters
     ----------
