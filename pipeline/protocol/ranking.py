@@ -117,10 +117,10 @@ def ranking_scheme(
     if LOCO in available:
         reason = (
             "one season of independent campaigns (none continues another): each fit is scored "
-            "on the campaign it left out"
+            "on the campaigns it left out"
             if joined < 2
             else f"one season, and the rolling origin forecasts only {forecasts} campaign(s): "
-            "each fit is scored on the campaign it left out, its neighbours in the record "
+            "each fit is scored on the campaigns it left out, its neighbours in the record "
             "left out of training too"
         )
         return _choice(LOCO, reason, available)
