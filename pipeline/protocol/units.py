@@ -14,11 +14,11 @@ A *training unit* is the set of campaigns one model is built on:
   Information Sciences 191): campaigns in the order of their start, each one predicted by a
   fit on the training campaigns that *ended before it started* (unit ``before_<campaign>``),
   and scored on the campaigns it forecasts: what a model trained up to now leaves on the next
-  campaigns. Only
-  forecasts whose fit has at least ``forward_min_share`` of the training campaigns (and at
-  least ``forward_min_train``) count: the registered model is fitted on all of them, and a
-  forecast from a fit on far fewer campaigns says more about learning from little data than
-  about the model that will run (Tashman 2000, section 2, on the length of the fit period).
+  campaigns. Only forecasts whose fit has at least ``forward_min_share`` of the training
+  campaigns (and at least ``forward_min_train``) count: the registered model is fitted on all
+  of them, and a forecast from a fit on far fewer campaigns says more about learning from
+  little data than about the model that will run (Tashman 2000, section 2, on the length of
+  the fit period).
   Every such forecast counts, with at most ``forward_max_origins`` fits: the forecast
   campaigns, in time order, are split into that many consecutive blocks, each forecast by one
   fit on the campaigns that ended before the block's first campaign started, as scikit-learn's
