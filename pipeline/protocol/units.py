@@ -335,12 +335,13 @@ def held_out_blocks(
     if len(groups) <= max_folds:
         return groups
     ordered = sorted(groups, key=lambda group: min(_time_key(s) for s in group[1]))
-    blocks = []
-    for places in np.array_split(np.arange(len(ordered)), max_folds):
-        part = [ordered[place] for place in places]
-        name = part[0][0] if len(part) == 1 else f"{part[0][0]}_to_{part[-1][0]}"
-        blocks.append((name, [member for _, members in part for member in members]))
-    return blocks
+    return [
+        (
+            part[0][0] if len(part) == 1 else f"{part[0][0]}_to_{part[-1][0]}",
+            [member for _, members in part for member in members],
+        )
+        for part in _consecutive_blocks(ordered, max_folds)
+    ]
 
 
 def forward_units(
@@ -371,17 +372,27 @@ def forward_units(
         before = tuple(s.campaign_id for s in timed if s.last_time < target.first_time)
         if len(before) >= min_train:
             forecasts.append((target.campaign_id, before))
-    if not forecasts:
-        return []
-    sizes = [len(part) for part in np.array_split(np.arange(len(forecasts)), max_origins)]
-    units, place = [], 0
-    for size in [size for size in sizes if size]:
-        block = forecasts[place : place + size]
-        first, before = block[0]
-        tests = tuple(campaign for campaign, _ in block)
-        units.append(TrainingUnit(f"{FORWARD_PREFIX}{first}", FORWARD, before, tests))
-        place += size
-    return units
+    return [
+        TrainingUnit(
+            f"{FORWARD_PREFIX}{block[0][0]}",
+            FORWARD,
+            block[0][1],
+            tuple(campaign for campaign, _ in block),
+        )
+        for block in _consecutive_blocks(forecasts, max_origins)
+    ]
+
+
+def _consecutive_blocks(items: list, most: int) -> list[list]:
+    """Split ``items`` in order into at most ``most`` non-empty blocks, the earlier the larger.
+
+    Block sizes differ by one at most.
+    """
+    return [
+        [items[place] for place in places]
+        for places in np.array_split(np.arange(len(items)), most)
+        if len(places)
+    ]
 
 
 def _time_key(item: CampaignSeries) -> tuple:
