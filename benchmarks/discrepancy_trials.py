@@ -680,16 +680,22 @@ def rates_table(trials: pd.DataFrame) -> pd.DataFrame:
     each); ``plans_run`` (trials whose proposed test was run), ``plan_named`` (of those, the
     fraction in which the effect was then named, NaN without any; ``plan_n`` trials it counts)
     and ``plan_rmse`` and ``plan_rmse_t`` (the rerun's held-out Z, um, and temperature, K, RMS
-    before -> after, medians).
+    before -> after, medians); ``exact_with_tests`` (the fraction whose names, the first run's
+    and every rerun's after a proposed test together, are exactly the hidden effects) and
+    ``false_names`` (trials that named an effect not hidden, in any run).
     """
     trials = trials.assign(
         generator=trials["generator"] if "generator" in trials else "twin",
         plan=trials["plan"].fillna("").astype(str),
         plan_effect_named=trials["plan_effect_named"].map(_as_bool),
+        exact_with_tests=[_exact_with_tests(r) for r in trials.itertuples()],
+        false_name=[bool(_names_with_tests(r) - _hidden_set(r)) for r in trials.itertuples()],
     )
     grouped = trials.groupby(["generator", "hidden"], sort=False)
     return pd.DataFrame(
         {
+            "exact_with_tests": grouped["exact_with_tests"].mean(),
+            "false_names": grouped["false_name"].sum().astype(int),
             "classes": grouped["class"].agg(_counts),
             "plans_run": grouped["plan"].agg(lambda s: int((s != "").sum())),
             "plan_named": grouped["plan_effect_named"].agg(
@@ -711,6 +717,28 @@ def rates_table(trials: pd.DataFrame) -> pd.DataFrame:
             "rmse_um_after_range": grouped["rmse_um_after"].agg(lambda s: (s.min(), s.max())),
         }
     ).reset_index()
+
+
+def _hidden_set(row: Any) -> set[str]:
+    """Return the hidden effects of a ``trials.csv`` row."""
+    return set() if row.hidden == "none" else set(str(row.hidden).split("+"))
+
+
+def _names_with_tests(row: Any) -> set[str]:
+    """Return every effect a ``trials.csv`` row named, in the first run or a rerun."""
+    cells = (row.named, getattr(row, "plan_named", ""))
+    words = (w for cell in cells if isinstance(cell, str) for w in cell.split("+"))
+    return {w for w in words if w and w != "none"}
+
+
+def _exact_with_tests(row: Any) -> bool:
+    """Return whether a ``trials.csv`` row named exactly its hidden effects, reruns included.
+
+    What the workflow promises a user who runs the tests its report proposes (up to
+    :data:`PLAN_ROUNDS` of them): every hidden effect named, at once or after the tests, and
+    nothing else named in any run.
+    """
+    return _names_with_tests(row) == _hidden_set(row)
 
 
 def wilson_interval(rate: float, n: int, z: float = 1.96) -> tuple[float, float]:
@@ -748,7 +776,7 @@ def _as_bool(value: Any) -> bool | None:
 
 def _counts(values: pd.Series) -> str:
     """``"<value> <count>, ..."`` of a column, most frequent first (empty values as none)."""
-    counts = values.fillna("").astype(str).replace("", "none").value_counts()
+    counts = values.astype("string").fillna("").replace("", "none").value_counts()
     return ", ".join(f"{k} {v}" for k, v in counts.items())
 
 
@@ -778,9 +806,14 @@ def rates_markdown(rates: pd.DataFrame, trials: pd.DataFrame, seeds: Sequence[in
         "",
         f"Seeds {', '.join(map(str, seeds))}. Rates with their 95 % Wilson interval (five "
         "trials: one trial moves a rate by 20 points); RMS columns: medians over the seeds "
-        "(range), um. *Correct*: named exactly the hidden effects and, when something was "
-        "hidden, at least halved the held-out displacement RMS. *Gap halved*: the held-out "
-        "displacement or temperature RMS at least halved.",
+        "(range), um. *Named correctly*: the first run named exactly the hidden effects. "
+        "*With tests*: the first run and the reruns after the proposed tests together named "
+        "exactly the hidden effects (every hidden effect named, at once or after at most "
+        f"{PLAN_ROUNDS} rounds of tests, and nothing else in any run). *False names*: trials that "
+        "named an effect not hidden, in the first run or a rerun. *Correct*: named exactly the "
+        "hidden effects at once and, when something was hidden, at least halved the held-out "
+        "displacement RMS. *Gap halved*: the held-out displacement or temperature RMS at least "
+        "halved.",
         "",
         "*Class*: the identifiability class each hidden effect ended in (trials per class). "
         "*Plan run*: trials whose hidden effect was classed not identifiable with a visible "
@@ -801,22 +834,26 @@ def rates_markdown(rates: pd.DataFrame, trials: pd.DataFrame, seeds: Sequence[in
 def _generator_section(rates: pd.DataFrame, trials: pd.DataFrame) -> list[str]:
     """Return the Markdown lines of one generator's rates and its trials not correct."""
     generator = str(trials["generator"].iloc[0])
+    exact = round(float((rates["exact_with_tests"] * rates["n"]).sum()))
     lines = [
         "",
         f"## {GENERATOR_TITLES.get(generator, generator)}",
         "",
         f"{int(trials['named_correctly'].sum())} of {len(trials)} trials named exactly the "
-        f"hidden effects; {int(trials['correct'].sum())} were correct.",
+        f"hidden effects at once; {exact} counting the reruns after the proposed tests (*with "
+        f"tests*); {int(rates['false_names'].sum())} named an effect not hidden, in any run "
+        f"(*false names*); {int(trials['correct'].sum())} were correct.",
         "",
-        "| hidden | trials | named correctly | Z halved | gap halved | correct "
-        "| held-out Z RMS before | after | class | plan run | named after plan | Z after plan "
-        "| T after plan |",
-        "|---|---|---|---|---|---|---|---|---|---|---|---|---|",
+        "| hidden | trials | named correctly | with tests | false names | Z halved | gap halved "
+        "| correct | held-out Z RMS before | after | class | plan run | named after plan "
+        "| Z after plan | T after plan |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for r in rates.itertuples():
         named_after = "" if not r.plan_n else _rate(r.plan_named, r.plan_n)
         lines.append(
-            f"| {r.hidden} | {r.n} | {_rate(r.named_correctly, r.n)} | {r.z_halved:.0%} | "
+            f"| {r.hidden} | {r.n} | {_rate(r.named_correctly, r.n)} | "
+            f"{_rate(r.exact_with_tests, r.n)} | {r.false_names} | {r.z_halved:.0%} | "
             f"{r.gap_halved:.0%} | {_rate(r.correct, r.n)} | "
             f"{_spread(r.rmse_um_before, r.rmse_um_before_range)} | "
             f"{_spread(r.rmse_um_after, r.rmse_um_after_range)} | {r.classes} | "

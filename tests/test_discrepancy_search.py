@@ -8,6 +8,7 @@ parameters) is used only in the assertions.
 
 from __future__ import annotations
 
+import io
 import json
 from dataclasses import dataclass, replace
 
@@ -17,6 +18,7 @@ import pytest
 
 from benchmarks.discrepancy_trials import (
     CASES,
+    PlanFollowUp,
     TrialResult,
     case_name,
     rates_markdown,
@@ -382,9 +384,42 @@ def test_trial_scoring_and_rates_table():
     assert rates.loc["none", "correct"] == 0.0
     md = rates_markdown(rates_table(trials), trials, [1, 2])
     # rates with their Wilson interval (2 of 2: 34-100 %; 1 of 2: 9-91 %), RMS median (range)
-    assert "| motor_heat | 2 | 100% (34-100) | 50% | 100% | 50% (9-91) | 2.00 (2.00-2.00) |" in md
+    assert (
+        "| motor_heat | 2 | 100% (34-100) | 100% (34-100) | 0 | 50% | 100% | 50% (9-91) "
+        "| 2.00 (2.00-2.00) |" in md
+    )
     assert "| 1.00 (0.90-1.10) |" in md
     assert "hidden none, seed 1: named sensor_lag" in md
+
+
+def _follow_up(effect: str, named: tuple[str, ...]) -> PlanFollowUp:
+    """A proposed test of ``effect`` run for one round, its rerun naming ``named``."""
+    return PlanFollowUp(effect, "heater", 3.0, named, "named", 3.0, 1.0, 0.8, 0.1, 0.08)
+
+
+def test_rates_count_the_names_made_after_the_proposed_tests():
+    """*With tests* counts a hidden effect named after its test; a name not hidden in any run,
+    the first or a rerun, is a false name (read back from ``trials.csv`` as written)."""
+    lag = ("sensor_lag",)
+    named = (_follow_up(*lag, lag),)
+    after_test = TrialResult(lag, 1, (), 1.0, 1.0, 0.1, 0.1, 1.0, follow_ups=named)
+    never = TrialResult(lag, 2, (), 1.0, 1.0, 0.1, 0.1, 1.0, follow_ups=(_follow_up(*lag, ()),))
+    with_motor = (_follow_up(*lag, ("sensor_lag", "motor_heat")),)
+    beside = TrialResult(lag, 3, (), 1.0, 1.0, 0.1, 0.1, 1.0, follow_ups=with_motor)
+    clean = TrialResult((), 1, (), 1.0, 1.0, 0.1, 0.1, 1.0, follow_ups=(_follow_up(*lag, ()),))
+    alarm = (_follow_up("thermal_bending", ("motor_heat",)),)
+    clean_alarm = TrialResult((), 2, (), 1.0, 1.0, 0.1, 0.1, 1.0, follow_ups=alarm)
+    rows = [t.row() for t in (after_test, never, beside, clean, clean_alarm)]
+    trials = pd.read_csv(io.StringIO(pd.DataFrame(rows).to_csv(index=False)))
+    rates = rates_table(trials).set_index("hidden")
+    assert rates.loc["sensor_lag", "named_correctly"] == 0.0
+    assert rates.loc["sensor_lag", "exact_with_tests"] == pytest.approx(1 / 3)
+    assert rates.loc["sensor_lag", "false_names"] == 1
+    assert rates.loc["none", "exact_with_tests"] == 0.5 and rates.loc["none", "false_names"] == 1
+    md = rates_markdown(rates_table(trials), trials, [1, 2, 3])
+    assert "2 of 5 trials named exactly the hidden effects at once; 2 counting the reruns" in md
+    assert "2 named an effect not hidden, in any run" in md
+    assert "| sensor_lag | 3 | 0% (0-56) | 33% (6-79) | 1 |" in md
 
 
 def test_rates_are_reported_per_generator():
