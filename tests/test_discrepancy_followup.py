@@ -18,7 +18,15 @@ from pipeline.discrepancy.followup import (
     suspect_reason,
 )
 from pipeline.discrepancy.own_evidence import implausible_reason, weak_campaigns
-from pipeline.discrepancy.search import FitResult, SearchSettings, follow_up_gate, forward_search
+from pipeline.discrepancy.report_text import _step_lines
+from pipeline.discrepancy.search import (
+    FitResult,
+    SearchSettings,
+    evidence_on_test,
+    follow_up_gate,
+    forward_search,
+    qualifies_on_test,
+)
 from pipeline.stages.discrepancy import history_entries, history_of, write_history
 
 OLD = [f"K{i:02d}" for i in range(1, 7)]
@@ -52,10 +60,20 @@ def follow(targets=(), named=(), suspects=None) -> FollowUp:
     return FollowUp(frozenset(OLD), frozenset(named), frozenset(targets), dict(suspects or {}))
 
 
-def search(where, earlier):
+def search(where, earlier, evaluator=None):
+    """The search after ``earlier`` on :data:`OLD` and :data:`NEW`, wired as the stage wires it."""
     ids = OLD + NEW
     gate = follow_up_gate(earlier, ids, SETTINGS)
-    return forward_search(LocalMisfit(where), ids, SETTINGS, gate=gate)
+    evaluator = evaluator or LocalMisfit(where)
+    return forward_search(
+        evaluator, ids, SETTINGS, gate=gate, on_test=evidence_on_test(earlier, ids)
+    )
+
+
+def diluted(effect: str) -> LocalMisfit:
+    """``effect`` leaves 1 um on the new campaigns over a 3 um misfit it cannot touch anywhere:
+    4 -> 3 um there (-25 %), 3.28 -> 3.00 um pooled over the eight campaigns (-9 %)."""
+    return LocalMisfit({effect: set(NEW)}, gain=1.0, noise=3.0)
 
 
 def test_the_effect_the_test_was_proposed_for_is_named_on_the_new_campaigns():
@@ -102,6 +120,38 @@ def test_a_readings_only_effect_needs_its_temperature_evidence_on_the_new_campai
     ids = OLD + NEW
     assert suspect_reason("sensor_lag", earlier, ids, 0.9, 0.05, THRESHOLDS, True) is not None
     assert suspect_reason("sensor_lag", earlier, ids, 0.0, 0.5, THRESHOLDS, True) is None
+
+
+def test_the_target_of_a_test_may_pass_on_the_tests_campaigns_alone():
+    """The earlier campaigns could not show it: pooled, their misfit dilutes the test's fall."""
+    result = search({}, follow(targets={"thermal_bending"}), diluted("thermal_bending"))
+    assert result.named_effects == ["thermal_bending"]
+    step = result.steps[0].to_dict()
+    assert step["evidence"]["heldout_reduction"] == pytest.approx(1 - 3 / np.sqrt(86 / 8), abs=1e-5)
+    assert step["evidence"]["heldout_reduction_on_test"] == pytest.approx(0.25, abs=1e-5)
+    assert step["evidence"]["passes_on_test"] is True
+    lines = "\n".join(_step_lines(step, SETTINGS.min_heldout_reduction))
+    assert "named on the campaigns of the test proposed for it" in lines
+    assert "held-out Z residual changed by -25 %" in lines
+    assert "named on the temperatures alone" not in lines
+
+
+def test_only_the_target_of_the_test_may_pass_on_its_campaigns():
+    """The same diluted evidence names neither another effect nor the target without a test."""
+    assert search({}, follow(targets={"sensor_lag"}), diluted("motor_heat")).named_effects == []
+    assert search({}, None, diluted("thermal_bending")).named_effects == []
+    candidates = search({}, None, diluted("thermal_bending")).to_dict()["candidates_by_step"]
+    assert "passes_on_test" not in candidates[0]["candidates"][0]
+
+
+def test_on_the_tests_campaigns_a_route_counts_only_when_the_pooled_rms_does_not_rise():
+    assert qualifies_on_test("thermal_bending", (0.3, 0.0), (0.0, -0.5), SETTINGS)
+    assert not qualifies_on_test("thermal_bending", (0.3, 0.0), (-0.01, 0.0), SETTINGS)
+    assert not qualifies_on_test("thermal_bending", (0.1, 0.1), (0.05, 0.05), SETTINGS)
+    # an effect of the readings only passes through its temperatures, never through Z
+    assert not qualifies_on_test("sensor_lag", (0.9, 0.0), (0.1, 0.0), SETTINGS)
+    assert qualifies_on_test("sensor_lag", (-0.5, 0.3), (-0.2, 0.01), SETTINGS)
+    assert evidence_on_test(follow(targets={"sensor_lag"}), OLD) is None  # no new campaign
 
 
 def test_the_reduction_is_pooled_over_the_named_campaigns_only():
