@@ -15,7 +15,10 @@ file the stage keeps) gates the search (:func:`suspect_reason`):
   must fall by the search's own threshold; otherwise it is a *suspect*: what made it pass
   is in the campaigns the earlier run had already seen without naming it;
 * an effect newly named by a test proposed for **another** effect is a *suspect* until a
-  second test confirms it: a later run in which it passes again on its own new campaigns.
+  second test confirms it: a later run in which it passes again on its own new campaigns;
+* the effect the test was proposed for may also pass the search's threshold on the new
+  campaigns alone, the earlier ones being unable to show it
+  (:func:`pipeline.discrepancy.search.qualifies_on_test`).
 
 Suspects are reported (``discrepancy.json`` ``suspects``) with the reason and left out of the
 twin, and the search goes on with the other candidates. With no earlier run, or no new
