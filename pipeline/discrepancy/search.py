@@ -22,16 +22,16 @@ temperatures -1 %). Candidates are ranked by ``delta_bic``; the best passing one
 is added and the search repeats until none passes. The calibrations of a step run in parallel
 (joblib, ``n_jobs``).
 
-After a proposed test (a rerun with the earlier run's outcome, :mod:`pipeline.discrepancy.
-followup`), an effect the test was proposed for may also meet the held-out threshold on the
-test's new campaigns alone, provided the pooled held-out RMS of the same route (Z or
-temperatures) does not rise (:func:`qualifies_on_test`). The earlier campaigns were classed
-unable to show it: there it can at best leave their residual as it was, so a pooled threshold
-asks the test's campaigns for a larger fall the more earlier campaigns there are (on an
-independent machine model, eight campaigns and a 500 W column heater test: bending's held-out
-Z fell by 19 % pooled over the ten, where four campaigns and the same test gave 29 %). Every
-other check (delta BIC on all campaigns, the plausibility, own-evidence and visibility gates)
-applies as before.
+After a proposed test (a rerun with the earlier run's outcome,
+:mod:`pipeline.discrepancy.followup`), an effect the test was proposed for may also meet the
+held-out threshold on the test's new campaigns alone, provided the pooled held-out RMS of the
+same route (Z or temperatures) does not rise (:func:`qualifies_on_test`). The earlier
+campaigns were classed unable to show it: there it can at best leave their residual as it was,
+so a pooled threshold asks the test's campaigns for a larger fall the more earlier campaigns
+there are (on an independent machine model, eight campaigns and a 500 W column heater test:
+bending's held-out Z fell by 19 % pooled over the ten, where four campaigns and the same test
+gave 29 %). Every other check (delta BIC on all campaigns, the plausibility, own-evidence and
+visibility gates) applies as before.
 
 The search works through an *evaluator*: ``evaluator(effects, train_ids, test_ids, start) ->
 FitResult`` (``start``: parameter name -> starting value, or None). :class:`TwinEvaluator`
@@ -681,11 +681,7 @@ def _log_round(step: int, ranked: Sequence[Candidate]) -> None:
             c.rmse_heldout_t_k,
             -100 * c.heldout_t_reduction,
             c.delta_bic,
-            " passes on its test's campaigns"
-            if c.passes_on_test
-            else " passes"
-            if c.passes
-            else "",
+            _verdict(c),
         )
 
 
