@@ -682,14 +682,18 @@ def rates_table(trials: pd.DataFrame) -> pd.DataFrame:
     and ``plan_rmse`` and ``plan_rmse_t`` (the rerun's held-out Z, um, and temperature, K, RMS
     before -> after, medians); ``exact_with_tests`` (the fraction whose names, the first run's
     and every rerun's after a proposed test together, are exactly the hidden effects) and
-    ``false_names`` (trials that named an effect not hidden, in any run).
+    ``false_names`` (trials that named an effect not hidden, in any run). *With tests* is what
+    the workflow promises a user who runs the tests its report proposes (up to
+    :data:`PLAN_ROUNDS` of them): every hidden effect named, at once or after the tests, and
+    nothing else named in any run.
     """
+    named = [(_names_with_tests(r), _hidden_set(r)) for r in trials.itertuples()]
     trials = trials.assign(
         generator=trials["generator"] if "generator" in trials else "twin",
         plan=trials["plan"].fillna("").astype(str),
         plan_effect_named=trials["plan_effect_named"].map(_as_bool),
-        exact_with_tests=[_exact_with_tests(r) for r in trials.itertuples()],
-        false_name=[bool(_names_with_tests(r) - _hidden_set(r)) for r in trials.itertuples()],
+        exact_with_tests=[names == hidden for names, hidden in named],
+        false_name=[bool(names - hidden) for names, hidden in named],
     )
     grouped = trials.groupby(["generator", "hidden"], sort=False)
     return pd.DataFrame(
@@ -729,16 +733,6 @@ def _names_with_tests(row: Any) -> set[str]:
     cells = (row.named, getattr(row, "plan_named", ""))
     words = (w for cell in cells if isinstance(cell, str) for w in cell.split("+"))
     return {w for w in words if w and w != "none"}
-
-
-def _exact_with_tests(row: Any) -> bool:
-    """Return whether a ``trials.csv`` row named exactly its hidden effects, reruns included.
-
-    What the workflow promises a user who runs the tests its report proposes (up to
-    :data:`PLAN_ROUNDS` of them): every hidden effect named, at once or after the tests, and
-    nothing else named in any run.
-    """
-    return _names_with_tests(row) == _hidden_set(row)
 
 
 def wilson_interval(rate: float, n: int, z: float = 1.96) -> tuple[float, float]:

@@ -62,6 +62,10 @@ class FollowUp:
     targets: frozenset[str]
     suspects: dict[str, str]
 
+    def new_campaigns(self, campaign_ids: Sequence[str]) -> list[str]:
+        """Return the campaigns of ``campaign_ids`` this earlier run had not seen, in order."""
+        return [c for c in campaign_ids if c not in self.campaigns]
+
     @classmethod
     def from_document(cls, doc: Mapping[str, Any] | None) -> FollowUp | None:
         """Read the earlier run's ``discrepancy.json`` (or history entry); None without one.
@@ -159,7 +163,7 @@ def suspect_reason(
     """
     if follow is None or effect in follow.named:
         return None
-    new = sorted(set(campaign_ids) - follow.campaigns)
+    new = sorted(follow.new_campaigns(campaign_ids))
     if not new:
         return follow.suspects.get(effect)
     if not meets_thresholds(z_reduction_new, t_reduction_new, thresholds, by_readings_only):

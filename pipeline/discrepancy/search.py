@@ -926,7 +926,7 @@ def follow_up_gate(follow: FollowUp | None, ids: Sequence[str], settings: Search
     It measures each passing effect's held-out Z and temperature reductions on the campaigns
     ``follow`` had not seen and asks :func:`pipeline.discrepancy.followup.suspect_reason`.
     """
-    new = [c for c in ids if follow is None or c not in follow.campaigns]
+    new = list(ids) if follow is None else follow.new_campaigns(ids)
 
     def gate(
         effect: str, baseline: ModelEvidence, current: ModelEvidence, augmented: ModelEvidence
@@ -956,8 +956,8 @@ def evidence_on_test(follow: FollowUp | None, ids: Sequence[str]) -> TestEvidenc
     gives, for an effect the earlier run proposed a test for (``follow.targets``), its
     held-out Z and temperature reductions on the new campaigns, and None for any other.
     """
-    new = [c for c in ids if follow is not None and c not in follow.campaigns]
-    if follow is None or not new:
+    new = [] if follow is None else follow.new_campaigns(ids)
+    if not new:
         return None
 
     def on_test(
