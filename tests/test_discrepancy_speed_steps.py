@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pandas as pd
 
@@ -109,3 +111,44 @@ def test_without_a_speed_change_the_signature_cannot_show():
     gate = speed_step_gate(steady, min_reduction=0.2)
     reason = gate("centrifugal_growth", *(evidence(residual),) * 3)
     assert reason is not None and "no speed change" in reason
+
+
+def late_answer(c: MeasuredCampaign, um_per_krpm2: float = 0.2) -> np.ndarray:
+    """A thermal answer the twin gives minutes late: it grows for ~13 min after a speed change
+    and fades as the twin catches up (a difference of 8-min and 20-min first-order rises), um."""
+    out = np.zeros(len(c.t_s))
+    for k in np.flatnonzero(np.diff(c.rpm) != 0.0) + 1:
+        since_min = (c.t_s[k:] - c.t_s[k]) / MINUTE
+        rise = um_per_krpm2 * ((c.rpm[k] / 1000.0) ** 2 - (c.rpm[k - 1] / 1000.0) ** 2)
+        out[k:] += 3.0 * rise * (np.exp(-since_min / 20.0) - np.exp(-since_min / 8.0))
+    return out
+
+
+def test_a_term_that_takes_up_only_the_first_minutes_of_a_late_answer_stays_a_suspect():
+    current = {c.campaign_id: late_answer(c) + noisy(c, 1, 0.05) for c in CAMPAIGNS}
+    by_id = {c.campaign_id: c for c in CAMPAIGNS}
+    first, _ = pooled_jumps(by_id, current)
+    ninth, _ = pooled_jumps(by_id, current, settle_s=9 * MINUTE)
+    assert np.sqrt(np.mean(ninth**2)) > 1.5 * np.sqrt(np.mean(first**2))  # it keeps growing
+    # a speed-squared term sized to a third of the jump read at 3 min: it passes the first read
+    unit, _ = pooled_jumps(by_id, {c.campaign_id: speed_step(c) for c in CAMPAIGNS})
+    size = np.sum(first * unit) / np.sum(unit**2)
+    augmented = {
+        c.campaign_id: current[c.campaign_id] - 0.3 * size * speed_step(c) for c in CAMPAIGNS
+    }
+    gate = speed_step_gate(CAMPAIGNS, min_reduction=0.2)
+    models = evidence(current), evidence(current), evidence(augmented)
+    reason = gate("centrifugal_growth", *models)
+    assert reason is not None and "does not stay while the speed stays" in reason
+    # read at 3 min only, the same term passed: the later reads hold it back
+    assert speed_step_gate(CAMPAIGNS, 0.2, hold_s=3 * MINUTE)("centrifugal_growth", *models) is None
+
+
+def test_a_jump_with_another_speed_change_before_its_read_is_not_counted():
+    c = campaign("K03", (0.0, 4000.0, 8000.0, 0.0))
+    brief = (c.t_s >= 60 * MINUTE) & (c.t_s < 62 * MINUTE)
+    short = replace(c, rpm=np.where(brief, 2000.0, c.rpm))
+    at_changes, _ = step_jumps(short, speed_step(short))
+    # the speed changes again 2 min after the change to 2000 rpm, before its read: that jump
+    # is not counted; the change from 2000 to 4000 rpm is
+    np.testing.assert_allclose(at_changes, [2.4, 9.6, -12.8])
