@@ -37,6 +37,7 @@ from pipeline.discrepancy.localise import (
     noise_floor,
     phase_labels,
 )
+from pipeline.discrepancy.report_text import _step_lines
 from pipeline.discrepancy.search import (
     CANDIDATE_EFFECTS,
     FitResult,
@@ -205,6 +206,33 @@ def test_a_sensor_only_effect_is_named_on_its_temperature_evidence_only():
     assert z_only.named_effects == []
     both = forward_search(LagEvaluator(t_cut=0.5), IDS, SETTINGS)
     assert both.named_effects == ["sensor_lag"]
+
+
+def test_an_effect_whose_own_signature_shows_is_named_when_its_held_out_z_does_not_rise():
+    """A step term cuts only the steps: pooled with a thermal misfit it owns none of, -10 %."""
+
+    def steps_shown(effect, current, augmented):
+        return "steps measured and removed" if effect == "centrifugal_growth" else None
+
+    diluted = FakeEvaluator({"centrifugal_growth"}, {"centrifugal_growth": 1.0}, noise=9.0)
+    assert forward_search(diluted, IDS, SETTINGS).named_effects == []
+    result = forward_search(diluted, IDS, SETTINGS, signature=steps_shown)
+    assert result.named_effects == ["centrifugal_growth"]
+    evidence = result.steps[0].to_dict()["evidence"]
+    assert evidence["heldout_reduction"] == pytest.approx(0.1)
+    assert evidence["passes_on_signature"] is True
+    assert evidence["signature"] == "steps measured and removed"
+    lines = "\n".join(_step_lines(result.steps[0].to_dict(), SETTINGS.min_heldout_reduction))
+    assert "named on its own signature: steps measured and removed" in lines
+    assert "10 %, is short of the 20 %" in lines and "temperatures alone" not in lines
+    # the same signature claimed by another effect, or a term that raises the held-out Z
+    wrong = FakeEvaluator({"motor_heat"}, {"motor_heat": 1.0}, noise=9.0)
+    assert forward_search(wrong, IDS, SETTINGS, signature=steps_shown).named_effects == []
+    worse = FakeEvaluator(set(), spurious=-0.5, penalty=-20.0, noise=9.0)  # BIC falls, Z rises
+    result = forward_search(worse, IDS, SETTINGS, signature=steps_shown)
+    assert result.named_effects == []
+    centrifugal = next(c for c in result.rounds[0] if c.effect == "centrifugal_growth")
+    assert centrifugal.heldout_reduction < 0 and not centrifugal.passes_on_signature
 
 
 def test_forward_selection_names_nothing_without_a_missing_effect():
@@ -553,8 +581,6 @@ def test_report_files_say_what_was_named_and_the_gap(tmp_path):
 
 
 def test_an_effect_named_on_the_temperatures_says_the_displacement_gap_stayed():
-    from pipeline.discrepancy.report_text import _step_lines
-
     step = {
         "effect": "motor_heat",
         "rmse_um_before": 0.91,

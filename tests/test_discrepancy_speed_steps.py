@@ -13,6 +13,7 @@ from pipeline.discrepancy.speed_steps import (
     pooled_jumps,
     speed_step_gate,
     step_jumps,
+    step_signature,
     steps_measured,
 )
 
@@ -152,3 +153,16 @@ def test_a_jump_with_another_speed_change_before_its_read_is_not_counted():
     # the speed changes again 2 min after the change to 2000 rpm, before its read: that jump
     # is not counted; the change from 2000 to 4000 rpm is
     np.testing.assert_allclose(at_changes, [2.4, 9.6, -12.8])
+
+
+def test_the_signature_the_search_may_name_on_is_the_gate_passed():
+    stepped = {c.campaign_id: thermal_drift(c) + speed_step(c) + noisy(c, 1) for c in CAMPAIGNS}
+    removed = {c.campaign_id: thermal_drift(c) + noisy(c, 2) for c in CAMPAIGNS}
+    shown = step_signature(CAMPAIGNS, min_reduction=0.2)
+    words = shown("centrifugal_growth", evidence(stepped), evidence(removed))
+    assert words is not None and "6 speed changes" in words and "stay removed" in words
+    assert shown("motor_heat", evidence(stepped), evidence(removed)) is None
+    # no step measured: a term that follows the program shows no signature
+    drift = {c.campaign_id: thermal_drift(c) + noisy(c, 1) for c in CAMPAIGNS}
+    follows = {c.campaign_id: drift[c.campaign_id] - 0.02 * speed_step(c) for c in CAMPAIGNS}
+    assert shown("centrifugal_growth", evidence(drift), evidence(follows)) is None

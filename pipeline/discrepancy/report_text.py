@@ -147,7 +147,7 @@ def _temperature_only_line(step: Mapping[str, Any], min_z_reduction: float) -> l
     ev = step["evidence"]
     on_test = ev.get("passes_on_test", False)
     reduction = ev["heldout_reduction_on_test"] if on_test else ev["heldout_reduction"]
-    if reduction is None or reduction >= min_z_reduction:
+    if reduction is None or reduction >= min_z_reduction or ev.get("passes_on_signature"):
         return []
     why = WHY_Z_STAYS.get(step["effect"], WHY_Z_STAYS_OTHERWISE)
     return [
@@ -177,6 +177,12 @@ def _step_lines(step: Mapping[str, Any], min_z_reduction: float) -> list[str]:
             f"residual changed by {signed_percent(-ev['heldout_reduction_on_test'])} and the "
             f"temperatures by {signed_percent(-ev['heldout_T_reduction_on_test'])}; the earlier "
             "campaigns could not show it, and pooled over all it does not raise the residual"
+        )
+    if ev.get("passes_on_signature"):
+        lines.append(
+            f"  - named on its own signature: {ev['signature']}. Its held-out Z fall, "
+            f"{_pct(ev['heldout_reduction'])}, is short of the {_pct(min_z_reduction)} that names "
+            "an effect on the whole residual: the rest of the gap is a misfit it does not remove"
         )
     lines += _temperature_only_line(step, min_z_reduction)
     own = step["effect_parameters"]
@@ -320,6 +326,8 @@ def _passes_cell(candidate: Mapping[str, Any]) -> str:
     """Return the *passes* cell of a candidate: yes, yes on its test's campaigns, or no."""
     if candidate.get("passes_on_test"):
         return "yes, on its test's campaigns"
+    if candidate.get("passes_on_signature"):
+        return "yes, on its own signature"
     return "yes" if candidate["passes"] else "no"
 
 
@@ -333,7 +341,10 @@ def _evidence_lines(doc: Mapping[str, Any]) -> list[str]:
         f"and changes BIC by at most {thresholds['max_delta_bic']:g}; the candidate with "
         "the lowest BIC among those is added and the search repeats. After a proposed test, "
         "the effect it was proposed for may reach the threshold on the test's campaigns "
-        "alone, when the RMS pooled over all campaigns does not rise."
+        "alone, when the RMS pooled over all campaigns does not rise. An effect whose own "
+        "signature is measured and removed (centrifugal growth: steps of the displacement at "
+        "the speed changes that stay while the speed stays) is named when its held-out Z RMS "
+        "does not rise."
     ]
     for entry in doc["candidates_by_step"]:
         lines += _candidate_table(entry)

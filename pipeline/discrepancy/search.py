@@ -33,6 +33,15 @@ bending's held-out Z fell by 19 % pooled over the ten, where four campaigns and 
 gave 29 %). Every other check (delta BIC on all campaigns, the plausibility, own-evidence and
 visibility gates) applies as before.
 
+An effect whose own signature is measured in the held-out residuals and removed by it (a
+*signature* callable; the workflow's is
+:func:`pipeline.discrepancy.speed_steps.step_signature`: centrifugal growth's steps at the
+speed changes) qualifies also when its pooled held-out Z RMS falls by less than the threshold
+but does not rise. The threshold on a pooled RMS is there to keep out a term that only stands in
+for a misfit it does not own; the signature answers that directly, while a pooled RMS dilutes a
+step (a few samples at each speed change) with the thermal misfit it was never meant to remove.
+Every other check applies as before.
+
 The search works through an *evaluator*: ``evaluator(effects, train_ids, test_ids, start) ->
 FitResult`` (``start``: parameter name -> starting value, or None). :class:`TwinEvaluator`
 builds, calibrates and predicts the twin of :mod:`pipeline.discrepancy.model` /
@@ -281,6 +290,11 @@ class Candidate:
         effect (None: no such test in this run).
     passes_on_test : bool
         It passes through those campaigns alone (:func:`qualifies_on_test`), not pooled.
+    signature : str or None
+        Its own signature measured in the held-out residuals and removed by it, in words
+        (None: not shown, or the effect has none).
+    passes_on_signature : bool
+        It passes through that signature with a held-out Z fall below the threshold.
     """
 
     effect: str
@@ -294,6 +308,8 @@ class Candidate:
     converged: bool
     on_test: tuple[float, float] | None = None
     passes_on_test: bool = False
+    signature: str | None = None
+    passes_on_signature: bool = False
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready fields."""
@@ -314,6 +330,14 @@ class Candidate:
                     "heldout_reduction_on_test": _num(self.on_test[0]),
                     "heldout_T_reduction_on_test": _num(self.on_test[1]),
                     "passes_on_test": bool(self.passes_on_test),
+                }
+            ),
+            **(
+                {}
+                if self.signature is None
+                else {
+                    "signature": self.signature,
+                    "passes_on_signature": bool(self.passes_on_signature),
                 }
             ),
         }
@@ -601,11 +625,14 @@ def candidate_evidence(
     augmented: ModelEvidence,
     settings: SearchSettings,
     on_test: tuple[float, float] | None = None,
+    signature: str | None = None,
 ) -> Candidate:
     """Compare an augmented model with the current one and apply the thresholds.
 
     ``on_test``: the held-out Z and temperature reductions on the campaigns of a test proposed
-    for ``effect`` (:func:`qualifies_on_test`), None when this run has none.
+    for ``effect`` (:func:`qualifies_on_test`), None when this run has none. ``signature``:
+    the effect's own signature measured and removed (:data:`SignatureEvidence`), in words, or
+    None; with it the effect qualifies when its held-out Z RMS does not rise.
     """
     before = current.rmse_heldout_um
     after = augmented.rmse_heldout_um
@@ -621,7 +648,12 @@ def candidate_evidence(
         and not (by_z or by_t)
         and qualifies_on_test(effect, on_test, (reduction, t_reduction), settings)
     )
-    qualifies = by_z or by_t or by_test
+    by_signature = (
+        signature is not None
+        and not (by_z or by_t or by_test)
+        and bool(np.isfinite(reduction) and reduction >= 0.0)
+    )
+    qualifies = by_z or by_t or by_test or by_signature
     delta_bic = augmented.full.bic - current.full.bic
     delta_aicc = augmented.full.aicc - current.full.aicc
     passes = bool(qualifies and np.isfinite(delta_bic) and delta_bic <= settings.max_delta_bic)
@@ -637,12 +669,19 @@ def candidate_evidence(
         converged=bool(augmented.full.converged and augmented.heldout.converged),
         on_test=on_test,
         passes_on_test=bool(passes and by_test),
+        signature=signature,
+        passes_on_signature=bool(passes and by_signature),
     )
 
 
 TestEvidence = Callable[[str, ModelEvidence, ModelEvidence], tuple[float, float] | None]
 """``(effect, current, augmented) -> (z, t)``: held-out Z and temperature reductions on the
 campaigns of the test proposed for ``effect``, or None when this run has none."""
+
+SignatureEvidence = Callable[[str, ModelEvidence, ModelEvidence], str | None]
+"""``(effect, current, augmented) -> words``: the effect's own signature (a structure of the
+residual no other candidate makes) measured in the current model's held-out residuals and
+removed by the augmented model, in words; None when not shown or the effect has none."""
 
 
 def _ranked(
@@ -651,10 +690,18 @@ def _ranked(
     models: Sequence[ModelEvidence],
     settings: SearchSettings,
     on_test: TestEvidence | None = None,
+    signature: SignatureEvidence | None = None,
 ) -> list[Candidate]:
     """Return the evidence of each effect of ``pool`` (``models``, same order), by delta BIC."""
     tried = [
-        candidate_evidence(e, current, m, settings, on_test(e, current, m) if on_test else None)
+        candidate_evidence(
+            e,
+            current,
+            m,
+            settings,
+            on_test(e, current, m) if on_test else None,
+            signature(e, current, m) if signature else None,
+        )
         for e, m in zip(pool, models, strict=True)
     ]
     order = np.argsort([c.delta_bic for c in tried], kind="stable")
@@ -665,6 +712,8 @@ def _verdict(candidate: Candidate) -> str:
     """Return the end of a candidate's log line: whether and how it passes."""
     if candidate.passes_on_test:
         return " passes on its test's campaigns"
+    if candidate.passes_on_signature:
+        return " passes on its own signature"
     return " passes" if candidate.passes else ""
 
 
@@ -749,6 +798,7 @@ def forward_search(
     untestable: Mapping[str, Sequence[str]] | None = None,
     gate: Gate | None = None,
     on_test: TestEvidence | None = None,
+    signature: SignatureEvidence | None = None,
 ) -> SearchResult:
     """Name the missing effects by forward selection (see the module docstring).
 
@@ -766,6 +816,9 @@ def forward_search(
     on_test : callable, optional
         After a proposed test: each effect's held-out reductions on its test's campaigns
         (:func:`evidence_on_test`), through which it may also pass.
+    signature : callable, optional
+        Each effect's own signature shown (:data:`SignatureEvidence`), through which it may
+        also pass.
 
     Returns
     -------
@@ -798,7 +851,7 @@ def forward_search(
             break
         sets = [current.effects | {e} for e in pool]
         models = evaluate_many(evaluator, sets, campaign_ids, folds, settings.n_jobs, current)
-        ranked = _ranked(pool, current, models, settings, on_test)
+        ranked = _ranked(pool, current, models, settings, on_test, signature)
         rounds.append(ranked)
         _log_round(len(rounds), ranked)
         by_effect = dict(zip(pool, models, strict=True))
@@ -973,6 +1026,7 @@ def search_twin(
     settings: SearchSettings,
     follow: FollowUp | None = None,
     gate: Gate | None = None,
+    signature: SignatureEvidence | None = None,
 ) -> SearchResult:
     """Run :func:`forward_search` on measured campaigns with the calibrated twin.
 
@@ -980,7 +1034,8 @@ def search_twin(
     augmented twin, calibrated on all of those, then predict the validation campaigns
     (:attr:`SearchResult.validation`), which no step of the search has seen. ``gate`` is asked
     about every passing effect; after an earlier run (``follow``), a newly named effect must
-    also owe its evidence to the new campaigns (:func:`follow_up_gate`).
+    also owe its evidence to the new campaigns (:func:`follow_up_gate`). ``signature``: see
+    :func:`forward_search`.
     """
     roles = campaign_roles(campaigns)
     evaluator = TwinEvaluator(campaigns, roles)
@@ -991,7 +1046,7 @@ def search_twin(
     gates = [g for g in (gate, later) if g is not None]
     combined = first_reason(*gates) if gates else None
     result = forward_search(
-        evaluator, ids, settings, untestable, combined, evidence_on_test(follow, ids)
+        evaluator, ids, settings, untestable, combined, evidence_on_test(follow, ids), signature
     )
     if held:
         held_ids = tuple(c.campaign_id for c in held)

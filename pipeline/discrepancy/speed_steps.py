@@ -25,6 +25,11 @@ minutes of it; but that jump keeps growing after the step would have settled and
 twin catches up. The gate therefore reads the jumps again at every multiple of ``settle_s`` up
 to :data:`HOLD_S`, and wherever the residual still steps there, the effect must remove the
 jumps by ``min_reduction`` too.
+
+:func:`step_signature` gives the search the same three checks as the effect's own signature:
+an effect that passes them is named when its pooled held-out Z RMS falls by less than
+``min_reduction`` but does not rise (the steps are a few samples at each speed change, which a
+pooled RMS dilutes with a thermal misfit the term cannot remove).
 """
 
 from __future__ import annotations
@@ -37,7 +42,7 @@ import numpy as np
 from scipy.stats import f as f_distribution
 
 from pipeline.discrepancy.data import MeasuredCampaign
-from pipeline.discrepancy.search import Gate, ModelEvidence
+from pipeline.discrepancy.search import Gate, ModelEvidence, SignatureEvidence
 from pipeline.fit_statistics import root_mean_square
 
 STEP_EFFECTS = ("centrifugal_growth",)
@@ -193,6 +198,22 @@ def read_steps(
     )
 
 
+def _read_times(settle_s: float, hold_s: float) -> np.ndarray:
+    """Return the times the jumps are read at: each multiple of ``settle_s`` to ``hold_s``, s."""
+    return settle_s * np.arange(1, max(int(hold_s // settle_s), 1) + 1)
+
+
+def _readings(
+    by_id: Mapping[str, MeasuredCampaign],
+    current: ModelEvidence,
+    augmented: ModelEvidence,
+    read_times: np.ndarray,
+) -> list[StepReading]:
+    """:func:`read_steps` of the held-out Z residuals of two models at every read time."""
+    now, then = current.heldout.z_residual_um, augmented.heldout.z_residual_um
+    return [read_steps(by_id, now, then, t) for t in read_times]
+
+
 def _step_verdict(readings: Sequence[StepReading], min_reduction: float) -> str | None:
     """Why the readings of :func:`speed_step_gate` keep a speed-step effect a suspect, or None."""
     first = readings[0]
@@ -255,17 +276,14 @@ def speed_step_gate(
         Latest read of 3., s.
     """
     by_id = {c.campaign_id: c for c in campaigns}
-    read_times = settle_s * np.arange(1, max(int(hold_s // settle_s), 1) + 1)
+    read_times = _read_times(settle_s, hold_s)
 
     def gate(
         effect: str, baseline: ModelEvidence, current: ModelEvidence, augmented: ModelEvidence
     ) -> str | None:
         if effect not in STEP_EFFECTS:
             return None
-        readings = [
-            read_steps(by_id, current.heldout.z_residual_um, augmented.heldout.z_residual_um, t)
-            for t in read_times
-        ]
+        readings = _readings(by_id, current, augmented, read_times)
         if readings[0].n_changes == 0:
             return (
                 "the campaigns have no speed change, where its own signature (a step of the "
@@ -286,3 +304,35 @@ def speed_step_gate(
         return _step_verdict(readings, min_reduction)
 
     return gate
+
+
+def step_signature(
+    campaigns: Sequence[MeasuredCampaign],
+    min_reduction: float,
+    settle_s: float = SETTLE_S,
+    hold_s: float = HOLD_S,
+) -> SignatureEvidence:
+    """Return the search's signature evidence of a speed-step effect.
+
+    For an effect of :data:`STEP_EFFECTS`, the checks of :func:`speed_step_gate` (steps
+    measured at the speed changes, removed by ``min_reduction`` by the effect, at every read
+    up to ``hold_s`` where they still show) passed on the held-out residuals give the words
+    of the first read; otherwise, and for any other effect, None. Parameters as in
+    :func:`speed_step_gate`.
+    """
+    by_id = {c.campaign_id: c for c in campaigns}
+    read_times = _read_times(settle_s, hold_s)
+
+    def shown(effect: str, current: ModelEvidence, augmented: ModelEvidence) -> str | None:
+        if effect not in STEP_EFFECTS:
+            return None
+        readings = _readings(by_id, current, augmented, read_times)
+        if readings[0].n_changes == 0 or _step_verdict(readings, min_reduction) is not None:
+            return None
+        first = readings[0]
+        return (
+            f"{first.figures()}; with it {first.after_um:.2f} um, and the steps stay removed "
+            f"while the speed stays (read up to {hold_s / 60.0:.0f} min after the changes)"
+        )
+
+    return shown

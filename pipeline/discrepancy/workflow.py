@@ -45,7 +45,7 @@ from pipeline.discrepancy.search import (
     first_reason,
     search_twin,
 )
-from pipeline.discrepancy.speed_steps import speed_step_gate
+from pipeline.discrepancy.speed_steps import speed_step_gate, step_signature
 from pipeline.io.tables import ingest
 from pipeline.machines import resolved_names
 from pipeline.settings.discrepancy import DiscrepancySettings
@@ -226,7 +226,8 @@ def run(
         visibility_gate(campaigns, ident_settings),
         speed_step_gate(campaigns, settings.min_heldout_reduction),
     )
-    result = search_twin(campaigns, settings, follow, gate)
+    signature = step_signature(campaigns, settings.min_heldout_reduction)
+    result = search_twin(campaigns, settings, follow, gate, signature)
     point = searched_point(campaigns, result, ident_settings)
     classes = identifiability(campaigns, result, settings.candidates, ident_settings, point)
     floor = held_out_floor(result, point.campaigns, settings)
