@@ -392,3 +392,12 @@ def test_a_trial_follow_up_reruns_with_the_earlier_run_until_the_effect_is_named
     assert follow.effect_named and follow.rounds == 2 and follow.suspects == ("motor_heat",)
     assert [f.campaigns for f in earlier] == [frozenset(OLD), frozenset([*OLD, "P1_01"])]
     assert earlier[1].suspects == {"motor_heat": "why"}
+
+
+def test_a_later_effect_whose_own_signature_shows_needs_no_evidence_where_the_first_acts():
+    def bending_signature(effect, current, augmented):
+        return "its own structure" if effect == "thermal_bending" else None
+
+    result = forward_search(Remainder(), IDS, SETTINGS, signature=bending_signature)
+    assert result.named_effects == ["nonlinear_bearing_heat", "thermal_bending"]
+    assert result.suspects == {}

@@ -166,3 +166,22 @@ def test_the_signature_the_search_may_name_on_is_the_gate_passed():
     drift = {c.campaign_id: thermal_drift(c) + noisy(c, 1) for c in CAMPAIGNS}
     follows = {c.campaign_id: drift[c.campaign_id] - 0.02 * speed_step(c) for c in CAMPAIGNS}
     assert shown("centrifugal_growth", evidence(drift), evidence(follows)) is None
+
+
+def test_steps_within_the_residuals_scatter_pass_the_gate_but_are_no_signature():
+    """Many changes make a small step significant; the signature asks for one seen at a glance."""
+    many = [
+        *CAMPAIGNS,
+        campaign("K03", (0.0, 3000.0, 6000.0, 0.0)),
+        campaign("K04", (0.0, 5000.0, 2000.0, 0.0)),
+    ]
+    by_id = {c.campaign_id: c for c in many}
+    for um_per_krpm2, signature in ((0.025, False), (0.035, True)):
+        current = {c.campaign_id: speed_step(c, um_per_krpm2) + noisy(c, 1) for c in many}
+        removed = {c.campaign_id: noisy(c, 1) for c in many}  # the term takes the step
+        steps, still = pooled_jumps(by_id, current)
+        assert steps_measured(steps, still) < 0.01
+        models = evidence(current), evidence(current), evidence(removed)
+        assert speed_step_gate(many, 0.2)("centrifugal_growth", *models) is None
+        shown = step_signature(many, 0.2)("centrifugal_growth", models[1], models[2])
+        assert (shown is not None) == signature

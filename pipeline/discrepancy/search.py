@@ -766,22 +766,26 @@ def _admitted(
     ``trail`` is (baseline, current model, effects named so far). Its calibrated parameters
     must be the effect's physics (:func:`pipeline.discrepancy.own_evidence.implausible_reason`);
     a later effect must pass on the campaigns where the named ones act least
-    (:func:`~pipeline.discrepancy.own_evidence.own_evidence_reason`); then the ``gate``.
+    (:func:`~pipeline.discrepancy.own_evidence.own_evidence_reason`), unless its own signature
+    shows (:attr:`Candidate.signature`: a structure no other candidate makes is evidence of its
+    own wherever it lies); then the ``gate``.
     """
     baseline, current, named = trail
     weak = weak_campaigns(_residuals(baseline), _residuals(current)) if named else []
     thresholds = (settings.min_heldout_reduction, settings.min_heldout_t_reduction)
     for candidate in (c for c in ranked if c.passes):
         augmented = models[candidate.effect]
-        reason = implausible_reason(candidate.effect, augmented.full.params) or own_evidence_reason(
-            candidate.effect,
-            named,
-            weak,
-            _residuals(current),
-            _residuals(augmented),
-            thresholds,
-            candidate.effect in SENSOR_ONLY_EFFECTS,
-        )
+        reason = implausible_reason(candidate.effect, augmented.full.params)
+        if reason is None and candidate.signature is None:
+            reason = own_evidence_reason(
+                candidate.effect,
+                named,
+                weak,
+                _residuals(current),
+                _residuals(augmented),
+                thresholds,
+                candidate.effect in SENSOR_ONLY_EFFECTS,
+            )
         if reason is None and gate is not None:
             reason = gate(candidate.effect, baseline, current, augmented)
         if reason is None:
