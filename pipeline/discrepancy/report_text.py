@@ -323,7 +323,7 @@ def _candidate_table(entry: Mapping[str, Any]) -> list[str]:
 
 
 def _passes_cell(candidate: Mapping[str, Any]) -> str:
-    """Return the *passes* cell of a candidate: yes, yes on its test's campaigns, or no."""
+    """Return the *passes* cell: yes, yes on its test's campaigns or on its own signature, or no."""
     if candidate.get("passes_on_test"):
         return "yes, on its test's campaigns"
     if candidate.get("passes_on_signature"):
