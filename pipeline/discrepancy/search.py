@@ -795,6 +795,19 @@ def _admitted(
     return None
 
 
+def _warn_untestable(untestable: Mapping[str, Sequence[str]] | None) -> dict[str, list[str]]:
+    """Warn about each effect no sensor can test; return effect -> missing roles."""
+    untestable = {k: list(v) for k, v in (untestable or {}).items() if v}
+    for effect, roles in untestable.items():
+        logger.warning(
+            "effect %s cannot be tested: no sensor with role %s; map a sensor to it in "
+            "campaign.yaml to test it",
+            effect,
+            " / ".join(roles),
+        )
+    return untestable
+
+
 def forward_search(
     evaluator: Evaluator,
     campaign_ids: Sequence[str],
@@ -829,14 +842,7 @@ def forward_search(
     SearchResult
     """
     start = time.perf_counter()
-    untestable = {k: list(v) for k, v in (untestable or {}).items() if v}
-    for effect, roles in untestable.items():
-        logger.warning(
-            "effect %s cannot be tested: no sensor with role %s; map a sensor to it in "
-            "campaign.yaml to test it",
-            effect,
-            " / ".join(roles),
-        )
+    untestable = _warn_untestable(untestable)
     folds = make_folds(campaign_ids, settings.n_folds)
     (current,) = evaluate_many(evaluator, [frozenset()], campaign_ids, folds, settings.n_jobs)
     baseline = current
