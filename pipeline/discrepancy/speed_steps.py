@@ -38,7 +38,7 @@ effect makes no step).
 from __future__ import annotations
 
 import logging
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -208,20 +208,25 @@ def read_steps(
     )
 
 
-def _read_times(settle_s: float, hold_s: float) -> np.ndarray:
-    """Return the times the jumps are read at: each multiple of ``settle_s`` to ``hold_s``, s."""
-    return settle_s * np.arange(1, max(int(hold_s // settle_s), 1) + 1)
+StepReader = Callable[[ModelEvidence, ModelEvidence], list[StepReading]]
+"""``(current, augmented) -> readings``: :func:`read_steps` at every read time."""
 
 
-def _readings(
-    by_id: Mapping[str, MeasuredCampaign],
-    current: ModelEvidence,
-    augmented: ModelEvidence,
-    read_times: np.ndarray,
-) -> list[StepReading]:
-    """:func:`read_steps` of the held-out Z residuals of two models at every read time."""
-    now, then = current.heldout.z_residual_um, augmented.heldout.z_residual_um
-    return [read_steps(by_id, now, then, t) for t in read_times]
+def _step_reader(
+    campaigns: Sequence[MeasuredCampaign], settle_s: float, hold_s: float
+) -> StepReader:
+    """Return the reader of two models' held-out Z jumps on ``campaigns``.
+
+    It reads them at every multiple of ``settle_s`` up to ``hold_s``, s.
+    """
+    by_id = {c.campaign_id: c for c in campaigns}
+    read_times = settle_s * np.arange(1, max(int(hold_s // settle_s), 1) + 1)
+
+    def read(current: ModelEvidence, augmented: ModelEvidence) -> list[StepReading]:
+        now, then = current.heldout.z_residual_um, augmented.heldout.z_residual_um
+        return [read_steps(by_id, now, then, t) for t in read_times]
+
+    return read
 
 
 def _step_verdict(readings: Sequence[StepReading], min_reduction: float) -> str | None:
@@ -285,15 +290,14 @@ def speed_step_gate(
     hold_s : float
         Latest read of 3., s.
     """
-    by_id = {c.campaign_id: c for c in campaigns}
-    read_times = _read_times(settle_s, hold_s)
+    read = _step_reader(campaigns, settle_s, hold_s)
 
     def gate(
         effect: str, baseline: ModelEvidence, current: ModelEvidence, augmented: ModelEvidence
     ) -> str | None:
         if effect not in STEP_EFFECTS:
             return None
-        readings = _readings(by_id, current, augmented, read_times)
+        readings = read(current, augmented)
         if readings[0].n_changes == 0:
             return (
                 "the campaigns have no speed change, where its own signature (a step of the "
@@ -331,13 +335,12 @@ def step_signature(
     constant speed, give the words of the first read; otherwise, and for any other effect,
     None. Parameters as in :func:`speed_step_gate`.
     """
-    by_id = {c.campaign_id: c for c in campaigns}
-    read_times = _read_times(settle_s, hold_s)
+    read = _step_reader(campaigns, settle_s, hold_s)
 
     def shown(effect: str, current: ModelEvidence, augmented: ModelEvidence) -> str | None:
         if effect not in STEP_EFFECTS:
             return None
-        readings = _readings(by_id, current, augmented, read_times)
+        readings = read(current, augmented)
         first = readings[0]
         if first.n_changes == 0 or _step_verdict(readings, min_reduction) is not None:
             return None
