@@ -24,6 +24,7 @@ from pipeline.discrepancy import (
 )
 from pipeline.discrepancy.calibrate import noise_sd
 from pipeline.discrepancy.data import campaigns_from_tables
+from pipeline.discrepancy.search import TwinEvaluator
 from pipeline.io.tables import ingest
 from pipeline.thermal import stepping
 from pipeline.thermal.program import Program, Segment
@@ -113,6 +114,29 @@ def test_calibrated_parameters_are_within_their_bounds(baseline_campaigns):
         assert spec.lower <= value <= spec.upper
         assert unit == spec.unit
     assert fit.n_params == len(model.param_specs) + 2
+
+
+def test_a_search_calibration_keeps_the_lower_cost_of_its_warm_and_initial_starts(
+    baseline_campaigns,
+):
+    campaigns = baseline_campaigns[:2]
+    ids = tuple(c.campaign_id for c in campaigns)
+    model = build_model(_roles(campaigns), frozenset())
+    from_initial = calibrate(model, campaigns)
+    evaluator = TwinEvaluator(campaigns)
+    at_upper = {p.name: p.upper for p in model.param_specs}
+    hot_and_loose = {
+        p.name: p.upper if p.name.startswith("C_") else p.lower for p in model.param_specs
+    }
+    # measured here: from every upper bound the fit ends above the initial values' cost, from
+    # large capacities and small conductances below it
+    assert calibrate(model, campaigns, start=at_upper).sse > 1.0001 * from_initial.sse
+    below = calibrate(model, campaigns, start=hot_and_loose)
+    assert below.sse < 0.999 * from_initial.sse
+
+    assert evaluator(frozenset(), ids, ids, at_upper).bic == pytest.approx(from_initial.bic)
+    assert evaluator(frozenset(), ids, ids, hot_and_loose).bic == pytest.approx(below.bic)
+    assert evaluator(frozenset(), ids, ids, None).bic == pytest.approx(from_initial.bic)
 
 
 def test_an_effect_adds_its_parameters_with_units_and_bounds():

@@ -1,8 +1,9 @@
 """Forward selection of the physical effects the twin is missing.
 
 Start from the baseline twin (no effect). At each step, for every candidate effect not yet in
-the model whose sensor roles are present: add it, recalibrate (starting from the current
-model's calibrated values), and measure its evidence
+the model whose sensor roles are present: add it, recalibrate (from the current model's
+calibrated values and from the parameters' initial values, keeping the lower cost), and measure
+its evidence
 
 * ``delta_bic`` (and ``delta_aicc``): change of the information criterion of the calibration
   on all campaigns against the current model (negative = better);
@@ -905,13 +906,26 @@ class TwinEvaluator:
     def __call__(
         self, effects: frozenset, train: tuple, test: tuple, start: Mapping | None = None
     ) -> FitResult:
-        """Calibrate ``effects`` on ``train`` (from ``start`` values); residuals on ``test``."""
+        """Calibrate ``effects`` on ``train``; residuals on ``test``.
+
+        With ``start`` values (the current model's calibration on the same campaigns) the
+        calibration runs from them and from the parameters' initial values, and the lower
+        cost on ``train`` is kept. A warm start alone carries a local minimum down the search:
+        on an independent machine model (four campaigns, two folds, centrifugal growth and
+        nonlinear bearing heat hidden) the baseline's fit of one fold sat in a basin the
+        augmented models never left from there (training BIC 5314 against 5082 from the
+        initial values), which hid the speed steps' removal (held-out jumps 2.54 -> 2.26 um
+        against 2.55 -> 1.62 um).
+        """
         from pipeline.discrepancy.calibrate import calibrate
         from pipeline.discrepancy.model import build_model
 
         model = build_model(self.roles, frozenset(effects), self.load_roles)
         start = {k: v for k, v in (start or {}).items() if k in set(model.names)} or None
-        fit = calibrate(model, [self.campaigns[c] for c in train], start=start)
+        on = [self.campaigns[c] for c in train]
+        fit = calibrate(model, on, start=start)
+        if start is not None:
+            fit = min(fit, calibrate(model, on), key=lambda f: f.sse)
         z_res, t_res = self._residuals(model, fit.theta, test)
         return FitResult(
             bic=float(fit.bic),
