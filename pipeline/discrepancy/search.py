@@ -912,20 +912,20 @@ class TwinEvaluator:
         calibration runs from them and from the parameters' initial values, and the lower
         cost on ``train`` is kept. A warm start alone carries a local minimum down the search:
         on an independent machine model (four campaigns, two folds, centrifugal growth and
-        nonlinear bearing heat hidden) the baseline's fit of one fold sat in a basin the
-        augmented models never left from there (training BIC 5314 against 5082 from the
-        initial values), which hid the speed steps' removal (held-out jumps 2.54 -> 2.26 um
-        against 2.55 -> 1.62 um).
+        nonlinear bearing heat hidden) the baseline's fit of one fold ended in a poor basin
+        and the models started there stayed in it (bearing heat's fit of that fold: training
+        BIC 5314, against 5082 from the initial values), which hid the growth's removal of the
+        speed steps (held-out jumps 2.54 -> 2.26 um, against 2.55 -> 1.62 um).
         """
         from pipeline.discrepancy.calibrate import calibrate
         from pipeline.discrepancy.model import build_model
 
         model = build_model(self.roles, frozenset(effects), self.load_roles)
         start = {k: v for k, v in (start or {}).items() if k in set(model.names)} or None
-        on = [self.campaigns[c] for c in train]
-        fit = calibrate(model, on, start=start)
+        train_campaigns = [self.campaigns[c] for c in train]
+        fit = calibrate(model, train_campaigns, start=start)
         if start is not None:
-            fit = min(fit, calibrate(model, on), key=lambda f: f.sse)
+            fit = min(fit, calibrate(model, train_campaigns), key=lambda f: f.sse)
         z_res, t_res = self._residuals(model, fit.theta, test)
         return FitResult(
             bic=float(fit.bic),
