@@ -438,23 +438,31 @@ def _multistart(
     max_nfev: int,
     tol: float,
     prior: _Prior | None = None,
+    also_from: np.ndarray | None = None,
 ) -> OptimizeResult:
     """Run ``least_squares`` from each start; return the result of the lowest cost.
 
-    The first start is ``theta0`` (clipped inside the bounds); each other one adds normal
-    noise of standard deviation 0.5 (``seed``) to its log-space coordinates. With a ``prior``
-    its rows join the residuals.
+    The first start is ``theta0`` (clipped inside the bounds), then ``also_from`` if given;
+    each of the other ``n_starts - 1`` adds normal noise of standard deviation 0.5 (``seed``)
+    to the first's log-space coordinates. With a ``prior`` its rows join the residuals.
     """
     fun, jac = _objective(model, targets, space, prior)
-    x0 = space.inside(_to_x(np.clip(theta0, space.lo, space.hi), space.logs))
-    x_scale = np.where(space.logs, 1.0, np.maximum(np.abs(theta0), (space.hi - space.lo) / 20.0))
+
+    def start_at(theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Return the fitted-space start of ``theta`` and its ``least_squares`` scales."""
+        x = space.inside(_to_x(np.clip(theta, space.lo, space.hi), space.logs))
+        scale = np.maximum(np.abs(theta), (space.hi - space.lo) / 20.0)
+        return x, np.where(space.logs, 1.0, scale)
+
+    x0, x_scale0 = start_at(theta0)
+    starts = [(x0, x_scale0)] + ([start_at(also_from)] if also_from is not None else [])
     rng = np.random.default_rng(seed)
+    starts += [
+        (space.inside(x0 + np.where(space.logs, rng.normal(0.0, 0.5, x0.size), 0.0)), x_scale0)
+        for _ in range(max(1, int(n_starts)) - 1)
+    ]
     best = None
-    for k in range(max(1, int(n_starts))):
-        if k == 0:
-            xs = x0
-        else:
-            xs = space.inside(x0 + np.where(space.logs, rng.normal(0.0, 0.5, x0.size), 0.0))
+    for k, (xs, x_scale) in enumerate(starts):
         res = least_squares(
             fun,
             xs,
@@ -561,6 +569,7 @@ def calibrate(
     max_nfev: int = 400,
     tol: float = 1e-6,
     prior_log_sd: float | None = None,
+    also_from_initial: bool = False,
 ) -> Calibration:
     """Fit the model's bounded parameters to the campaigns by least squares.
 
@@ -591,6 +600,9 @@ def calibrate(
         Fit the maximum a posteriori point under priors centred on the specs' initial values,
         this scale in the log of a positive parameter (module docstring). Default: plain least
         squares.
+    also_from_initial : bool
+        With ``start``, start once more from the specs' initial values (a warm start alone can
+        carry a previous fit's local minimum into this one); the lowest cost wins.
 
     Returns
     -------
@@ -620,6 +632,7 @@ def calibrate(
             max_nfev=max_nfev,
             tol=tol,
             prior=_prior(model, space, prior_log_sd),
+            also_from=model.initial() if start and also_from_initial else None,
         )
         raw = _raw_residuals(model, space.theta(best.x)[None, :], targets)
     result = _calibration(model, targets, space, best, raw, noise, time.perf_counter() - t0)

@@ -922,10 +922,9 @@ class TwinEvaluator:
 
         model = build_model(self.roles, frozenset(effects), self.load_roles)
         start = {k: v for k, v in (start or {}).items() if k in set(model.names)} or None
-        train_campaigns = [self.campaigns[c] for c in train]
-        fit = calibrate(model, train_campaigns, start=start)
-        if start is not None:
-            fit = min(fit, calibrate(model, train_campaigns), key=lambda f: f.sse)
+        fit = calibrate(
+            model, [self.campaigns[c] for c in train], start=start, also_from_initial=True
+        )
         z_res, t_res = self._residuals(model, fit.theta, test)
         return FitResult(
             bic=float(fit.bic),
