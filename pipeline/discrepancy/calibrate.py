@@ -587,8 +587,7 @@ def calibrate(
         Starting values by parameter name (e.g. a previous calibration's), clipped into the
         bounds; the others start at their spec's ``initial``.
     n_starts : int
-        Number of starts (the first from ``start``/initial, the others perturbed by a factor
-        of up to ~3 in log space); the lowest SSE wins.
+        Starts: ``start``/initial, the others perturbed ~3x in log space; lowest cost wins.
     seed : int
         Seed of the perturbed starts.
     max_nfev : int
@@ -601,8 +600,8 @@ def calibrate(
         this scale in the log of a positive parameter (module docstring). Default: plain least
         squares.
     also_from_initial : bool
-        With ``start``, start once more from the specs' initial values (a warm start alone can
-        carry a previous fit's local minimum into this one); the lowest cost wins.
+        With ``start``, start from the specs' initial values too (a warm start alone can carry
+        a previous fit's local minimum); the lowest cost wins.
 
     Returns
     -------
