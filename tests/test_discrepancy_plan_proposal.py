@@ -205,9 +205,10 @@ def test_a_heater_on_the_column_rear_separates_bending_from_the_column_s_growth(
 
 def test_the_air_s_daily_cycle_is_what_shows_ambient_variation(flat):
     """The air barely moves in a test of a few hours and the plans are simulated at a constant
-    air, so no spindle program or heater shows ``ambient_variation``; its grid adds warm-up
-    runs logged through half and all of a day, simulated with the air swinging by the largest
-    range one campaign recorded. The same plan at a constant air shows nothing."""
+    air, so no spindle program or heater shows ``ambient_variation``; its grid adds the
+    machine at rest, with and without a warm-up run first, logged through half and all of a
+    day, simulated with the air swinging by the largest range one campaign recorded. The same
+    plan at a constant air shows nothing; at rest it shows more than after the run."""
     point = flat[0]
     campaigns = point.campaigns
     swing = tp.air_swing_k(campaigns)
@@ -219,8 +220,11 @@ def test_the_air_s_daily_cycle_is_what_shows_ambient_variation(flat):
     daily = [
         p for p in tp.candidate_plans(wider, "ambient_variation", point.roles) if p.air_swing_k
     ]
-    assert [p.duration_h for p in daily] == list(tp.AIR_CYCLE_DURATIONS_H)
+    assert sorted(p.duration_h for p in daily) == sorted(2 * tp.AIR_CYCLE_DURATIONS_H)
     assert all(p.air_swing_k == tp.air_swing_k(wider) for p in daily)
+    at_rest = [p for p in daily if p.program.segments[0].value == 0.0]
+    assert [p.duration_h for p in at_rest] == list(tp.AIR_CYCLE_DURATIONS_H)
+    assert all(len(p.program.segments) == 1 for p in at_rest)
     for effect in ("thermal_bending", "motor_heat", "sensor_lag"):
         assert not any(p.air_swing_k for p in tp.candidate_plans(wider, effect, point.roles))
     t = np.array([0.0, 6.0, 12.0, 24.0]) * 3600.0
@@ -229,6 +233,10 @@ def test_the_air_s_daily_cycle_is_what_shows_ambient_variation(flat):
     with_cycle = _plan_signal(point, day, "ambient_variation")
     still_air = _plan_signal(point, replace(day, air_swing_k=0.0), "ambient_variation")
     assert with_cycle > SETTINGS.min_signal_sigma > 20 * still_air, (with_cycle, still_air)
+    # at rest nothing but the air drives the machine: the baseline absorbs less of it than
+    # after a warm-up run, whose heat its slow conduction follows
+    rest_day = replace(at_rest[-1], air_swing_k=2.0)
+    assert _plan_signal(point, rest_day, "ambient_variation") > with_cycle
     entry = day.to_dict(with_cycle)
     assert entry["air_swing_k"] == 2.0 and entry["duration_h"] == tp.DAY_H
     proposed = tp.ProposedTest("ambient_variation", day, _figures(with_cycle), None, 0.1, 1.5, 22)
