@@ -37,11 +37,12 @@ from pipeline.discrepancy.identifiability import (
     assess_effects,
     classify,
     identifiability,
+    unconfirmed_effects,
     visibility_gate,
 )
 from pipeline.discrepancy.model import EFFECT_SPECS, EFFECTS
 from pipeline.discrepancy.report_text import markdown
-from pipeline.discrepancy.search import FitResult, ModelEvidence, SearchResult
+from pipeline.discrepancy.search import Candidate, FitResult, ModelEvidence, SearchResult
 from pipeline.discrepancy.visibility import (
     PLAUSIBLE,
     RISE_SIZED,
@@ -348,6 +349,55 @@ def test_the_search_s_baseline_and_outcome_give_every_candidate_its_class(speed_
     assert ours == alone["nonlinear_bearing_heat"].figures
 
 
+def _tried(effect: str, delta_bic: float, passes: bool = False) -> Candidate:
+    """A candidate of the search's last round: held-out Z +8 %, temperatures -12 %."""
+    return Candidate(effect, delta_bic, delta_bic, 1.08, -0.08, 0.088, 0.12, passes, True)
+
+
+def test_an_effect_the_fit_prefers_and_the_held_out_campaigns_do_not_confirm_gets_a_test(
+    speed_steps,
+):
+    """Visible on the campaigns, preferred by the BIC, not confirmed held out: not identifiable
+    (its test separates it), where the signal alone would have closed it as not needed. An
+    effect the BIC does not prefer, and a suspect, stay as the signal classes them."""
+    campaigns, _, fit, _ = speed_steps
+    full = FitResult(fit.bic, fit.aicc, dict(fit.params), {})
+    baseline = ModelEvidence(frozenset(), full, full)
+    last = [
+        _tried("nonlinear_bearing_heat", -1279.0),
+        _tried("centrifugal_growth", -5.0),
+        _tried("motor_heat", -900.0, passes=True),
+    ]
+    result = SearchResult(
+        named_effects=[],
+        baseline=baseline,
+        final=baseline,
+        steps=[],
+        rounds=[[_tried("nonlinear_bearing_heat", 3.0)], last],
+        untestable={},
+        folds=[[c.campaign_id] for c in campaigns],
+        seconds=0.0,
+        suspects={"motor_heat": "its calibrated values are not its physics"},
+    )
+    max_bic = SECTION.max_delta_bic
+    why = unconfirmed_effects(result, max_bic)
+    assert list(why) == ["nonlinear_bearing_heat"]
+    assert "delta BIC -1279" in why["nonlinear_bearing_heat"]
+    assert "Z RMS +8 %" in why["nonlinear_bearing_heat"]
+    assert "temperatures -12 %" in why["nonlinear_bearing_heat"]
+    plain = identifiability(campaigns, result, EFFECTS, SETTINGS)
+    assert plain["nonlinear_bearing_heat"].status == NOT_NEEDED  # visible with speed steps
+    classes = identifiability(campaigns, result, EFFECTS, SETTINGS, max_delta_bic=max_bic)
+    bearing = classes["nonlinear_bearing_heat"]
+    assert bearing.status == NOT_IDENTIFIABLE
+    assert bearing.shortfalls == ("held_out",) and bearing.figures == plain[bearing.effect].figures
+    assert classes["centrifugal_growth"].status == plain["centrifugal_growth"].status
+    assert classes["motor_heat"].status == plain["motor_heat"].status
+    entry = bearing.to_dict(SETTINGS)
+    assert entry["class"] == "not_identifiable" and entry["unconfirmed"] == bearing.unconfirmed
+    assert "unconfirmed" not in classes["centrifugal_growth"].to_dict(SETTINGS)
+
+
 def _baseline_evidence(case) -> ModelEvidence:
     """The baseline's evidence as the search holds it: held out on every campaign of ``case``."""
     campaigns, _, fit, _ = case
@@ -382,6 +432,10 @@ def test_the_report_says_each_class_in_words():
         "thermal_bending": report_entry("not_identifiable", 5.0, 44.0, ["collinearity"]),
         "centrifugal_growth": report_entry("not_needed", 4.2, 3.0, []),
         "motor_heat": report_entry("named", 9.0, 2.0, []),
+        "nonlinear_bearing_heat": {
+            **report_entry("not_identifiable", 6.1, 3.0, ["held_out"]),
+            "unconfirmed": "the calibration on all campaigns prefers it (delta BIC -1279)",
+        },
         "ambient_variation": {
             "class": "untestable",
             "missing_roles": ["ambient"],
@@ -400,6 +454,11 @@ def test_the_report_says_each_class_in_words():
     )
     assert "`centrifugal_growth`: tested and not needed" in text and "4.2 sigma" in text
     assert "`motor_heat`: named;" in text
+    assert (
+        "`nonlinear_bearing_heat`: **not identifiable with these campaigns**: the calibration on "
+        "all campaigns prefers it (delta BIC -1279) (at sensor_lag_s = 600 s" in text
+    )
+    assert "6.1 sigma" in text and "do not confirm" in text
     assert "`ambient_variation`: untestable: no sensor with role ambient." in text
     assert text.count("\n- `") == len(entries)
 

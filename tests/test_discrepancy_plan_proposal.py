@@ -242,6 +242,15 @@ def test_the_air_s_daily_cycle_is_what_shows_ambient_variation(flat):
     proposed = tp.ProposedTest("ambient_variation", day, _figures(with_cycle), None, 0.1, 1.5, 22)
     text = tp.plan_text(proposed)
     assert "2.0 K over the day" in text and "cool of the morning" in text
+    assert text.startswith("To make `ambient_variation` visible (0.10 sigma")
+    # visible on the campaigns, preferred by the fit, not confirmed held out: the test is there
+    # to show it on campaigns of its own, and says why
+    why = "the calibration on all campaigns prefers it (delta BIC -1279), but ..."
+    text = tp.plan_text(replace(proposed, current_sigma=6.1, unconfirmed=why))
+    assert text.startswith(
+        f"To show `ambient_variation` on campaigns of its own (6.10 sigma on "
+        f"these campaigns; {why}), run a 24 h test"
+    )
 
 
 # ------------------------------------------------------------------ cost ordering

@@ -672,6 +672,10 @@ class ProposedTest:
         The proposed plan shows the effect above the identifiability thresholds, but too
         little against the twin's held-out misfit for the search's rule to name it from this
         test alone (:mod:`~pipeline.discrepancy.plan_naming`).
+    unconfirmed : str
+        Why the effect, visible on the campaigns, is not identifiable: the fit prefers it and
+        the held-out campaigns do not confirm it
+        (:func:`~pipeline.discrepancy.identifiability.unconfirmed_effects`); "" otherwise.
     """
 
     effect: str
@@ -689,6 +693,7 @@ class ProposedTest:
     calibration: TestPlan | None = None
     calibration_rise: PlanRise | None = None
     misfit_limited: bool = False
+    unconfirmed: str = ""
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready ``proposed_test``: the plan in the raw contract's terms and its text."""
@@ -770,9 +775,14 @@ def plan_text(proposed: ProposedTest) -> str:
     """One paragraph for the engineer: the test to run and what the twin expects it to show."""
     e = f"`{proposed.effect}`"
     now = f"{proposed.current_sigma:.2f} sigma on these campaigns"
+    aim = (
+        f"To show {e} on campaigns of its own ({now}; {proposed.unconfirmed})"
+        if proposed.unconfirmed
+        else f"To make {e} visible ({now}, threshold {proposed.threshold_sigma:g})"
+    )
     if proposed.plan is not None and proposed.figures is not None:
         return (
-            f"To make {e} visible ({now}, threshold {proposed.threshold_sigma:g}), "
+            f"{aim}, "
             f"{_program_words(proposed.plan)}. The calibrated twin expects it to leave "
             f"{proposed.figures.signal_sigma:.2f} noise sigmas beyond what the baseline absorbs "
             f"(cost {proposed.plan.cost:g} test hours, the cheapest of {proposed.n_plans} plans "
@@ -1104,6 +1114,7 @@ def _proposed(
         calibration=step,
         calibration_rise=step_rise,
         misfit_limited=misfit_limited,
+        unconfirmed=current.unconfirmed,
     )
     logger.info("test plan for %s: %s", effect, plan_text(proposed))
     return proposed

@@ -393,6 +393,8 @@ def _identifiability_line(effect: str, entry: Mapping[str, Any]) -> str:
             reasons.append(_beyond(entry))
         if "collinearity" in entry["shortfalls"]:
             reasons.append(f"the baseline's parameters mimic it: {_collinear(entry)}")
+        if "held_out" in entry["shortfalls"]:
+            reasons.append(f"{entry['unconfirmed']} ({_beyond(entry)})")
         line = (
             f"- `{effect}`: **not identifiable with these campaigns**: {'; and '.join(reasons)}. "
             "Not naming it does not mean it is absent."
@@ -428,7 +430,8 @@ def _identifiability_lines(entries: Mapping[str, Mapping[str, Any]]) -> list[str
         "the calibrated baseline absorbs by moving its own parameters (RMS over the measured "
         "samples, in noise sigmas, um and K), and how collinear its sensitivities are with the "
         f"baseline's (Brun et al. 2001). An effect{rule} is not identifiable with these "
-        "campaigns: the search cannot name it even if it is there.",
+        "campaigns: the search cannot name it even if it is there; so is one the calibration on "
+        "all campaigns prefers but the held-out campaigns do not confirm.",
         "",
         *(_identifiability_line(effect, entry) for effect, entry in entries.items()),
     ]

@@ -229,7 +229,9 @@ def run(
     signature = step_signature(campaigns, settings.min_heldout_reduction)
     result = search_twin(campaigns, settings, follow, gate, signature)
     point = searched_point(campaigns, result, ident_settings)
-    classes = identifiability(campaigns, result, settings.candidates, ident_settings, point)
+    classes = identifiability(
+        campaigns, result, settings.candidates, ident_settings, point, settings.max_delta_bic
+    )
     floor = held_out_floor(result, point.campaigns, settings)
     proposed = propose_tests(point, classes, ident_settings, floor)
     entries = {e: c.to_dict(ident_settings) for e, c in classes.items()}
