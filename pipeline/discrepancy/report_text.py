@@ -430,8 +430,9 @@ def _identifiability_lines(entries: Mapping[str, Mapping[str, Any]]) -> list[str
         "the calibrated baseline absorbs by moving its own parameters (RMS over the measured "
         "samples, in noise sigmas, um and K), and how collinear its sensitivities are with the "
         f"baseline's (Brun et al. 2001). An effect{rule} is not identifiable with these "
-        "campaigns: the search cannot name it even if it is there; so is one the calibration on "
-        "all campaigns prefers but the held-out campaigns do not confirm.",
+        "campaigns: the search cannot name it even if it is there; so is an effect with no "
+        "parameter of its own (the measured air) that the calibration on all campaigns prefers "
+        "and the held-out campaigns do not confirm.",
         "",
         *(_identifiability_line(effect, entry) for effect, entry in entries.items()),
     ]
