@@ -449,13 +449,13 @@ def test_the_report_says_each_class_in_words():
         "thermal_bending": report_entry("not_identifiable", 5.0, 44.0, ["collinearity"]),
         "centrifugal_growth": report_entry("not_needed", 4.2, 3.0, []),
         "motor_heat": report_entry("named", 9.0, 2.0, []),
-        "nonlinear_bearing_heat": {
+        "ambient_variation": {
             **report_entry("not_identifiable", 6.1, 3.0, ["held_out"]),
             "unconfirmed": "the calibration on all campaigns prefers it (delta BIC -1279)",
         },
-        "ambient_variation": {
+        "nonlinear_bearing_heat": {
             "class": "untestable",
-            "missing_roles": ["ambient"],
+            "missing_roles": ["spindle_front_bearing"],
             "thresholds": SETTINGS.thresholds(),
         },
     }
@@ -472,11 +472,13 @@ def test_the_report_says_each_class_in_words():
     assert "`centrifugal_growth`: tested and not needed" in text and "4.2 sigma" in text
     assert "`motor_heat`: named;" in text
     assert (
-        "`nonlinear_bearing_heat`: **not identifiable with these campaigns**: the calibration on "
+        "`ambient_variation`: **not identifiable with these campaigns**: the calibration on "
         "all campaigns prefers it (delta BIC -1279) (at sensor_lag_s = 600 s" in text
     )
     assert "6.1 sigma" in text and "do not confirm" in text
-    assert "`ambient_variation`: untestable: no sensor with role ambient." in text
+    assert (
+        "`nonlinear_bearing_heat`: untestable: no sensor with role spindle_front_bearing." in text
+    )
     assert text.count("\n- `") == len(entries)
 
 
