@@ -28,7 +28,10 @@ anything then is a false alarm.
 ``python -m benchmarks.discrepancy_trials --seeds 1 2 3 4 5 --out reports/discrepancy_trials`` runs
 every case over the seeds on both machines (``--generators`` to choose) and writes
 ``trials.csv`` (one row per machine, case and seed) and ``rates.md`` (rate of correct naming per
-machine and case). The slow tests run the same trials with one seed per case.
+machine and case), each trial as it ends; ``--resume`` keeps the trials an interrupted run of
+the same setting and commit left there (:mod:`benchmarks.trial_resume`) and runs the others.
+The trials run seed by seed, so an interrupted run holds whole seeds of every case. The slow
+tests run the same trials with one seed per case.
 """
 
 from __future__ import annotations
@@ -50,7 +53,7 @@ import pandas as pd
 from scipy.stats import norm
 from statsmodels.stats.proportion import proportion_confint
 
-from benchmarks import independent_machine
+from benchmarks import independent_machine, trial_resume
 from pipeline.config import DEFAULT_PARAMS
 from pipeline.discrepancy.followup import FollowUp
 from pipeline.discrepancy.identifiability import NOT_IDENTIFIABLE
@@ -892,26 +895,41 @@ def main(argv: list[str] | None = None) -> int:
         action="store_true",
         help=f"{QUICK_CAMPAIGNS} campaigns per trial and 2 folds (about a third of the time)",
     )
+    parser.add_argument(
+        "--resume",
+        action="store_true",
+        help="keep the trials OUT/trials.csv holds from an interrupted run of the same setting "
+        "and commit; run the others",
+    )
     args = parser.parse_args(argv)
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(name)s: %(message)s")
     section = load_settings(DiscrepancySettings, "discrepancy", args.params)
     if args.quick:
         section = section.model_copy(update={"n_folds": 2})
         args.campaigns = QUICK_CAMPAIGNS
-    args.out.mkdir(parents=True, exist_ok=True)
-    rows = []
+    kept = trial_resume.start(
+        args.out,
+        trial_resume.trial_setting(section, args.campaigns, trial_resume.code_version()),
+        args.resume,
+    )
+    done = trial_resume.finished(kept)
+    if done:
+        logger.info("resuming: %d trials already in %s", len(done), args.out)
+    rows: list[dict] = []
+    trials = kept
     cases = [c for c in CASES if not args.cases or case_name(c) in args.cases]
-    for generator in args.generators:
-        for seed in args.seeds:
+    for seed in args.seeds:
+        for generator in args.generators:
             for case in cases:
+                if (generator, case_name(case), seed) in done:
+                    continue
                 with tempfile.TemporaryDirectory() as tmp:
                     result = run_trial(
                         case, seed, section, Path(tmp), args.campaigns, generator=generator
                     )
                 logger.info("trial %s", result.row())
                 rows.append(result.row())
-                trials = pd.DataFrame(rows)
-                trials.to_csv(args.out / "trials.csv", index=False)
+                trials = trial_resume.save(args.out, kept, rows)
     rates = rates_table(trials)
     (args.out / "rates.md").write_text(rates_markdown(rates, trials, args.seeds), encoding="utf-8")
     logger.info("rates written to %s", args.out / "rates.md")
