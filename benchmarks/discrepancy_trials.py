@@ -29,7 +29,7 @@ anything then is a false alarm.
 every case over the seeds on both machines (``--generators`` to choose) and writes
 ``trials.csv`` (one row per machine, case and seed) and ``rates.md`` (rate of correct naming per
 machine and case), each trial as it ends; ``--resume`` keeps the trials an interrupted run of
-the same setting and commit left there (:mod:`benchmarks.trial_resume`) and runs the others.
+the same setting and code left there (:mod:`benchmarks.trial_resume`) and runs the others.
 The trials run seed by seed, so an interrupted run holds whole seeds of every case. The slow
 tests run the same trials with one seed per case.
 """
@@ -899,7 +899,7 @@ def main(argv: list[str] | None = None) -> int:
         "--resume",
         action="store_true",
         help="keep the trials OUT/trials.csv holds from an interrupted run of the same setting "
-        "and commit; run the others",
+        "and code; run the others",
     )
     args = parser.parse_args(argv)
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(name)s: %(message)s")

@@ -2,7 +2,7 @@
 
 The full hidden-effect trials (:mod:`benchmarks.discrepancy_trials`) take hours. Each finished
 trial is written to ``trials.csv`` as it ends; this module records the setting the run was made
-in (campaigns per trial, the ``discrepancy`` params section, the code's commit) in
+in (campaigns per trial, the ``discrepancy`` params section, the code's version) in
 ``setting.json`` beside it, and on ``--resume`` returns the finished trials only when the
 setting is the same, so rates never mix trials of different rules or campaigns.
 """
@@ -26,7 +26,7 @@ CODE_PATHS = ("pipeline", "benchmarks", "params.yaml")
 
 
 def code_version(root: Path = REPO_ROOT) -> str:
-    """Return the commit the trials run on, ``-dirty`` when the code or params differ from it.
+    """Return the version of the code the trials' outcome depends on.
 
     Parameters
     ----------
@@ -36,15 +36,17 @@ def code_version(root: Path = REPO_ROOT) -> str:
     Returns
     -------
     str
-        ``git rev-parse HEAD``, with ``-dirty`` appended when ``pipeline/``, ``benchmarks/`` or
-        ``params.yaml`` have uncommitted changes; ``unknown`` outside a git checkout.
+        The git object ids of ``pipeline/``, ``benchmarks/`` and ``params.yaml`` at ``HEAD``
+        (so a commit that changes only the docs keeps the version), with ``-dirty`` appended when
+        they have uncommitted changes; ``unknown`` outside a git checkout.
     """
     try:
-        commit = _git(root, "rev-parse", "HEAD")
+        trees = _git(root, "rev-parse", *(f"HEAD:{path}" for path in CODE_PATHS))
         changes = _git(root, "status", "--porcelain", "--", *CODE_PATHS)
     except (OSError, subprocess.CalledProcessError):
         return "unknown"
-    return f"{commit}-dirty" if changes else commit
+    version = "-".join(tree[:12] for tree in trees.split())
+    return f"{version}-dirty" if changes else version
 
 
 def _git(root: Path, *args: str) -> str:

@@ -44,18 +44,25 @@ def test_a_run_of_another_setting_is_not_resumed(tmp_path, change, word):
         start(tmp_path, {**setting, **change}, resume=True)
 
 
-def test_the_code_version_is_the_commit_and_says_when_the_code_changed(tmp_path):
+def test_the_code_version_changes_with_the_code_not_the_docs(tmp_path):
     assert code_version(tmp_path) == "unknown"
     git = ["git", "-c", "user.name=t", "-c", "user.email=t@t", "-C", str(tmp_path)]
+
+    def commit(path: str, text: str) -> str:
+        (tmp_path / path).parent.mkdir(exist_ok=True)
+        (tmp_path / path).write_text(text)
+        subprocess.run([*git, "add", "."], check=True)
+        subprocess.run([*git, "commit", "-q", "-m", path], check=True)
+        return code_version(tmp_path)
+
     subprocess.run([*git, "init", "-q"], check=True)
-    (tmp_path / "pipeline").mkdir()
-    (tmp_path / "pipeline" / "rule.py").write_text("LIMIT = 1\n")
-    (tmp_path / "notes.md").write_text("a\n")
-    subprocess.run([*git, "add", "."], check=True)
-    subprocess.run([*git, "commit", "-q", "-m", "one"], check=True)
-    head = subprocess.run([*git, "rev-parse", "HEAD"], check=True, capture_output=True, text=True)
-    assert code_version(tmp_path) == head.stdout.strip()
-    (tmp_path / "notes.md").write_text("b\n")  # not code: the trials' outcome does not change
-    assert code_version(tmp_path) == head.stdout.strip()
+    (tmp_path / "benchmarks").mkdir()
+    (tmp_path / "benchmarks" / "machine.py").write_text("HEAT = 1\n")
+    (tmp_path / "params.yaml").write_text("n_folds: 4\n")
+    first = commit("pipeline/rule.py", "LIMIT = 1\n")
+    assert first != "unknown" and not first.endswith("-dirty")
+    assert commit("docs/notes.md", "a\n") == first  # the trials' outcome does not change
     (tmp_path / "pipeline" / "rule.py").write_text("LIMIT = 2\n")
-    assert code_version(tmp_path) == f"{head.stdout.strip()}-dirty"
+    assert code_version(tmp_path) == f"{first}-dirty"
+    assert commit("pipeline/rule.py", "LIMIT = 2\n") not in (first, f"{first}-dirty")
+    assert commit("params.yaml", "n_folds: 2\n") != commit("params.yaml", "n_folds: 3\n")
