@@ -285,10 +285,17 @@ TABLE = {  # plan -> its signal, sigma (threshold 1.5)
 
 
 def _propose(
-    monkeypatch, table, rise=lambda signal: 5.0, limit=10.0, loaded=frozenset(), named_if=None
+    monkeypatch,
+    table,
+    rise=lambda signal: 5.0,
+    limit=10.0,
+    loaded=frozenset(),
+    named_if=None,
+    typical=None,
 ):
     """Propose from ``table`` (plan -> signal); each plan heats a part by ``rise(signal)`` K at
-    most (its bound; a number, or an (expected, bound) pair), 1 K less expected."""
+    most (its bound; a number, or an (expected, bound) pair), 1 K less expected; ``typical``
+    (plan -> signal) scores a first heating with the part at typical parameters."""
     monkeypatch.setattr(tp, "visibility", lambda effect, point, plausible: _figures(point))
     current = EffectIdentifiability("sensor_lag", NOT_IDENTIFIABLE, _figures(0.5))
 
@@ -306,6 +313,7 @@ def _propose(
         limit,
         loaded,
         named_if,
+        None if typical is None else typical.__getitem__,
     )
 
 
@@ -363,6 +371,55 @@ def test_a_part_never_heated_gets_a_calibration_step_first(monkeypatch):
     assert "calibration step" not in seen.to_dict()["text"]
     hot = _propose(monkeypatch, table, rise={**rises, 3.0: (39.0, 40.0)}.__getitem__)
     assert hot.calibration is None  # nothing to unlock: the twin itself expects it too hot
+
+
+def test_a_part_that_would_show_the_effect_at_typical_parameters_gets_a_calibration_step(
+    monkeypatch,
+):
+    """At the planning twin's values no plan shows the effect (the motor's capacity, which the
+    campaigns left loose, came out large); with the motor at its typical parameters the 500 W
+    pulse would (3 sigma) but could leave the envelope, and the 100 W pulse fits in it: the
+    100 W pulse is the calibration step. Without that scoring, or with the motor heated by a
+    campaign already, there is none."""
+    table = {
+        _plan("4 h steps", 4.0): 0.9,
+        _heated("25 W pulse", 4.0, 25.0): 0.4,
+        _heated("100 W pulse", 4.0, 100.0): 0.5,
+        _heated("500 W pulse", 4.0, 500.0): 0.6,
+    }
+    typical = dict(zip(table, [9.0, 0.6, 1.2, 3.0], strict=True))  # the plain plan: not asked
+    rises = {0.9: 2.0, 0.4: 3.0, 0.5: 8.0, 0.6: (9.0, 40.0)}  # by signal, K
+    proposed = _propose(monkeypatch, table, rise=rises.__getitem__, typical=typical)
+    assert proposed.plan is None and proposed.calibration.name == "100 W pulse"
+    assert not proposed.to_dict()["visible"] and "calibration step" in proposed.to_dict()["text"]
+    assert _propose(monkeypatch, table, rise=rises.__getitem__).calibration is None
+    heated = frozenset({"spindle_motor"})
+    seen = _propose(monkeypatch, table, rise=rises.__getitem__, loaded=heated, typical=typical)
+    assert seen.calibration is None
+    typical[next(p for p in table if p.name == "500 W pulse")] = 1.0  # not even at typical
+    assert _propose(monkeypatch, table, rise=rises.__getitem__, typical=typical).calibration is None
+
+
+def test_a_first_heating_is_scored_with_the_part_at_its_typical_parameters():
+    """Heating the column's rear face for the first time: its capacity and convection (shared
+    with the front) and its links (to the front and the bed, not the headstock's, which goes to
+    the front) take their specs' typical values; the rest keep the planning twin's."""
+    from pipeline.discrepancy.model import build_model
+    from pipeline.discrepancy.plan_envelope import first_heating_values
+
+    roles = ("spindle_front_bearing", "headstock", "column_front", "column_rear", "bed")
+    model = build_model(roles)
+    values = {p.name: 7.0 for p in model.param_specs}
+    typical = first_heating_values(values, model, ["column_rear"])
+    reset = {name for name in values if typical[name] != values[name]}
+    assert reset == {
+        "C_column_J_per_K",
+        "h_column_W_per_K",
+        "G_column_front_rear_W_per_K",
+        "G_column_bed_W_per_K",
+    }
+    assert typical["C_column_J_per_K"] == 3e5 and typical["G_column_front_rear_W_per_K"] == 10.0
+    assert first_heating_values(values, model, []) == values
 
 
 def test_the_calibration_step_drives_the_part_hardest_not_the_spindle(monkeypatch):

@@ -79,6 +79,7 @@ from pipeline.discrepancy.plan_envelope import (
     ENVELOPE_FLOOR_K,
     PlanRise,
     first_heating_bound_k,
+    first_heating_values,
     rise_limit_k,
 )
 from pipeline.discrepancy.plan_naming import HeldOutFloor, counted_samples, would_be_named
@@ -842,8 +843,9 @@ def _calibration_words(proposed: ProposedTest) -> str:
     parts = ", ".join(sorted({load.role for load in plan.heat_loads}))
     return (
         f" The campaigns never heated the {parts.replace('_', ' ')} directly, so the twin "
-        "cannot tell how far a heater warms it, and the tests that would show the effect are "
-        f"held back by that doubt. First {_program_words(plan)}: a calibration step (cost "
+        "can tell neither how far a heater warms it nor what a test heating it would show: "
+        "the tests that could show the effect are held back by that doubt. First "
+        f"{_program_words(plan)}: a calibration step (cost "
         f"{plan.cost:g} test hours; the twin expects a rise of {rise.expected:.1f} K, at most "
         f"{rise.bound:.1f} K).{_watch_words(plan, proposed)} Add the campaign to the raw folder "
         f"and rerun `thermal discrepancy`: it then proposes the test for {proposed.effect!r} "
@@ -929,6 +931,7 @@ def propose_test(
     rise_limit_k: float = float("inf"),
     loaded: frozenset[str] = frozenset(),
     named_if: Callable[[TestPlan, Visibility], bool] | None = None,
+    first_heating_point_of: Callable[[TestPlan], BaselinePoint] | None = None,
 ) -> ProposedTest:
     """Try ``plans`` cheapest first; return the cheapest that makes ``effect`` visible.
 
@@ -944,7 +947,8 @@ def propose_test(
     campaign heated (``loaded``) that is *held back*: a plan heating it leaves the effect
     above the identifiability thresholds (the naming rule is not asked: its response is scored
     with the very parameters the step is there to measure) and the twin expects it within the
-    envelope, but its bound, the doubt about a part never heated, is not.
+    envelope, but its bound, the doubt about a part never heated, is not; or one shows the
+    effect only with the part at typical parameters (the same doubt about what it would show).
 
     Parameters
     ----------
@@ -967,37 +971,71 @@ def propose_test(
         ``(TestPlan, Visibility) -> bool``: whether the search would name the effect with the
         plan's campaigns added (:func:`~pipeline.discrepancy.plan_naming.would_be_named`);
         default: visible is enough.
+    first_heating_point_of : callable, optional
+        ``point_of`` with the parts heated for the first time at typical parameters
+        (:func:`~pipeline.discrepancy.plan_envelope.first_heating_values`); default: none.
     """
-    scan = _Scan()
     ordered = cheapest_order(plans)
-    for plan in ordered:
-        if scan.done(plan):
-            break  # every plan as cheap as the first visible one was tried
-        scan.tried += 1
-        rise = rise_of(plan)
-        first = _first_heating(plan, loaded)
-        if rise.bound > rise_limit_k:
-            scan.too_hot += 1
-            if first and rise.expected <= rise_limit_k:  # visible where the doubt is largest?
-                figures = visibility(effect, point_of(plan), settings.plausible)
-                if not shortfalls(figures, settings):
-                    scan.hold_back(plan, figures.signal_sigma)
-            continue
-        if first:
-            scan.safe_first.append((plan, rise))
-        figures = visibility(effect, point_of(plan), settings.plausible)
-        signal = figures.signal_sigma if np.isfinite(figures.signal_sigma) else -1.0
-        entry = (signal, plan, figures, rise)
-        if not shortfalls(figures, settings):
-            scan.visible(entry, named_if is None or named_if(plan, figures))
-        if scan.best is None or signal > scan.best[0]:
-            scan.best = entry
+    scan = _scan(
+        effect,
+        ordered,
+        point_of,
+        rise_of,
+        settings,
+        rise_limit_k,
+        loaded,
+        named_if,
+        first_heating_point_of,
+    )
     common = (ordered, settings, rise_limit_k, scan.too_hot, scan.tried)
     found = scan.chosen or scan.fallback
     if found is not None:
         return _proposed(effect, current, found, *common, misfit_limited=scan.chosen is None)
     step = _calibration_step(scan.safe_first, scan.held_back)
     return _proposed(effect, current, scan.best, *common, step, visible=False)
+
+
+def _scan(
+    effect: str,
+    ordered: Sequence[TestPlan],
+    point_of: Callable[[TestPlan], BaselinePoint],
+    rise_of: Callable[[TestPlan], PlanRise],
+    settings: IdentifiabilitySettings,
+    rise_limit_k: float,
+    loaded: frozenset[str],
+    named_if: Callable[[TestPlan, Visibility], bool] | None,
+    first_heating_point_of: Callable[[TestPlan], BaselinePoint] | None,
+) -> _Scan:
+    """Try the plans of :func:`propose_test` (its parameters), cheapest first; return the pass."""
+    scan = _Scan()
+    for plan in ordered:
+        if scan.done(plan):
+            break  # every plan as cheap as the first visible one was tried
+        scan.tried += 1
+        rise = rise_of(plan)
+        first = _first_heating(plan, loaded)
+        too_hot = rise.bound > rise_limit_k
+        scan.too_hot += too_hot
+        if too_hot and not (first and rise.expected <= rise_limit_k):
+            continue
+        figures = visibility(effect, point_of(plan), settings.plausible)
+        clear = not shortfalls(figures, settings)
+        if first and (too_hot or not clear):  # held back by the doubt about a part never heated?
+            typical = (
+                None if clear else _typical_signal(effect, plan, first_heating_point_of, settings)
+            )
+            scan.hold_back(plan, figures.signal_sigma if clear else typical)
+        if too_hot:
+            continue
+        if first:
+            scan.safe_first.append((plan, rise))
+        signal = figures.signal_sigma if np.isfinite(figures.signal_sigma) else -1.0
+        entry = (signal, plan, figures, rise)
+        if clear:
+            scan.visible(entry, named_if is None or named_if(plan, figures))
+        if scan.best is None or signal > scan.best[0]:
+            scan.best = entry
+    return scan
 
 
 _Entry = tuple[float, TestPlan, Visibility, PlanRise]
@@ -1037,8 +1075,13 @@ class _Scan:
         """Whether ``plan`` costs more than the chosen one (the pass can stop)."""
         return self.chosen is not None and _order_key(plan) != _order_key(self.chosen[1])
 
-    def hold_back(self, plan: TestPlan, signal: float) -> None:
-        """Record a visible plan that only the doubt about the parts it heats holds back."""
+    def hold_back(self, plan: TestPlan, signal: float | None) -> None:
+        """Record a visible plan that only the doubt about the parts it heats holds back.
+
+        ``signal`` (sigma) is None when the plan would not show the effect even so.
+        """
+        if signal is None:
+            return
         for load in plan.heat_loads:
             self.held_back[load.role] = max(signal, self.held_back.get(load.role, signal))
 
@@ -1052,6 +1095,23 @@ class _Scan:
             _order_key(plan) == _order_key(self.fallback[1]) and signal > self.fallback[0]
         ):
             self.fallback = entry
+
+
+def _typical_signal(
+    effect: str,
+    plan: TestPlan,
+    first_heating_point_of: Callable[[TestPlan], BaselinePoint] | None,
+    settings: IdentifiabilitySettings,
+) -> float | None:
+    """Return the signal of ``effect`` (sigma) under a first heating at typical parameters.
+
+    The plan's parts heated for the first time take their typical parameters; None when the
+    effect misses a threshold there (or ``first_heating_point_of`` is None).
+    """
+    if first_heating_point_of is None:
+        return None
+    figures = visibility(effect, first_heating_point_of(plan), settings.plausible)
+    return None if shortfalls(figures, settings) else figures.signal_sigma
 
 
 def _calibration_step(
@@ -1177,32 +1237,15 @@ def propose_tests(
         return {}
     twin = plan_twin(point)
     _log_planning_twin(twin, point)
-    ambient_c = _ambient(point.campaigns)
+    scores = _PlanScores(point, twin, plan_sensors(point.campaigns), _ambient(point.campaigns))
     limit = rise_limit_k(point.campaigns)
-    points: dict[TestPlan, BaselinePoint] = {}
-    rises: dict[TestPlan, PlanRise] = {}
-    sensors = plan_sensors(point.campaigns)
-
-    def point_of(plan: TestPlan) -> BaselinePoint:
-        if plan not in points:
-            points[plan] = _plan_point(
-                plan, twin.values, sensors, ambient_c, point.noise, point.prior_log_sd
-            )
-        return points[plan]
-
-    def rise_of(plan: TestPlan) -> PlanRise:
-        if plan not in rises:
-            expected, bound = plan_rises(plan, twin, sensors, ambient_c)
-            first = first_heating_bound_k(plan.heat_loads, point.load_roles, point.prior_log_sd)
-            rises[plan] = PlanRise(expected, max(bound, first), first)
-        return rises[plan]
 
     def named_if(effect: str) -> Callable[[TestPlan, Visibility], bool] | None:
         if floor is None:
             return None
 
         def check(plan: TestPlan, figures: Visibility) -> bool:
-            n_z, n_t = counted_samples(point_of(plan).campaigns)
+            n_z, n_t = counted_samples(scores.point(plan).campaigns)
             return would_be_named(effect, figures, floor, PLAN_REPEATS * n_z, PLAN_REPEATS * n_t)
 
         return check
@@ -1212,12 +1255,70 @@ def propose_tests(
             effect,
             classes[effect],
             candidate_plans(point.campaigns, effect, point.roles),
-            point_of,
-            rise_of,
+            scores.point,
+            scores.rise,
             settings,
             limit,
             point.load_roles,
             named_if(effect),
+            scores.first_heating_point,
         )
         for effect in wanted
     }
+
+
+@dataclass
+class _PlanScores:
+    """The simulated campaigns and rises of the plans, each computed once for every effect.
+
+    Attributes
+    ----------
+    searched : BaselinePoint
+        The calibrated baseline on the searched campaigns.
+    twin : PlanTwin
+        Its planning twin.
+    sensors : dict of str to str
+        The campaigns' sensors (:func:`plan_sensors`).
+    ambient_c : float
+        The plans' air, degC.
+    """
+
+    searched: BaselinePoint
+    twin: PlanTwin
+    sensors: dict[str, str]
+    ambient_c: float
+    points: dict[TestPlan, BaselinePoint] = field(default_factory=dict)
+    typical_points: dict[TestPlan, BaselinePoint] = field(default_factory=dict)
+    rises: dict[TestPlan, PlanRise] = field(default_factory=dict)
+
+    def point(self, plan: TestPlan) -> BaselinePoint:
+        """Return the baseline point on the plan's campaign simulated by the planning twin."""
+        if plan not in self.points:
+            self.points[plan] = self._simulated(plan, self.twin.values)
+        return self.points[plan]
+
+    def first_heating_point(self, plan: TestPlan) -> BaselinePoint:
+        """Return :meth:`point` with the parts heated for the first time at typical values."""
+        if plan not in self.typical_points:
+            first = {load.role for load in plan.heat_loads} - set(self.searched.load_roles)
+            model = plan_campaign(plan, self.sensors, self.ambient_c)[1]
+            values = first_heating_values(self.twin.values, model, first)
+            self.typical_points[plan] = self._simulated(plan, values)
+        return self.typical_points[plan]
+
+    def rise(self, plan: TestPlan) -> PlanRise:
+        """Return how far the plan heats the machine: the twin's expectation and the bounds."""
+        if plan not in self.rises:
+            expected, bound = plan_rises(plan, self.twin, self.sensors, self.ambient_c)
+            searched = self.searched
+            first = first_heating_bound_k(
+                plan.heat_loads, searched.load_roles, searched.prior_log_sd
+            )
+            self.rises[plan] = PlanRise(expected, max(bound, first), first)
+        return self.rises[plan]
+
+    def _simulated(self, plan: TestPlan, values: Mapping[str, float]) -> BaselinePoint:
+        searched = self.searched
+        return _plan_point(
+            plan, values, self.sensors, self.ambient_c, searched.noise, searched.prior_log_sd
+        )
