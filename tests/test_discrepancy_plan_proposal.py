@@ -400,6 +400,32 @@ def test_a_part_that_would_show_the_effect_at_typical_parameters_gets_a_calibrat
     assert _propose(monkeypatch, table, rise=rises.__getitem__, typical=typical).calibration is None
 
 
+def test_a_test_the_planning_twin_shows_outranks_one_shown_only_at_typical_parameters(
+    monkeypatch,
+):
+    """The motor holds back a 2-sigma plan visible with the planning twin's values; the front
+    bearing a 3-sigma plan visible only with the bearing at typical parameters: the calibration
+    step heats the motor. Without the motor's plan, the bearing's step."""
+
+    def on(role: str, name: str, power: float) -> tp.TestPlan:
+        return replace(_plan(name, 4.0), heat_loads=(tp.heater(role, power, 0.0, 15.0),))
+
+    table = {
+        on("spindle_front_bearing", "10 W bearing pulse", 10.0): 0.2,
+        on("spindle_motor", "10 W motor pulse", 10.0): 0.3,
+        on("spindle_front_bearing", "250 W bearing pulse", 250.0): 0.4,
+        on("spindle_motor", "500 W motor pulse", 500.0): 2.0,
+    }
+    typical = {plan: 3.0 if signal == 0.4 else 0.5 for plan, signal in table.items()}
+    rises = {0.2: (6.0, 9.0, 9.0), 0.3: (6.0, 6.0, 3.3), 0.4: (9.0, 225.0, 225.0)}
+    rises[2.0] = (9.0, 166.0, 166.0)  # both plans held back by a first heating, K
+    proposed = _propose(monkeypatch, table, rise=rises.__getitem__, typical=typical)
+    assert proposed.calibration.name == "10 W motor pulse"
+    del table[next(p for p in table if p.name == "500 W motor pulse")]
+    bearing = _propose(monkeypatch, table, rise=rises.__getitem__, typical=typical)
+    assert bearing.calibration.name == "10 W bearing pulse"
+
+
 def test_a_first_heating_is_scored_with_the_part_at_its_typical_parameters():
     """Heating the column's rear face for the first time: its capacity and convection (shared
     with the front) and its links (to the front and the bed, not the headstock's, which goes to

@@ -1024,7 +1024,7 @@ def _scan(
             typical = (
                 None if clear else _typical_signal(effect, plan, first_heating_point_of, settings)
             )
-            scan.hold_back(plan, figures.signal_sigma if clear else typical)
+            scan.hold_back(plan, figures.signal_sigma if clear else typical, clear)
         if too_hot:
             continue
         if first:
@@ -1056,9 +1056,10 @@ class _Scan:
         The cheapest visible plan the rule would not name (the clearest of its cost).
     safe_first : list of (TestPlan, PlanRise)
         Plans within the envelope that heat parts no campaign heated.
-    held_back : dict of str to float
-        Parts whose doubt alone keeps a visible plan out of the envelope, each with the largest
-        signal of the plans it holds back, sigma.
+    held_back : dict of str to (bool, float)
+        Parts whose doubt alone keeps a visible plan back, each with the clearest plan it holds
+        back: whether that plan is visible at the planning point (rather than only with the part
+        at typical parameters), and its signal, sigma; the first ranks before the second.
     too_hot, tried : int
         Plans left out by the envelope; plans tried.
     """
@@ -1067,7 +1068,7 @@ class _Scan:
     chosen: _Entry | None = None
     fallback: _Entry | None = None
     safe_first: list[tuple[TestPlan, PlanRise]] = field(default_factory=list)
-    held_back: dict[str, float] = field(default_factory=dict)
+    held_back: dict[str, tuple[bool, float]] = field(default_factory=dict)
     too_hot: int = 0
     tried: int = 0
 
@@ -1075,15 +1076,18 @@ class _Scan:
         """Whether ``plan`` costs more than the chosen one (the pass can stop)."""
         return self.chosen is not None and _order_key(plan) != _order_key(self.chosen[1])
 
-    def hold_back(self, plan: TestPlan, signal: float | None) -> None:
+    def hold_back(self, plan: TestPlan, signal: float | None, at_planning_point: bool) -> None:
         """Record a visible plan that only the doubt about the parts it heats holds back.
 
-        ``signal`` (sigma) is None when the plan would not show the effect even so.
+        ``signal`` (sigma) is None when the plan would not show the effect even so;
+        ``at_planning_point``: visible with the planning twin's values, not only with the parts
+        at typical parameters.
         """
         if signal is None:
             return
+        entry = (at_planning_point, signal)
         for load in plan.heat_loads:
-            self.held_back[load.role] = max(signal, self.held_back.get(load.role, signal))
+            self.held_back[load.role] = max(entry, self.held_back.get(load.role, entry))
 
     def visible(self, entry: _Entry, named: bool) -> None:
         """Record a visible plan; ``named``: the search's rule would name the effect."""
@@ -1115,13 +1119,15 @@ def _typical_signal(
 
 
 def _calibration_step(
-    safe_first: Sequence[tuple[TestPlan, PlanRise]], held_back: Mapping[str, float]
+    safe_first: Sequence[tuple[TestPlan, PlanRise]],
+    held_back: Mapping[str, tuple[bool, float]],
 ) -> tuple[TestPlan, PlanRise] | None:
     """Return the calibration step: the cheapest safe first heating of a held-back part.
 
-    Of equal cost, the one on the part that holds back the clearest test (the largest signal
-    of the plans it holds back, ``held_back``: a calibration step measures one part, so the
-    part behind the most promising test first); on that part, the one that drives it hardest
+    Of equal cost, the one on the part that holds back the clearest test (``held_back``: a
+    test visible at the planning point before one visible only with the part at typical
+    parameters, then the larger signal; a calibration step measures one part, so the part
+    behind the most promising test first); on that part, the one that drives it hardest
     (the largest adiabatic bound: the heater's energy over the part's smallest plausible heat
     capacity), for the clearest reading of its response; then the one the twin expects to
     heat most. The twin's expected rise alone would favour whatever runs the spindle longest:
@@ -1138,7 +1144,8 @@ def _calibration_step(
         useful,
         key=lambda entry: (
             entry[0].cost,
-            -entry[2],
+            not entry[2][0],
+            -entry[2][1],
             -entry[1].first_heating,
             -entry[1].expected,
         ),
