@@ -1021,10 +1021,12 @@ def _scan(
         figures = visibility(effect, point_of(plan), settings.plausible)
         clear = not shortfalls(figures, settings)
         if first and (too_hot or not clear):  # held back by the doubt about a part never heated?
-            typical = (
-                None if clear else _typical_signal(effect, plan, first_heating_point_of, settings)
+            held = (
+                figures.signal_sigma
+                if clear
+                else _typical_signal(effect, plan, first_heating_point_of, settings)
             )
-            scan.hold_back(plan, figures.signal_sigma if clear else typical, clear)
+            scan.hold_back(plan, held, clear)
         if too_hot:
             continue
         if first:
