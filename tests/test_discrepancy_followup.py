@@ -130,7 +130,7 @@ def test_the_target_of_a_test_may_pass_on_the_tests_campaigns_alone():
     assert step["evidence"]["heldout_reduction"] == pytest.approx(1 - 3 / np.sqrt(86 / 8), abs=1e-5)
     assert step["evidence"]["heldout_reduction_on_test"] == pytest.approx(0.25, abs=1e-5)
     assert step["evidence"]["passes_on_test"] is True
-    lines = "\n".join(_step_lines(step, SETTINGS.min_heldout_reduction))
+    lines = "\n".join(_step_lines(step, {}, SETTINGS.min_heldout_reduction))
     assert "named on the campaigns of the test proposed for it" in lines
     assert "held-out Z residual changed by -25 %" in lines
     assert "named on the temperatures alone" not in lines

@@ -208,7 +208,7 @@ def test_a_sensor_only_effect_is_named_on_its_temperature_evidence_only():
     assert both.named_effects == ["sensor_lag"]
 
 
-def test_an_effect_whose_own_signature_shows_is_named_when_its_held_out_z_does_not_rise():
+def test_an_effect_whose_own_signature_shows_is_named_on_it():
     """A step term cuts only the steps: pooled with a thermal misfit it owns none of, -10 %."""
 
     def steps_shown(effect, current, augmented):
@@ -218,21 +218,77 @@ def test_an_effect_whose_own_signature_shows_is_named_when_its_held_out_z_does_n
     assert forward_search(diluted, IDS, SETTINGS).named_effects == []
     result = forward_search(diluted, IDS, SETTINGS, signature=steps_shown)
     assert result.named_effects == ["centrifugal_growth"]
-    evidence = result.steps[0].to_dict()["evidence"]
+    step = result.steps[0].to_dict()
+    evidence = step["evidence"]
     assert evidence["heldout_reduction"] == pytest.approx(0.1)
     assert evidence["passes_on_signature"] is True
     assert evidence["signature"] == "steps measured and removed"
-    lines = "\n".join(_step_lines(result.steps[0].to_dict(), SETTINGS.min_heldout_reduction))
+    lines = "\n".join(_step_lines(step, {}, SETTINGS.min_heldout_reduction))
     assert "named on its own signature: steps measured and removed" in lines
     assert "10 %, is short of the 20 %" in lines and "temperatures alone" not in lines
-    # the same signature claimed by another effect, or a term that raises the held-out Z
+    assert "did not shrink" not in lines
+    # the same signature claimed by another effect is not evidence of it
     wrong = FakeEvaluator({"motor_heat"}, {"motor_heat": 1.0}, noise=9.0)
     assert forward_search(wrong, IDS, SETTINGS, signature=steps_shown).named_effects == []
+    # a term whose signature shows is named even when the pooled held-out Z rises, on BIC
     worse = FakeEvaluator(set(), spurious=-0.5, penalty=-20.0, noise=9.0)  # BIC falls, Z rises
+    assert forward_search(worse, IDS, SETTINGS).named_effects == []
     result = forward_search(worse, IDS, SETTINGS, signature=steps_shown)
-    assert result.named_effects == []
-    centrifugal = next(c for c in result.rounds[0] if c.effect == "centrifugal_growth")
-    assert centrifugal.heldout_reduction < 0 and not centrifugal.passes_on_signature
+    assert result.named_effects == ["centrifugal_growth"]
+    assert result.steps[0].evidence.heldout_reduction < 0
+    assert result.steps[0].evidence.passes_on_signature
+    costly = FakeEvaluator(set(), spurious=-0.5, penalty=20.0, noise=9.0)  # BIC rises too
+    assert forward_search(costly, IDS, SETTINGS, signature=steps_shown).named_effects == []
+
+
+def test_a_signature_named_effect_whose_z_gap_rose_is_reported_with_where_and_why():
+    """The report names the campaigns that got worse and the twin laws the effect moved."""
+    ev = {
+        "heldout_reduction": -0.48,
+        "delta_bic": -1556.1,
+        "passes_on_signature": True,
+        "signature": "jumps 4.88 um, with it 1.31 um",
+    }
+    z = {"H01": (1.63, 0.71), "H03": (1.51, 4.24), "H07": (1.82, 3.93)}
+    before = {
+        "alpha_spindle_um_per_K": {"value": 0.01, "unit": "um/K"},
+        "alpha_headstock_um_per_K": {"value": 6.62, "unit": "um/K"},
+        "alpha_column_um_per_K": {"value": 10.0, "unit": "um/K"},
+        "C_bed_J_per_K": {"value": 3.1e6, "unit": "J/K"},
+    }
+    after = {
+        "alpha_spindle_um_per_K": {"value": 0.94, "unit": "um/K"},
+        "alpha_headstock_um_per_K": {"value": 4.15, "unit": "um/K"},
+        "alpha_column_um_per_K": {"value": 9.76, "unit": "um/K"},
+        "C_bed_J_per_K": {"value": 3.12e6, "unit": "J/K"},
+        "centrifugal_um_per_krpm2": {"value": 0.154, "unit": "um/krpm^2"},
+    }
+    step = {
+        "effect": "centrifugal_growth",
+        "evidence": ev,
+        "rmse_um_before": 1.53,
+        "rmse_um_after": 2.27,
+        "rmse_T_K_before": 0.156,
+        "rmse_T_K_after": 0.157,
+        "per_campaign_before": {c: {"z_um": b, "t_k": 0.1} for c, (b, _) in z.items()},
+        "per_campaign_after": {c: {"z_um": a, "t_k": 0.1} for c, (_, a) in z.items()},
+        "parameters": after,
+        "effect_parameters": {"centrifugal_um_per_krpm2": after["centrifugal_um_per_krpm2"]},
+    }
+    lines = "\n".join(_step_lines(step, before, 0.2))
+    assert "named on its own signature: jumps 4.88 um, with it 1.31 um." in lines
+    assert (
+        "**the displacement gap did not shrink**" in lines
+        and "rose by 48 %" in lines
+        and "raises the held-out Z residual" in lines
+    )
+    assert "on 2 of 3 campaigns (H03 1.51 -> 4.24 um, H07 1.82 -> 3.93 um)" in lines
+    moved = lines[lines.index("moved most in") :]
+    # the three largest factors, largest first; the effect's own parameter is not the twin's
+    assert moved.index("alpha_spindle_um_per_K 0.01 -> 0.94") < moved.index("alpha_headstock")
+    assert "alpha_column" in moved and "C_bed" not in moved.split(":")[0]
+    assert "centrifugal_um_per_krpm2 0.154" not in moved.split(":")[0]
+    assert "is short of the" not in lines and "temperatures alone" not in lines
 
 
 def test_forward_selection_names_nothing_without_a_missing_effect():
@@ -591,11 +647,11 @@ def test_an_effect_named_on_the_temperatures_says_the_displacement_gap_stayed():
         "effect_parameters": {},
         "parameters": {},
     }
-    text = "\n".join(_step_lines(step, 0.2))
+    text = "\n".join(_step_lines(step, {}, 0.2))
     assert "named on the temperatures alone" in text and "changed by -4 %" in text
     assert "**the displacement gap did not shrink**" in text and "headstock" in text
     on_z = {**step, "evidence": {"heldout_reduction": 0.5, "delta_bic": -300.0}}
-    assert "temperatures alone" not in "\n".join(_step_lines(on_z, 0.2))
+    assert "temperatures alone" not in "\n".join(_step_lines(on_z, {}, 0.2))
 
 
 def test_mlflow_run_holds_the_metrics_and_figures(tmp_path, monkeypatch):

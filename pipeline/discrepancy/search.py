@@ -37,11 +37,17 @@ visibility gates) applies as before.
 An effect whose own signature is measured in the held-out residuals and removed by it (a
 *signature* callable; the workflow's is
 :func:`pipeline.discrepancy.speed_steps.step_signature`: centrifugal growth's steps at the
-speed changes) qualifies also when its pooled held-out Z RMS falls by less than the threshold
-but does not rise. The threshold on a pooled RMS is there to keep out a term that only stands in
-for a misfit it does not own; the signature answers that directly, while a pooled RMS dilutes a
-step (a few samples at each speed change) with the thermal misfit it was never meant to remove.
-Every other check applies as before.
+speed changes) qualifies on it whatever its pooled held-out Z RMS does. The threshold on a
+pooled RMS is there to keep out a term that only stands in for a misfit it does not own; the
+signature answers that directly, while a pooled RMS dilutes a step (a few samples at each speed
+change) with the thermal misfit it was never meant to remove. The pooled RMS may even rise: on
+an independent machine model (centrifugal growth and nonlinear bearing heat hidden, eight
+campaigns) the growth took the held-out jumps at 19 speed changes from 4.9 to 1.3 um, while the
+held-out Z RMS rose by 48 %, on two campaigns of eight, also in the calibration on all of them:
+without the growth the twin had switched its shaft's expansion off (0.01 um/K, its bound) to
+stand in for the nose's retraction; with it the shaft expanded (0.94 um/K) and met the
+machine's own shaft, which the twin's is not. The report then says that the displacement gap
+did not shrink. Every other check applies as before.
 
 The search works through an *evaluator*: ``evaluator(effects, train_ids, test_ids, start) ->
 FitResult`` (``start``: parameter name -> starting value, or None). :class:`TwinEvaluator`
@@ -633,7 +639,7 @@ def candidate_evidence(
     ``on_test``: the held-out Z and temperature reductions on the campaigns of a test proposed
     for ``effect`` (:func:`qualifies_on_test`), None when this run has none. ``signature``:
     the effect's own signature measured and removed (:data:`SignatureEvidence`), in words, or
-    None; with it the effect qualifies when its held-out Z RMS does not rise.
+    None; with it the effect qualifies whatever its held-out Z RMS does.
     """
     before = current.rmse_heldout_um
     after = augmented.rmse_heldout_um
@@ -649,11 +655,7 @@ def candidate_evidence(
         and not (by_z or by_t)
         and qualifies_on_test(effect, on_test, (reduction, t_reduction), settings)
     )
-    by_signature = (
-        signature is not None
-        and not (by_z or by_t or by_test)
-        and bool(np.isfinite(reduction) and reduction >= 0.0)
-    )
+    by_signature = signature is not None and not (by_z or by_t or by_test)
     qualifies = by_z or by_t or by_test or by_signature
     delta_bic = augmented.full.bic - current.full.bic
     delta_aicc = augmented.full.aicc - current.full.aicc

@@ -28,9 +28,9 @@ jumps by ``min_reduction`` too.
 
 :func:`step_signature` gives the search the same three checks, with steps at least
 :data:`SIGNATURE_RATIO` times the residual's movement at a constant speed, as the effect's own
-signature: an effect that shows it is named when its pooled held-out Z RMS falls by less than
-``min_reduction`` but does not rise (the steps are a few samples at each speed change, which a
-pooled RMS dilutes with a thermal misfit the term cannot remove), and as a later effect it
+signature: an effect that shows it is named whatever its pooled held-out Z RMS does (the steps
+are a few samples at each speed change, which a pooled RMS dilutes with a thermal misfit the
+term cannot remove; see :mod:`pipeline.discrepancy.search`), and as a later effect it
 needs no evidence on the campaigns where the effects named before it act least (a thermal
 effect makes no step).
 """
