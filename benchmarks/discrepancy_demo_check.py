@@ -97,6 +97,7 @@ def summarise(doc: dict[str, Any]) -> dict[str, Any]:
             }
             for s in doc["steps"]
         ],
+        "suspects": {s["effect"]: s["reason"] for s in doc.get("suspects") or []},
         "last_round": doc["candidates_by_step"][-1]["candidates"]
         if doc["candidates_by_step"]
         else [],
@@ -139,13 +140,26 @@ def markdown(results: dict[str, dict[str, Any]], seed: int) -> str:
                 f"{', '.join(r['quarantined'])} (see the workflow's log).",
             ]
     for variant, r in results.items():
-        lines += ["", f"Candidates in the last round of `{variant}` (none passed):", ""]
-        lines += [
-            f"- `{c['effect']}`: delta BIC {c['delta_bic']:.0f}, held-out Z "
-            f"{-100 * c['heldout_reduction']:+.0f} %, T {-100 * c['heldout_T_reduction']:+.0f} %"
-            for c in r["last_round"]
-        ]
+        lines += ["", f"Candidates in the last round of `{variant}` (none named):", ""]
+        lines += [_candidate_line(c, r["suspects"]) for c in r["last_round"]]
     return "\n".join(lines) + "\n"
+
+
+def _candidate_line(candidate: dict[str, Any], suspects: dict[str, str]) -> str:
+    """Return one last-round candidate's figures and, if it passed, why it was not named."""
+    z_change, t_change = (
+        0.0 - 100 * candidate[key] for key in ("heldout_reduction", "heldout_T_reduction")
+    )
+    line = (
+        f"- `{candidate['effect']}`: delta BIC {candidate['delta_bic']:.0f}, "
+        f"held-out Z {z_change:+.0f} %, T {t_change:+.0f} %"
+    )
+    if not candidate.get("passes"):
+        return line
+    reason = suspects.get(candidate["effect"])
+    if reason is None:
+        return line + "; passes the thresholds, held back by a gate (see the workflow's report)"
+    return line + f"; passes the thresholds, held back as a suspect: {reason}"
 
 
 def main(argv: list[str] | None = None) -> int:

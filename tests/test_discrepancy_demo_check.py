@@ -96,4 +96,25 @@ def test_summary_says_which_demo_effects_were_named():
     assert "Quarantined by validation in `without_state` and left out: K02" in md
     assert "| shipped | motor_heat, centrifugal_growth |" in md
     assert "| without_state | nothing |" in md and "4.00 -> 1.00" in md
-    assert "`sensor_lag`: delta BIC 3" in md
+    assert "`sensor_lag`: delta BIC 3, held-out Z +1 %, T +0 %\n" in md
+
+
+def test_a_candidate_that_passed_but_was_held_back_says_why():
+    doc = _doc(["motor_heat"])
+    doc["candidates_by_step"][-1]["candidates"].append(
+        {
+            "effect": "nonlinear_bearing_heat",
+            "delta_bic": -4487.0,
+            "heldout_reduction": 0.201,
+            "heldout_T_reduction": 0.186,
+            "passes": True,
+        }
+    )
+    doc["suspects"] = [{"effect": "nonlinear_bearing_heat", "reason": "its evidence lies where"}]
+    md = markdown({"speed_steps": summarise(doc)}, 2016)
+    assert "Candidates in the last round of `speed_steps` (none named):" in md
+    assert (
+        "`nonlinear_bearing_heat`: delta BIC -4487, held-out Z -20 %, T -19 %; passes the "
+        "thresholds, held back as a suspect: its evidence lies where\n" in md
+    )
+    assert "`sensor_lag`: delta BIC 3, held-out Z +1 %, T +0 %\n" in md

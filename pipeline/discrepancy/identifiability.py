@@ -418,10 +418,10 @@ def visibility_gate(
 ) -> Gate:
     """Return a gate of the forward search: an effect these campaigns cannot show is not named.
 
-    An effect named on the displacement whose plausible size leaves, at the baseline calibrated
-    on the searched campaigns, less than ``min_signal_sigma`` beyond what the baseline absorbs
-    (the class ``not_identifiable``, :func:`shortfalls`) owes its held-out fall to something
-    else its calibration took up. On the hidden-effect trials, with the sensor lag hidden,
+    An effect whose plausible size leaves, at the baseline calibrated on the searched campaigns,
+    less than ``min_signal_sigma`` beyond what the baseline absorbs (the class
+    ``not_identifiable``, :func:`shortfalls`) owes its held-out fall to something else its
+    calibration took up. On the hidden-effect trials, with the sensor lag hidden,
     ``thermal_bending`` was named at 0.35 (the twin) and 0.21 (an independent machine model)
     sigma, beside 1.6-2.4 and 3.7-11 sigma where bending was hidden and named after its tests,
     and at least 1.76 for every other effect named. Effects named on the readings alone

@@ -4,8 +4,8 @@ Visible is not enough. The identifiability figure is an RMS over the plan's own 
 sigmas, while the search names an effect when the held-out RMS pooled over *every* campaign
 falls by ``min_heldout_reduction`` (Z) or ``min_heldout_temperature_reduction`` (temperatures).
 In the hidden-effect trials a 15 min heater pulse on a column half left bending 2.5-4.5 sigma
-on its campaigns, yet added to eight campaigns that do not show it, it did not move the pooled
-held-out Z by 20 %, and bending was not named (4 campaigns, seeds 1-5); a 2-4 h heater did.
+on its campaigns, yet added to the four campaigns of a trial, which do not show it, it did not
+move the pooled held-out Z by 20 %, and bending was not named (seeds 1-5); a 2-4 h heater did.
 
 So a plan must also leave a visible response large enough to pass the search's own rule
 (:func:`needed_signal`): if the baseline misses every campaign by its held-out RMS ``e`` (the

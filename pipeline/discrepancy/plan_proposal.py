@@ -48,8 +48,10 @@ under which the effect would be identifiable (:func:`propose_tests`):
    :data:`HEATER_COST_H` per heat load; ties go to the campaigns' own sampling interval. Plans
    are tried in order of cost; of the visible ones in the envelope at the lowest cost, the one
    with the largest signal is proposed. When none is, the report says so with the best signal
-   the grid reached, and if a heater plan on a part no campaign heated fits in the envelope, it
-   proposes the cheapest as a **calibration step** (:func:`propose_test`): a sequential
+   the grid reached, and if a heater plan on a part no campaign heated would show the effect
+   but is held back by the doubt about that part (its rise bound leaves the envelope, or it
+   shows the effect only with the part at typical parameters), it proposes the cheapest safe
+   heating of that part as a **calibration step** (:func:`propose_test`): a sequential
    design, as in the model-based design of experiments of Franceschini and Macchietto
    (2008, *Model-based design of experiments for parameter precision: state of the art*,
    Chem. Eng. Sci. 63(19), 4846-4872): a first, safe test pins the part's response down, and
