@@ -8,7 +8,7 @@ effects switched on, random plausible parameters and realistic sensor and probe 
 the search fits, and a machine model written without it
 (:mod:`benchmarks.independent_machine`: its own discretisation, effect forms and instruments),
 on which a rule that holds only because the forms match fails. The workflow
-(:mod:`pipeline.stages.discrepancy`) runs on the folder like on any measurements. The truth is
+(:mod:`pipeline.discrepancy.workflow`) runs on the folder like on any measurements. The truth is
 used only to score the result: a trial is *correct* when the named effects equal the hidden
 ones and, when something was hidden, the held-out displacement RMS after adding them is at most
 half the baseline's; the *gap halved* when the held-out displacement or temperature RMS at
@@ -27,8 +27,8 @@ anything then is a false alarm.
 
 ``python -m benchmarks.discrepancy_trials --seeds 1 2 3 4 5 --out reports/discrepancy_trials`` runs
 every case over the seeds on both machines (``--generators`` to choose) and writes
-``trials.csv`` (one row per machine, case and seed) and ``rates.md`` (rate of correct naming per
-machine and case), each trial as it ends; ``--resume`` keeps the trials an interrupted run of
+``trials.csv`` (one row per machine, case and seed) as each trial ends and ``rates.md`` (rate of
+correct naming per machine and case) at the end; ``--resume`` keeps the trials an interrupted run of
 the same setting and code left there (:mod:`benchmarks.trial_resume`) and runs the others.
 The trials run seed by seed, so an interrupted run holds whole seeds of every case. The slow
 tests run the same trials with one seed per case.

@@ -151,7 +151,8 @@ class Machine:
         Bearing power at :data:`N_REF`, W; ``shaft_share`` of it enters the shaft.
     shaft_share : float
     viscous_weight, viscous_exponent : float
-        ``1 - w`` and ``e`` of the viscous term (``nonlinear_bearing_heat``).
+        ``w``, the weight of the load term (the viscous term has ``1 - w``), and ``e``, the
+        viscous term's exponent (``nonlinear_bearing_heat``).
     motor_w : float
         Motor loss at :data:`N_REF`, W (``motor_heat``).
     centrifugal_um_per_krpm2, centrifugal_tau_s : float
@@ -161,8 +162,10 @@ class Machine:
     overhang_mm, column_depth_mm, column_height_mm : float
         Spindle axis to column front, front-to-rear face distance, column height, mm.
     nose_mm, head_mm, screw_mm : float
-        Shaft length from the locating bearing to the nose, headstock length below the Z nut,
-        screw length from its fixed bearing to the nut, mm.
+        Shaft length from the locating bearing to the nose (drawn but not used: the Z of the
+        nose takes a fixed 1.5 shaft volumes, 94 mm, within its range; the draw stays so that
+        a seed gives the same machine as before), headstock length below the Z nut, screw
+        length from its fixed bearing to the nut, mm.
     daily_amplitude_k : float
         ``ambient_variation``: amplitude of the daily sine, K.
     sensor_offset_k : ndarray

@@ -55,7 +55,8 @@ def collinearity_index(sensitivities: np.ndarray) -> float:
     -------
     float
         ``1 / sqrt(lambda_min)`` of the normalised ``S^T S``, >= 1; ``inf`` when the columns
-        are linearly dependent or one is zero (no output change at all).
+        are linearly dependent or one is zero (no output change at all); NaN without any
+        column.
     """
     s = np.asarray(sensitivities, dtype=float)
     if s.shape[1] == 0:

@@ -70,7 +70,9 @@ class FollowUp:
     def from_document(cls, doc: Mapping[str, Any] | None) -> FollowUp | None:
         """Read the earlier run's ``discrepancy.json`` (or history entry); None without one.
 
-        An untestable run (no search) gives None.
+        An entry without ``named_effects`` gives None: the history the stage keeps of an
+        untestable run (:func:`pipeline.stages.discrepancy.history_of`), so that the next run
+        that can search starts afresh.
         """
         if not doc or "named_effects" not in doc:
             return None

@@ -160,11 +160,12 @@ def shortfalls(figures: Visibility, settings: IdentifiabilitySettings) -> list[s
 def unconfirmed_effects(result: SearchResult, max_delta_bic: float) -> dict[str, str]:
     """Return the effects the fit prefers and the held-out campaigns do not confirm, in words.
 
-    From the search's last round (every effect still in its pool, tried against the final
-    model): an effect that adds no parameter (:data:`~pipeline.discrepancy.model.EFFECT_SPECS`),
-    whose delta BIC is at most ``max_delta_bic`` and that does not pass. Effects a gate held
-    back are suspects and not in that round's pool once held back, or passed in it; neither is
-    returned.
+    From the search's last round (every effect still in its pool, tried against the model current at
+    that round: the final one unless the search stopped after naming, at ``max_effects`` or with its
+    pool empty): an effect that adds no parameter
+    (:data:`~pipeline.discrepancy.model.EFFECT_SPECS`), whose delta BIC is at most ``max_delta_bic``
+    and that does not pass. Effects a gate held back are suspects and not in that round's pool once
+    held back, or passed in it; neither is returned.
 
     Parameters
     ----------

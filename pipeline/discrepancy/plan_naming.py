@@ -8,11 +8,11 @@ on its campaigns, yet added to the four campaigns of a trial, which do not show 
 move the pooled held-out Z by 20 %, and bending was not named (seeds 1-5); a 2-4 h heater did.
 
 So a plan must also leave a visible response large enough to pass the search's own rule
-(:func:`needed_signal`): if the baseline misses every campaign by its held-out RMS ``e`` (the
-plan's campaigns too) and the effect adds its visible part ``v`` (RMS over the plan's samples)
-to the plan's campaigns only, naming the effect takes the pooled RMS from
-``sqrt((n e^2 + m (e^2 + v^2)) / (n + m))`` to ``e``, ``n`` samples of the campaigns and ``m``
-of the plan's; a fall by ``r`` needs ``v >= e sqrt((1 / (1 - r)^2 - 1) (n + m) / m)``.
+(:func:`needed_signal`): if the search's final twin (the baseline when nothing is named) misses
+every campaign by its held-out RMS ``e`` (the plan's campaigns too) and the effect adds its visible
+part ``v`` (RMS over the plan's samples) to the plan's campaigns only, naming the effect takes the
+pooled RMS from ``sqrt((n e^2 + m (e^2 + v^2)) / (n + m))`` to ``e``, ``n`` samples of the campaigns
+and ``m`` of the plan's; a fall by ``r`` needs ``v >= e sqrt((1 / (1 - r)^2 - 1) (n + m) / m)``.
 """
 
 from __future__ import annotations
@@ -29,7 +29,7 @@ from pipeline.discrepancy.visibility import Visibility
 
 @dataclass(frozen=True)
 class HeldOutFloor:
-    """What an effect must beat to be named: the search's baseline held-out RMS and its rule.
+    """What an effect must beat to be named: the search's final held-out RMS and its rule.
 
     Attributes
     ----------

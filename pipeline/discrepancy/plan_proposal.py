@@ -7,12 +7,13 @@ under which the effect would be identifiable (:func:`propose_tests`):
 
 1. **The grid.** Spindle programs at the campaigns' top speed ``high`` and half of it (speed
    steps up and down every 20, 40 or 60 min, a stop-and-restart, one constant run), over 4 or
-   8 h, each sampled at the campaigns' own interval and at :data:`FAST_INTERVAL_S`; and, where
-   the effect reads a structure role no campaign has (:data:`ADDED_SENSOR_ROLES`), the same
-   programs with a sensor of that role added; and, where the effect reads a part a heater can
-   load (:data:`HEAT_LOAD_ROLES`, roles the campaigns have a sensor on), an external heat load
-   of :data:`HEATER_POWERS_W` on that part for a short pulse after a spindle run or for half
-   the test, with the spindle stopped, or running in the other half (:func:`heater_plans`);
+   8 h, each sampled at the campaigns' own interval and, when theirs is longer, at
+   :data:`FAST_INTERVAL_S`; and, where the effect reads a structure role no campaign has
+   (:data:`ADDED_SENSOR_ROLES`), the same programs with a sensor of that role added; and,
+   where the effect reads a part a heater can load (:data:`HEAT_LOAD_ROLES`, roles the
+   campaigns have a sensor on), an external heat load of :data:`HEATER_POWERS_W` on that part
+   for a short pulse after a spindle run or for half the test, with the spindle stopped, or
+   running in the other half (:func:`heater_plans`);
    and where the effect reads two such parts, the two loaded differently: one after the
    other, or both at once at different powers (:func:`paired_heater_plans`). A load the
    spindle does not drive separates what the spindle's heat ties together (a sensor's delay
@@ -46,8 +47,11 @@ under which the effect would be identifiable (:func:`propose_tests`):
    (:func:`~pipeline.discrepancy.identifiability.shortfalls`).
 5. **Cost.** Test duration in hours plus :data:`SENSOR_COST_H` per added sensor and
    :data:`HEATER_COST_H` per heat load; ties go to the campaigns' own sampling interval. Plans
-   are tried in order of cost; of the visible ones in the envelope at the lowest cost, the one
-   with the largest signal is proposed. When none is, the report says so with the best signal
+   are tried in order of cost. Of the visible ones in the envelope, the cheapest whose response
+   would also pass the search's rule once its campaigns join the others
+   (:func:`~pipeline.discrepancy.plan_naming.would_be_named`) is proposed, of equal cost the
+   one with the largest signal; failing that, the cheapest visible one, flagged
+   ``misfit_limited``. When none is visible, the report says so with the best signal
    the grid reached, and if a heater plan on a part no campaign heated would show the effect
    but is held back by the doubt about that part (its rise bound leaves the envelope, or it
    shows the effect only with the part at typical parameters), it proposes the cheapest safe
@@ -183,8 +187,9 @@ AIR_SMOOTHING_S = 1800.0
 reading noise averages out, a day's cycle (or an afternoon's rise) does not."""
 
 MAX_PLANS = 150
-"""Most plans tried per effect (the full grid has at most 22 programs, 11 with an added sensor,
-35 heater plans per heated role and 12 plans loading two parts)."""
+"""Most plans tried per effect (the full grid has at most 18 program plans, nine programs at two
+sampling intervals, 9 with an added sensor, 35 heater plans per heated role and 12 plans loading
+two parts)."""
 
 PLAN_REPEATS = 2
 """Campaigns of a proposed test: the test run on two days, so that one odd day does not decide
@@ -549,7 +554,8 @@ def simulate_plan(
         Sensor name -> role, the campaigns' (:func:`plan_sensors`); a sensor
         ``added_<role>`` joins them for each role the plan adds.
     ambient_c : float
-        Workshop air, constant, degC; every node starts at it.
+        Workshop air at the start, degC; every node starts at it. It stays constant unless the
+        plan has an ``air_swing_k`` (:func:`daily_air`).
 
     Returns
     -------
@@ -652,7 +658,9 @@ class ProposedTest:
     ----------
     effect : str
     plan : TestPlan or None
-        The cheapest visible plan; None when no plan of the grid makes the effect visible.
+        The proposed plan (:func:`propose_test`: the cheapest visible one whose response would
+        pass the search's rule, else the cheapest visible one); None when no plan of the grid
+        makes the effect visible.
     figures : Visibility or None
         The effect's figures under ``plan`` (or under ``best`` when none is visible).
     best : TestPlan or None

@@ -1,11 +1,11 @@
-"""Write the discrepancy outputs: ``discrepancy.json``, ``discrepancy.md``, figures, MLflow run.
+"""Write the discrepancy outputs: ``discrepancy.json``, ``discrepancy.md``, figures.
 
 The report states, in an engineer's words (:mod:`pipeline.discrepancy.report_text`), where the
 calibrated baseline twin disagrees with the measurements (:mod:`pipeline.discrepancy.localise`),
 which effects the forward search named (:mod:`pipeline.discrepancy.search`), with what evidence,
 and how far the held-out displacement residual shrinks. Figures are built and saved with the
-helpers of :mod:`pipeline.plots` (Agg canvas, no pyplot); mlflow is imported only when a run is
-logged.
+helpers of :mod:`pipeline.plots` (Agg canvas, no pyplot). The MLflow run is logged by
+:mod:`pipeline.tracking.discrepancy_run`.
 """
 
 from __future__ import annotations
@@ -97,14 +97,16 @@ def build_document(
 ) -> dict[str, Any]:
     """Assemble the content of ``discrepancy.json``.
 
-    Fields: ``status`` (``tested``), ``named_effects``, ``rmse_um_before``,
-    ``rmse_um_after`` (held-out Z RMS, um), ``rmse_T_K_before/after``, ``per_campaign``,
-    ``steps`` (effect, evidence, RMS before/after, calibrated parameters with units),
-    ``candidates_by_step`` (evidence of every candidate at every step), ``untestable``
-    (effect -> missing roles), ``localisation`` (findings, ambient lag, before and after),
-    ``thresholds``, ``campaigns``, ``quarantined``, ``synthetic``, ``validation`` (the named
-    effects checked on the validation campaigns held back from the search, or None), and last,
-    when given, ``identifiability`` (effect -> its class and figures,
+    Fields: ``status`` (``tested``), ``named_effects``, ``suspects`` (effects that passed but were
+    held back, with the reason), ``rmse_um_before``, ``rmse_um_after`` (held-out Z RMS, um),
+    ``rmse_T_K_before/after``, ``per_campaign``, ``steps`` (effect, evidence, RMS before/after,
+    calibrated parameters with units), ``candidates_by_step`` (evidence of every candidate at every
+    step), ``untestable`` (effect -> missing roles), ``baseline_parameters`` and
+    ``final_parameters`` (calibrated on every searched campaign), ``folds`` (held-out campaigns of
+    each fold), ``seconds`` (the search's wall time), ``localisation`` (findings, ambient lag,
+    before and after), ``thresholds``, ``campaigns``, ``quarantined``, ``synthetic``, ``validation``
+    (the named effects checked on the validation campaigns held back from the search, or None), and
+    last, when given, ``identifiability`` (effect -> its class and figures,
     :meth:`pipeline.discrepancy.identifiability.EffectIdentifiability.to_dict`).
     """
     doc = {"status": STATUS_TESTED, **result.to_dict()}

@@ -47,7 +47,9 @@ held-out Z RMS rose by 48 %, most on two campaigns of eight (1.5 -> 4.2 and 1.8 
 in the calibration on all of them: without the growth the twin had switched its shaft's
 expansion off (0.01 um/K, its bound) to stand in for the nose's retraction; with it the shaft
 expanded (0.94 um/K) and met the machine's own shaft, which the twin's is not. The report then
-says that the displacement gap did not shrink. Every other check applies as before.
+says that the displacement gap did not shrink. Every other check applies as before but the
+own-evidence check (:func:`~pipeline.discrepancy.own_evidence.own_evidence_reason`): a signature
+no other candidate makes is evidence of its own wherever it lies.
 
 The search works through an *evaluator*: ``evaluator(effects, train_ids, test_ids, start) ->
 FitResult`` (``start``: parameter name -> starting value, or None). :class:`TwinEvaluator`
@@ -290,7 +292,8 @@ class Candidate:
     heldout_t_reduction : float
         ``1 - rmse_heldout_t_k / current held-out temperature RMS``.
     passes : bool
-        Both thresholds met.
+        It qualifies by one route (held-out Z, temperatures, its test's campaigns or its
+        signature) and its BIC change is at most ``max_delta_bic``.
     converged : bool
     on_test : tuple of (float, float) or None
         Held-out Z and temperature reductions on the campaigns of the test proposed for the
@@ -301,7 +304,8 @@ class Candidate:
         Its own signature measured in the held-out residuals and removed by it, in words
         (None: not shown, or the effect has none).
     passes_on_signature : bool
-        It passes through that signature with a held-out Z fall below the threshold.
+        It passes through that signature alone: no held-out Z, temperature or test route
+        qualified.
     """
 
     effect: str
@@ -411,7 +415,8 @@ class SearchResult:
     validation : ValidationCheck or None
         The named effects checked on the validation campaigns, None when none was held out.
     suspects : dict of str to str
-        Effects that passed but were held back by the search's gate (after a proposed test:
+        Effects that passed but were held back (by the plausibility or own-evidence checks,
+        or by the search's gate; after a proposed test:
         :func:`pipeline.discrepancy.followup.suspect_reason`), with the reason.
     """
 
@@ -566,7 +571,8 @@ def evaluate_many(
     Parameters
     ----------
     evaluator : callable
-        ``evaluator(effects, train_ids, test_ids) -> FitResult``.
+        ``evaluator(effects, train_ids, test_ids, start) -> FitResult`` (``start``: parameter
+        name -> starting value, or None).
     effect_sets : sequence of frozenset
     campaign_ids : sequence of str
         All campaigns.
@@ -825,7 +831,8 @@ def forward_search(
     Parameters
     ----------
     evaluator : callable
-        ``evaluator(effects, train_ids, test_ids) -> FitResult``.
+        ``evaluator(effects, train_ids, test_ids, start) -> FitResult`` (``start``: parameter
+        name -> starting value, or None).
     campaign_ids : sequence of str
     settings : SearchSettings
     untestable : mapping, optional

@@ -102,7 +102,7 @@ def read_raw(
 
 def read_raw_tables(
     raw_dir: Path, max_alignment_gap_s: float, limits: ValidationLimits
-) -> tuple[pd.DataFrame, pd.DataFrame, list[str]]:
+) -> tuple[pd.DataFrame, pd.DataFrame, dict[str, str]]:
     """Ingest and validate a raw folder; return its valid spindle campaigns' tables.
 
     Parameters are those of :func:`read_raw`.
