@@ -801,8 +801,8 @@ def rates_markdown(rates: pd.DataFrame, trials: pd.DataFrame, seeds: Sequence[in
     lines = [
         "# Hidden-effect trials of the discrepancy workflow",
         "",
-        f"Seeds {', '.join(map(str, seeds))}. Rates with their 95 % Wilson interval (five "
-        "trials: one trial moves a rate by 20 points); RMS columns: medians over the seeds "
+        f"Seeds {', '.join(map(str, seeds))}. Rates with their 95 % Wilson interval "
+        f"({_trials_per_case(len(seeds))}); RMS columns: medians over the seeds "
         "(range), um. *Named correctly*: the first run named exactly the hidden effects. "
         "*With tests*: the first run and the reruns after the proposed tests together named "
         "exactly the hidden effects (every hidden effect named, at once or after at most "
@@ -815,7 +815,7 @@ def rates_markdown(rates: pd.DataFrame, trials: pd.DataFrame, seeds: Sequence[in
         "*Class*: the identifiability class each hidden effect ended in (trials per class). "
         "*Plan run*: trials whose hidden effect was classed not identifiable with a visible "
         "proposed test or a calibration step, which was then run on the same machine (each "
-        "rerun's next proposal too, up to 3 rounds) and the workflow rerun (with "
+        f"rerun's next proposal too, up to {PLAN_ROUNDS} rounds) and the workflow rerun (with "
         "nothing hidden: every effect classed not identifiable, its test run on the clean "
         "machine); *named after plan*: of those, the share that named the effect (with "
         "nothing hidden: that named an absent effect, a false alarm); *Z after plan*: the rerun's "
@@ -826,6 +826,12 @@ def rates_markdown(rates: pd.DataFrame, trials: pd.DataFrame, seeds: Sequence[in
             rates[rates["generator"] == generator], trials[trials["generator"] == generator]
         )
     return "\n".join(lines) + "\n"
+
+
+def _trials_per_case(n_seeds: int) -> str:
+    """Return how many trials a case has and how far one of them moves its rate, in words."""
+    trials = "one trial" if n_seeds == 1 else f"{n_seeds} trials"
+    return f"{trials} per case: one trial moves a rate by {100 / max(n_seeds, 1):.0f} points"
 
 
 def _generator_section(rates: pd.DataFrame, trials: pd.DataFrame) -> list[str]:

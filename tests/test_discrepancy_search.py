@@ -474,6 +474,10 @@ def test_trial_scoring_and_rates_table():
     )
     assert "| 1.00 (0.90-1.10) |" in md
     assert "hidden none, seed 1: named sensor_lag" in md
+    assert "(2 trials per case: one trial moves a rate by 50 points)" in md
+    assert "(one trial per case: one trial moves a rate by 100 points)" in rates_markdown(
+        rates_table(trials), trials, [1]
+    )
 
 
 def _follow_up(effect: str, named: tuple[str, ...]) -> PlanFollowUp:
