@@ -140,13 +140,17 @@ def markdown(results: dict[str, dict[str, Any]], seed: int) -> str:
                 f"{', '.join(r['quarantined'])} (see the workflow's log).",
             ]
     for variant, r in results.items():
-        lines += ["", f"Candidates in the last round of `{variant}` (none named):", ""]
-        lines += [_candidate_line(c, r["suspects"]) for c in r["last_round"]]
+        lines += ["", f"Candidates in the last round of `{variant}`:", ""]
+        lines += [_candidate_line(c, r["named_effects"], r["suspects"]) for c in r["last_round"]]
     return "\n".join(lines) + "\n"
 
 
-def _candidate_line(candidate: dict[str, Any], suspects: dict[str, str]) -> str:
-    """Return one last-round candidate's figures and, if it passed, why it was not named."""
+def _candidate_line(candidate: dict[str, Any], named: list[str], suspects: dict[str, str]) -> str:
+    """Return one last-round candidate's figures and, if it passed, whether it was named.
+
+    The last round names one when the search stopped at its most effects; a candidate that
+    passed and was not named says why.
+    """
     z_change, t_change = (
         0.0 - 100 * candidate[key] for key in ("heldout_reduction", "heldout_T_reduction")
     )
@@ -156,6 +160,8 @@ def _candidate_line(candidate: dict[str, Any], suspects: dict[str, str]) -> str:
     )
     if not candidate.get("passes"):
         return line
+    if candidate["effect"] in named:
+        return line + "; named"
     reason = suspects.get(candidate["effect"])
     if reason is None:
         return line + "; passes the thresholds, held back by a gate (see the workflow's report)"

@@ -112,9 +112,12 @@ def test_a_candidate_that_passed_but_was_held_back_says_why():
     )
     doc["suspects"] = [{"effect": "nonlinear_bearing_heat", "reason": "its evidence lies where"}]
     md = markdown({"speed_steps": summarise(doc)}, 2016)
-    assert "Candidates in the last round of `speed_steps` (none named):" in md
+    assert "Candidates in the last round of `speed_steps`:" in md
     assert (
         "`nonlinear_bearing_heat`: delta BIC -4487, held-out Z -20 %, T -19 %; passes the "
         "thresholds, held back as a suspect: its evidence lies where\n" in md
     )
     assert "`sensor_lag`: delta BIC 3, held-out Z +1 %, T +0 %\n" in md
+    doc["named_effects"].append("nonlinear_bearing_heat")
+    md = markdown({"speed_steps": summarise(doc)}, 2016)
+    assert "held-out Z -20 %, T -19 %; named\n" in md
