@@ -36,6 +36,7 @@ from typing import Any
 
 from benchmarks.discrepancy_trials import PROGRAMS, SteppedPlan, run_workflow
 from pipeline.config import DEFAULT_PARAMS
+from pipeline.discrepancy.followup import signed_percent
 from pipeline.settings.base import load_settings
 from pipeline.settings.discrepancy import DiscrepancySettings
 from pipeline.twin.campaigns import SpindlePlan, demo_plans, simulate_spindle_campaign
@@ -152,11 +153,11 @@ def _candidate_line(candidate: dict[str, Any], named: list[str], suspects: dict[
     passed and was not named says why.
     """
     z_change, t_change = (
-        0.0 - 100 * candidate[key] for key in ("heldout_reduction", "heldout_T_reduction")
+        signed_percent(0.0 - candidate[key]) for key in ("heldout_reduction", "heldout_T_reduction")
     )
     line = (
         f"- `{candidate['effect']}`: delta BIC {candidate['delta_bic']:.0f}, "
-        f"held-out Z {z_change:+.0f} %, T {t_change:+.0f} %"
+        f"held-out Z {z_change}, T {t_change}"
     )
     if not candidate.get("passes"):
         return line
